@@ -1,0 +1,117 @@
+"""The BSDF interface every material implements (one module per material, one interface).
+
+A scene-level :class:`Material` is *bound* to a batch of shading points (``bind(ctx)``), which
+evaluates its textures once and returns a lane-bound :class:`BSDF`. All BSDF queries are arrays:
+
+* Directions are in the local shading frame (z = shading normal, x = UV tangent), float64,
+  shape (n, 3), unit length. ``wi`` and ``wo`` both point *away* from the surface.
+  ``wi`` is the direction the path arrived from (towards the camera); ``wo`` is the direction
+  being evaluated/sampled (towards the light) — Mitsuba's naming.
+* ``eval(wi, wo, rng)`` returns f(wi, wo)·|cos θo| per RGB channel, shape (n, 3), for the
+  non-delta part of the BSDF only.
+* ``pdf(wi, wo, rng)`` returns the solid-angle density, shape (n,), with which ``sample`` picks wo
+  (non-delta part). Stochastic BSDFs (layered) return an estimate, used only for MIS weights.
+* ``sample(wi, rng)`` returns a :class:`BSDFSample`. Its ``weight`` is f·|cos θo|/p (delta lobes
+  included) and is *never* recomputed as eval/pdf by callers: for stochastic BSDFs the three
+  quantities are independent estimates.
+* ``mode`` is the transport mode: RADIANCE (camera paths) scales refraction by 1/η², IMPORTANCE
+  does not. Only transmissive BSDFs look at it.
+* Random numbers come from ``rng`` (a numpy Generator); analytic BSDFs ignore it in eval/pdf.
+
+Precision: BSDF maths runs in float64 — microfacet terms at α = 1e-4 and cosines down to 1e-6
+lose all precision in float32 (1 − cos² cancels), and layered walks multiply many factors.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar, NamedTuple
+
+import numpy as np
+
+RADIANCE = 0
+IMPORTANCE = 1
+
+
+class BSDFSample(NamedTuple):
+    wo: np.ndarray       # (n, 3) sampled direction, local frame, unit
+    weight: np.ndarray   # (n, 3) f·|cos θo| / p; zero where sampling failed (path ends)
+    pdf: np.ndarray      # (n,) solid-angle pdf for MIS; 0 where delta (not used there)
+    delta: np.ndarray    # (n,) bool: a delta lobe was sampled (no MIS with light sampling)
+
+
+@dataclass
+class ShadingContext:
+    """What a material needs to bind its parameters at n shading points."""
+
+    uv: np.ndarray  # (n, 2) float64 texture coordinates (Blender's UV convention, v up)
+
+    @property
+    def n(self) -> int:
+        return self.uv.shape[0]
+
+
+def lanes(value: np.ndarray, idx) -> np.ndarray:
+    """Subset a bound parameter: constants (ndim 0, or leading dimension 1) stay as they are."""
+    value = np.asarray(value)
+    if value.ndim == 0 or value.shape[0] == 1:
+        return value
+    return value[idx]
+
+
+class BSDF:
+    """A material bound to n shading points. Subclasses implement the four queries and take()."""
+
+    #: True if every lobe is a delta (no eval/pdf needed; NEE skipped for these lanes).
+    delta_only: ClassVar[bool] = False
+    #: True if some lobe is a delta (sample may return delta=True).
+    has_delta: ClassVar[bool] = False
+    #: True if it can transmit (wo on the other side of the surface from wi).
+    transmissive: ClassVar[bool] = False
+    #: True if eval/pdf/sample are stochastic estimates (layered).
+    stochastic: ClassVar[bool] = False
+
+    n: int
+
+    def eval(self, wi: np.ndarray, wo: np.ndarray, rng: np.random.Generator,
+             mode: int = RADIANCE) -> np.ndarray:
+        raise NotImplementedError
+
+    def pdf(self, wi: np.ndarray, wo: np.ndarray, rng: np.random.Generator,
+            mode: int = RADIANCE) -> np.ndarray:
+        raise NotImplementedError
+
+    def sample(self, wi: np.ndarray, rng: np.random.Generator,
+               mode: int = RADIANCE) -> BSDFSample:
+        raise NotImplementedError
+
+    def albedo(self) -> np.ndarray:
+        """(n, 3) or (1, 3): an RGB estimate of the reflectance, for the albedo AOV (denoising)."""
+        raise NotImplementedError
+
+    def take(self, idx) -> "BSDF":
+        """The same BSDF restricted to lanes ``idx`` (an index array or a boolean mask)."""
+        raise NotImplementedError
+
+
+class Material:
+    """A scene material. Parsed from the scene file, bound per shading batch.
+
+    ``two_sided``: reflection-only materials are seen from both sides (the integrator flips the
+    frame towards the arriving direction); transmissive ones are not flipped (the side matters).
+    ``emission``: an RGB radiance Param (W m⁻² sr⁻¹) or None.
+    """
+
+    type_name: ClassVar[str] = ""
+    two_sided: bool = True
+    emission = None
+
+    def bind(self, ctx: ShadingContext) -> BSDF:
+        raise NotImplementedError
+
+    @property
+    def uses_textures(self) -> bool:
+        return False
+
+
+def zeros3(n: int) -> np.ndarray:
+    return np.zeros((n, 3))

@@ -1,0 +1,87 @@
+"""Small vector helpers over (N, 3) float arrays. Pure functions, no state.
+
+Conventions: vectors are rows; "local" frames have z = shading normal, x = tangent.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+# Rec.709 luminance weights (linear RGB), used for light power and roulette.
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("...i,...i->...", a, b)
+
+
+def norm(a: np.ndarray) -> np.ndarray:
+    return np.sqrt(dot(a, a))
+
+
+def normalize(a: np.ndarray) -> np.ndarray:
+    """Unit vectors; zero vectors stay zero (no NaN)."""
+    n = norm(a)
+    return a / np.where(n > 0, n, 1.0)[..., None]
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.cross(a, b)
+
+
+def safe_sqrt(x: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.maximum(x, 0.0))
+
+
+def luminance(rgb: np.ndarray) -> np.ndarray:
+    return rgb @ LUMINANCE
+
+
+def reflect(w: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Mirror w (pointing away) about n; both unit; result points away on the same side as n."""
+    return 2.0 * dot(w, n)[..., None] * n - w
+
+
+def coordinate_system(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors orthogonal to unit n (Duff et al. 2017, branchless), shape (N, 3) each."""
+    sign = np.where(n[..., 2] >= 0, 1.0, -1.0)
+    a = -1.0 / (sign + n[..., 2])
+    b = n[..., 0] * n[..., 1] * a
+    s = np.stack([1.0 + sign * n[..., 0] ** 2 * a, sign * b, -sign * n[..., 0]], axis=-1)
+    t = np.stack([b, sign + n[..., 1] ** 2 * a, -n[..., 1]], axis=-1)
+    return s, t
+
+
+class Frame:
+    """Orthonormal frames (N lanes): z = normal n, x = tangent s, y = n × s."""
+
+    __slots__ = ("s", "t", "n")
+
+    def __init__(self, s: np.ndarray, t: np.ndarray, n: np.ndarray):
+        self.s, self.t, self.n = s, t, n
+
+    @classmethod
+    def from_normal_tangent(cls, n: np.ndarray, tangent: np.ndarray | None = None) -> "Frame":
+        """Gram-Schmidt the tangent against n; falls back to an arbitrary frame where degenerate."""
+        s0, t0 = coordinate_system(n)
+        if tangent is None:
+            return cls(s0, t0, n)
+        s = tangent - dot(tangent, n)[..., None] * n
+        length = norm(s)
+        ok = length > 1e-8
+        s = np.where(ok[..., None], s / np.where(ok, length, 1.0)[..., None], s0)
+        t = cross(n, s)
+        return cls(s, t, n)
+
+    def to_local(self, v: np.ndarray) -> np.ndarray:
+        return np.stack([dot(v, self.s), dot(v, self.t), dot(v, self.n)], axis=-1)
+
+    def to_world(self, v: np.ndarray) -> np.ndarray:
+        return v[..., 0:1] * self.s + v[..., 1:2] * self.t + v[..., 2:3] * self.n
+
+    def flipped_where(self, mask: np.ndarray) -> "Frame":
+        """Frame with n (and t, to stay right-handed) negated on lanes where mask is true."""
+        sign = np.where(mask, -1.0, 1.0)[..., None]
+        return Frame(self.s, self.t * sign, self.n * sign)
+
+    def take(self, idx) -> "Frame":
+        return Frame(self.s[idx], self.t[idx], self.n[idx])

@@ -1,0 +1,1 @@
+"""Sampling building blocks: warps from the unit square and discrete distributions."""

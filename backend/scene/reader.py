@@ -1,0 +1,249 @@
+"""Validated reading of JSON scene/material documents.
+
+A :class:`Node` wraps one JSON object (or value) together with its *field path* and the file it
+came from. Accessors check type and range and raise :class:`SceneError` naming file and path::
+
+    materials.paint.roughness: expected a number in [0, 1], got -0.3
+
+Every key of an object must be read by its parser; ``finish()`` reports the ones that were not
+("unknown field"), so typos never pass silently.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from ..errors import SceneError
+
+_MISSING = object()
+
+
+def _describe(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if value is None:
+        return "null"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        return repr(value) if len(value) < 60 else repr(value[:57] + "...")
+    if isinstance(value, list):
+        return f"a list of {len(value)}"
+    if isinstance(value, dict):
+        return "an object"
+    return type(value).__name__
+
+
+def _range_text(lo, hi, lo_open, hi_open) -> str:
+    if lo is not None and hi is not None:
+        return f"in {'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+    if lo is not None:
+        return f"{'>' if lo_open else '>='} {lo:g}"
+    if hi is not None:
+        return f"{'<' if hi_open else '<='} {hi:g}"
+    return ""
+
+
+class LoadContext:
+    """Shared state while loading one document: its file, base folder, warnings, caches."""
+
+    def __init__(self, where: str, base_dir: Path | None = None):
+        self.where = where
+        self.base_dir = base_dir if base_dir is not None else Path.cwd()
+        self.warnings: list[str] = []
+        self.cache: dict = {}
+
+    def warn(self, path: str, message: str) -> None:
+        self.warnings.append(f"{self.where}: {path}: {message}" if path else f"{self.where}: {message}")
+
+    def error(self, path: str, message: str) -> SceneError:
+        return SceneError(self.where, path, message)
+
+    def resolve(self, relative: str) -> Path:
+        p = Path(relative)
+        return p if p.is_absolute() else (self.base_dir / p)
+
+
+class Node:
+    """A JSON value at a field path. Object accessors consume keys; see ``finish``."""
+
+    def __init__(self, value: Any, path: str, ctx: LoadContext):
+        self.value = value
+        self.path = path
+        self.ctx = ctx
+        self._used: set[str] = set()
+
+    # ----------------------------------------------------------------- helpers
+    def sub(self, key: str | int) -> str:
+        if isinstance(key, int):
+            return f"{self.path}[{key}]"
+        return f"{self.path}.{key}" if self.path else key
+
+    def fail(self, message: str, key: str | int | None = None) -> SceneError:
+        return self.ctx.error(self.sub(key) if key is not None else self.path, message)
+
+    def is_object(self) -> bool:
+        return isinstance(self.value, dict)
+
+    def require_object(self) -> "Node":
+        if not isinstance(self.value, dict):
+            raise self.fail(f"expected an object, got {_describe(self.value)}")
+        return self
+
+    def has(self, key: str) -> bool:
+        return isinstance(self.value, dict) and key in self.value
+
+    def _get(self, key: str, default: Any) -> Any:
+        self.require_object()
+        self._used.add(key)
+        if key in self.value:
+            return self.value[key]
+        if default is _MISSING:
+            raise self.fail("missing required field", key)
+        return default
+
+    def finish(self) -> None:
+        """Raise on keys that no accessor read (unknown fields)."""
+        if isinstance(self.value, dict):
+            unknown = [k for k in self.value if k not in self._used and not k.startswith("_")]
+            if unknown:
+                raise self.fail(f"unknown field (allowed: {', '.join(sorted(self._used)) or 'none'})",
+                                unknown[0])
+
+    def ignore(self, *keys: str) -> None:
+        """Mark keys as known (read elsewhere or deliberately ignored)."""
+        self._used.update(keys)
+
+    # ----------------------------------------------------------------- accessors
+    def child(self, key: str, default: Any = _MISSING) -> "Node":
+        return Node(self._get(key, default), self.sub(key), self.ctx)
+
+    def optional_child(self, key: str) -> "Node | None":
+        value = self._get(key, None)
+        return None if value is None else Node(value, self.sub(key), self.ctx)
+
+    def items(self) -> list["Node"]:
+        """The elements of a JSON list as Nodes."""
+        if not isinstance(self.value, list):
+            raise self.fail(f"expected a list, got {_describe(self.value)}")
+        return [Node(v, self.sub(i), self.ctx) for i, v in enumerate(self.value)]
+
+    def entries(self) -> list[tuple[str, "Node"]]:
+        """(key, Node) pairs of a JSON object (all keys consumed)."""
+        self.require_object()
+        self._used.update(self.value.keys())
+        return [(k, Node(v, self.sub(k), self.ctx)) for k, v in self.value.items()]
+
+    def string(self, key: str, default: Any = _MISSING, choices: tuple | list | None = None) -> str:
+        value = self._get(key, default)
+        if value is default and default is not _MISSING:
+            return value
+        if not isinstance(value, str):
+            raise self.fail(f"expected a string, got {_describe(value)}", key)
+        if choices is not None and value not in choices:
+            raise self.fail(f"expected one of {', '.join(map(repr, choices))}, got {_describe(value)}", key)
+        return value
+
+    def boolean(self, key: str, default: Any = _MISSING) -> bool:
+        value = self._get(key, default)
+        if not isinstance(value, bool):
+            raise self.fail(f"expected true or false, got {_describe(value)}", key)
+        return value
+
+    def number(self, key: str, default: Any = _MISSING, lo: float | None = None,
+               hi: float | None = None, lo_open: bool = False, hi_open: bool = False) -> float:
+        value = self._get(key, default)
+        return check_number(value, self.sub(key), self.ctx, lo, hi, lo_open, hi_open)
+
+    def integer(self, key: str, default: Any = _MISSING, lo: int | None = None,
+                hi: int | None = None) -> int:
+        value = self._get(key, default)
+        if isinstance(value, bool) or not isinstance(value, int):
+            if isinstance(value, float) and value.is_integer():
+                value = int(value)
+            else:
+                raise self.fail(f"expected an integer{' ' + _range_text(lo, hi, False, False) if lo is not None or hi is not None else ''}, got {_describe(value)}", key)
+        if (lo is not None and value < lo) or (hi is not None and value > hi):
+            raise self.fail(f"expected an integer {_range_text(lo, hi, False, False)}, got {value}", key)
+        return value
+
+    def vector(self, key: str, size: int, default: Any = _MISSING, lo: float | None = None,
+               hi: float | None = None, nonzero: bool = False) -> np.ndarray:
+        value = self._get(key, default)
+        return check_vector(value, size, self.sub(key), self.ctx, lo, hi, nonzero)
+
+    def rgb(self, key: str, default: Any = _MISSING, lo: float | None = 0.0,
+            hi: float | None = None) -> np.ndarray:
+        """An RGB triple; a single number means grey."""
+        value = self._get(key, default)
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            value = [value] * 3
+        return check_vector(value, 3, self.sub(key), self.ctx, lo, hi, False, what="an RGB colour")
+
+    def matrix4(self, key: str, default: Any = _MISSING) -> np.ndarray:
+        """A 4×4 matrix given as 4 rows of 4 numbers (row-major, column vectors: p' = M p)."""
+        value = self._get(key, default)
+        path = self.sub(key)
+        if not (isinstance(value, list) and len(value) == 4 and
+                all(isinstance(r, list) and len(r) == 4 for r in value)):
+            raise self.ctx.error(path, f"expected a 4×4 matrix (4 rows of 4 numbers), got {_describe(value)}")
+        rows = [check_vector(r, 4, f"{path}[{i}]", self.ctx) for i, r in enumerate(value)]
+        m = np.array(rows, dtype=np.float64)
+        if abs(np.linalg.det(m[:3, :3])) < 1e-12:
+            raise self.ctx.error(path, "matrix is singular (zero scale?)")
+        return m
+
+    def param(self, key: str, default: Any = _MISSING, channels: int = 1, lo: float | None = None,
+              hi: float | None = None, lo_open: bool = False, color: bool | None = None):
+        """A texturable parameter: a constant (number/RGB) or ``{"texture": ...}``.
+
+        Returns a :class:`backend.textures.Param`.
+        """
+        from ..textures import parse_param
+        value = self._get(key, default)
+        return parse_param(value, self.sub(key), self.ctx, channels, lo, hi, lo_open,
+                           color if color is not None else channels == 3)
+
+    def one_of(self, key: str, parsers: dict[str, Callable], default: Any = _MISSING):
+        """Dispatch a child object on its "type" field."""
+        child = self.child(key, default)
+        return dispatch(child, parsers)
+
+
+def dispatch(node: Node, parsers: dict[str, Callable]):
+    node.require_object()
+    kind = node.string("type")
+    if kind not in parsers:
+        raise node.fail(f"unknown type {kind!r} (known: {', '.join(sorted(parsers))})", "type")
+    result = parsers[kind](node)
+    node.finish()
+    return result
+
+
+def check_number(value: Any, path: str, ctx: LoadContext, lo=None, hi=None,
+                 lo_open=False, hi_open=False) -> float:
+    rng = _range_text(lo, hi, lo_open, hi_open)
+    what = f"a number {rng}".strip()
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ctx.error(path, f"expected {what}, got {_describe(value)}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ctx.error(path, f"expected {what}, got {value}")
+    if ((lo is not None and (value < lo or (lo_open and value == lo))) or
+            (hi is not None and (value > hi or (hi_open and value == hi)))):
+        raise ctx.error(path, f"expected {what}, got {value:g}")
+    return value
+
+
+def check_vector(value: Any, size: int, path: str, ctx: LoadContext, lo=None, hi=None,
+                 nonzero=False, what: str | None = None) -> np.ndarray:
+    what = what or f"a list of {size} numbers"
+    if not isinstance(value, list) or len(value) != size:
+        raise ctx.error(path, f"expected {what}, got {_describe(value)}")
+    out = np.array([check_number(v, f"{path}[{i}]", ctx, lo, hi) for i, v in enumerate(value)])
+    if nonzero and not np.any(out):
+        raise ctx.error(path, "expected a non-zero vector")
+    return out

@@ -1,0 +1,201 @@
+"""Texturable parameters: a constant or an image texture looked up by UV (bilinear, repeat).
+
+Bound values follow the shapes that ``materials.base.lanes`` understands:
+scalar params give shape () when constant and (n,) when textured; RGB params give (1, 3) when
+constant and (n, 3) when textured. Constants are never expanded to per-lane arrays
+("constants are not textures": no work for what a scene does not use).
+
+Images are read with OpenImageIO as float32. Colour-space: 8/16-bit images used for colour
+parameters are sRGB-decoded unless the file says otherwise; float images (EXR/HDR) and non-colour
+parameters (roughness, density, ...) are used as stored. NaN/Inf texels become 0 and out-of-range
+texels are clamped to the parameter's range, each with one warning (never NaN in the renderer).
+UV convention: Blender's (u right, v up, (0, 0) = bottom-left of the image).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import SceneError
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    c = np.asarray(c, dtype=np.float32)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def linear_to_srgb(c: np.ndarray) -> np.ndarray:
+    c = np.clip(c, 0.0, None)
+    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
+
+
+def read_image(path: Path, where: str = "", field: str = "") -> tuple[np.ndarray, bool]:
+    """Read an image as float32 (H, W, C). Returns (pixels, is_float_format). Raises SceneError."""
+    try:
+        import OpenImageIO as oiio
+    except ImportError as exc:  # pragma: no cover - dependency is pinned
+        raise SceneError(where, field, f"OpenImageIO is not installed ({exc})") from exc
+    if not Path(path).is_file():
+        raise SceneError(where, field, f"texture file not found: {path}")
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise SceneError(where, field, f"cannot read image {path}: {oiio.geterror()}")
+    try:
+        spec = inp.spec()
+        pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
+        if pixels is None:
+            raise SceneError(where, field, f"cannot decode image {path}: {inp.geterror()}")
+        fmt = str(spec.format)
+        is_float = fmt in ("float", "half", "double")
+        colorspace = spec.get_string_attribute("oiio:ColorSpace", "")
+    finally:
+        inp.close()
+    pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
+    if colorspace.lower() in ("linear", "lin_rec709", "scene_linear"):
+        is_float = True
+    return pixels, is_float
+
+
+class Param:
+    """A bindable parameter. ``bind(uv)`` returns the per-lane value (see module docstring)."""
+
+    channels: int = 1
+    is_constant: bool = True
+
+    def bind(self, uv: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def mean(self) -> np.ndarray:
+        """Average value (scalar or (3,)), e.g. for light power estimates."""
+        raise NotImplementedError
+
+
+class ConstantParam(Param):
+    def __init__(self, value: Any, channels: int):
+        self.channels = channels
+        v = np.asarray(value, dtype=np.float64)
+        self.value = v.reshape(1, 3) if channels == 3 else v.reshape(())
+
+    def bind(self, uv: np.ndarray) -> np.ndarray:
+        return self.value
+
+    def mean(self) -> np.ndarray:
+        return self.value.reshape(3) if self.channels == 3 else self.value
+
+
+class ImageParam(Param):
+    """Bilinear, repeating image lookup, times a constant ``scale``."""
+
+    is_constant = False
+
+    def __init__(self, texels: np.ndarray, channels: int, scale: np.ndarray, source: str):
+        self.texels = texels  # (H, W, channels) float32, already sanitised and linear
+        self.channels = channels
+        self.scale = np.asarray(scale, dtype=np.float64)
+        self.source = source
+
+    def bind(self, uv: np.ndarray) -> np.ndarray:
+        h, w = self.texels.shape[:2]
+        # Texel centres at (i + 0.5)/w; v is up in UV space, rows go down in the image.
+        x = uv[:, 0] * w - 0.5
+        y = (1.0 - uv[:, 1]) * h - 0.5
+        x0 = np.floor(x)
+        y0 = np.floor(y)
+        fx = (x - x0)[:, None]
+        fy = (y - y0)[:, None]
+        x0 = x0.astype(np.int64) % w
+        y0 = y0.astype(np.int64) % h
+        x1 = (x0 + 1) % w
+        y1 = (y0 + 1) % h
+        t = self.texels
+        top = t[y0, x0] * (1 - fx) + t[y0, x1] * fx
+        bottom = t[y1, x0] * (1 - fx) + t[y1, x1] * fx
+        value = (top * (1 - fy) + bottom * fy).astype(np.float64)
+        if self.channels == 1:
+            return value[:, 0] * self.scale
+        return value * self.scale
+
+    def mean(self) -> np.ndarray:
+        m = self.texels.reshape(-1, self.channels).mean(axis=0).astype(np.float64) * self.scale
+        return m if self.channels == 3 else m[0]
+
+
+def parse_param(value: Any, path: str, ctx, channels: int, lo, hi, lo_open: bool, color: bool) -> Param:
+    from .scene.reader import Node, check_number, check_vector
+
+    if isinstance(value, dict):
+        node = Node(value, path, ctx)
+        file = node.string("texture")
+        colorspace = node.string("colorspace", "auto", choices=("auto", "sRGB", "linear"))
+        channel = node.integer("channel", -1, lo=-1, hi=3)
+        if channels == 3:
+            scale = node.rgb("scale", [1.0, 1.0, 1.0], lo=None)
+        else:
+            scale = np.asarray(node.number("scale", 1.0))
+        node.finish()
+        texels = load_texels(ctx, file, f"{path}.texture", channels, channel, colorspace, color)
+        texels = sanitise_texels(texels, ctx, path, lo, hi, scale)
+        return ImageParam(texels, channels, scale, file)
+    if channels == 3:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            value = [value] * 3
+        v = check_vector(value, 3, path, ctx, lo, hi, what="an RGB colour or {\"texture\": ...}")
+        return ConstantParam(v, 3)
+    if isinstance(value, list):
+        raise ctx.error(path, f"expected a number or {{\"texture\": ...}}, got a list of {len(value)}")
+    return ConstantParam(check_number(value, path, ctx, lo, hi, lo_open), 1)
+
+
+def load_texels(ctx, file: str, path: str, channels: int, channel: int, colorspace: str,
+                color: bool) -> np.ndarray:
+    resolved = ctx.resolve(file)
+    key = ("image", str(resolved))
+    if key not in ctx.cache:
+        ctx.cache[key] = read_image(resolved, ctx.where, path)
+    pixels, is_float = ctx.cache[key]
+    decode_srgb = (colorspace == "sRGB") or (colorspace == "auto" and color and not is_float)
+    c = pixels.shape[2]
+    if channels == 3:
+        if c >= 3:
+            out = pixels[:, :, :3]
+        else:
+            out = np.repeat(pixels[:, :, :1], 3, axis=2)
+        if decode_srgb:
+            out = srgb_to_linear(out)
+    else:
+        pick = channel if channel >= 0 else 0
+        if pick >= c:
+            raise ctx.error(path, f"image has {c} channel(s), channel {pick} requested")
+        if channel < 0 and c >= 3:
+            # A colour image for a scalar parameter: use its luminance (Rec.709 weights).
+            rgb = srgb_to_linear(pixels[:, :, :3]) if decode_srgb else pixels[:, :, :3]
+            out = (rgb @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32))[:, :, None]
+        else:
+            out = pixels[:, :, pick:pick + 1]
+            if decode_srgb:
+                out = srgb_to_linear(out)
+    return np.ascontiguousarray(out, dtype=np.float32)
+
+
+def sanitise_texels(texels: np.ndarray, ctx, path: str, lo, hi, scale) -> np.ndarray:
+    bad = ~np.isfinite(texels)
+    if bad.any():
+        ctx.warn(path, f"{int(bad.sum())} NaN/Inf texel value(s) replaced by 0")
+        texels = np.where(bad, 0.0, texels).astype(np.float32)
+    # Range applies to the scaled value; scale is positive in sane use, so clamp texels.
+    s = np.asarray(scale, dtype=np.float64)
+    s_min = float(np.min(s)) if s.size else 1.0
+    if s_min > 0:
+        lo_t = None if lo is None else lo / s_min
+        hi_t = None if hi is None else hi / float(np.max(s))
+        out = texels
+        if lo_t is not None and (out < lo_t).any():
+            ctx.warn(path, f"{int((out < lo_t).sum())} texel value(s) below {lo:g} clamped")
+            out = np.maximum(out, lo_t)
+        if hi_t is not None and (out > hi_t).any():
+            ctx.warn(path, f"{int((out > hi_t).sum())} texel value(s) above {hi:g} clamped")
+            out = np.minimum(out, hi_t)
+        texels = out.astype(np.float32)
+    return texels
