@@ -1,0 +1,53 @@
+"""Command-line interface: ``python -m backend <command> ...``.
+
+Each command lives in its own module with ``register(subparsers)``; this file only dispatches and
+turns user errors into one clear line on stderr (exit status 2) — never a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from . import __version__
+from .errors import LaminaError
+
+# Modules that add sub-commands. A module that is missing (work in progress) is skipped.
+COMMAND_MODULES = (
+    "backend.render_cli",      # render, validate
+    "backend.bsdf_cli",        # bsdf albedo / eval / plot
+    "backend.ies.cli",         # ies info / plot
+    "backend.presets_cli",     # presets list / show
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="python -m backend",
+                                     description="Lamina: a layered-material path tracer.")
+    parser.add_argument("--version", action="version", version=f"Lamina {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name == name:
+                continue
+            raise
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except LaminaError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
