@@ -5,5 +5,5 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
-SHARED = ROOT.parent / "shared"
+DATA = ROOT / "tests" / "data"  # copies of ../shared/data (IES files, slab references)
 os.environ.setdefault("LAMINA_ROOT", str(ROOT))
