@@ -1,10 +1,25 @@
 """Lights: one module per light type, all implementing ``base.Light``.
 
-``REGISTRY`` maps the scene-file light ``type`` to a parser ``from_node(node, ctx) -> Light``.
+``REGISTRY`` maps the scene-file light ``type`` to a parser ``from_node(node) -> Light``;
+``WORLD_REGISTRY`` maps the ``world.type`` to a parser returning an infinite Light (or None).
+Modules register themselves when imported; ``load_all()`` imports the known modules.
 """
 from __future__ import annotations
 
+import importlib
+
 REGISTRY: dict = {}
+WORLD_REGISTRY: dict = {}
+
+MODULES = (
+    "backend.lights.point",
+    "backend.lights.spot",
+    "backend.lights.sun",
+    "backend.lights.area",
+    "backend.lights.environment",
+    "backend.lights.mesh",
+    "backend.ies.light",
+)
 
 
 def register(type_name: str):
@@ -12,3 +27,20 @@ def register(type_name: str):
         REGISTRY[type_name] = parser
         return parser
     return deco
+
+
+def register_world(type_name: str):
+    def deco(parser):
+        WORLD_REGISTRY[type_name] = parser
+        return parser
+    return deco
+
+
+def load_all() -> tuple[dict, dict]:
+    for name in MODULES:
+        try:
+            importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name != name:
+                raise
+    return REGISTRY, WORLD_REGISTRY
