@@ -156,19 +156,23 @@ def clamp_stddev(s) -> np.ndarray:
     return np.clip(np.asarray(s, dtype=np.float64), S_MIN, S_MAX)
 
 
-def fiber_sigma(s, cos_t, sin_t=None) -> np.ndarray:
+def fiber_sigma(s, cos_t, sin_t=None, row=None) -> np.ndarray:
     """σ_fiber(s, θ) from the table. ``s`` () or (n,); cos_t (n,) = ω·t; sin_t = |ω × t| (optional,
-    more accurate near θ = 0 than √(1 − cos²))."""
+    more accurate near θ = 0 than √(1 − cos²)). ``row``: ``table_row(s)`` for a constant s
+    (saves the interpolation across stddev rows)."""
     s = clamp_stddev(s)
     c = np.abs(np.asarray(cos_t, dtype=np.float64))
     sn = np.sqrt(np.maximum(0.0, (1.0 - c) * (1.0 + c))) if sin_t is None else np.abs(sin_t)
     theta = np.arctan2(sn, c)
+    j, fj = _cell(_q_of(theta, s) * (_COLS - 1), _COLS)
+    wj = _lagrange4(fj)
+    if s.ndim == 0:
+        row = table_row(s) if row is None else row
+        return wj[0] * row[j] + wj[1] * row[j + 1] + wj[2] * row[j + 2] + wj[3] * row[j + 3]
     sigma_t, _ = _table()
     s_b = np.broadcast_to(s, theta.shape)
     i, fi = _cell((np.log(s_b) - _LN_S0) / _H_S, _ROWS)
-    j, fj = _cell(_q_of(theta, s_b) * (_COLS - 1), _COLS)
     wi = _lagrange4(fi)
-    wj = _lagrange4(fj)
     out = np.zeros(theta.shape)
     for a in range(4):
         acc = wj[0] * sigma_t[i + a, j]
@@ -176,6 +180,15 @@ def fiber_sigma(s, cos_t, sin_t=None) -> np.ndarray:
             acc = acc + wj[b] * sigma_t[i + a, j + b]
         out = out + wi[a] * acc
     return out
+
+
+def table_row(s) -> np.ndarray:
+    """σ over the q columns (with ghosts) for one constant stddev, interpolated across rows."""
+    s = clamp_stddev(s)
+    sigma_t, _ = _table()
+    i, f = _cell((np.log(s) - _LN_S0) / _H_S, _ROWS)
+    w = _lagrange4(f)
+    return sum(w[a] * sigma_t[int(i) + a] for a in range(4))
 
 
 def ln_gauss_norm(s) -> np.ndarray:
@@ -206,13 +219,14 @@ class MicroflakeFiber(Phase):
         self.stddev = clamp_stddev(scalar_lanes(stddev))
         self.axis = unit_or(vector_lanes(orientation), [1.0, 0.0, 0.0])
         self._ln_norm = ln_gauss_norm(self.stddev)
+        self._row = table_row(self.stddev) if self.stddev.ndim == 0 else None
 
     @property
     def n(self):
         return lane_count(self.stddev, self.axis)
 
     def _sigma(self, d: np.ndarray) -> np.ndarray:
-        return fiber_sigma(self.stddev, dot(d, self.axis), sin_between(d, self.axis))
+        return fiber_sigma(self.stddev, dot(d, self.axis), sin_between(d, self.axis), self._row)
 
     def sigma_scale(self, d):
         return 2.0 * self._sigma(d)
@@ -289,4 +303,5 @@ class MicroflakeFiber(Phase):
         other.stddev = lanes(self.stddev, idx)
         other.axis = lanes(self.axis, idx)
         other._ln_norm = lanes(self._ln_norm, idx)
+        other._row = self._row
         return self._child(other)
