@@ -272,6 +272,11 @@ def test_fiber_sigma_table_accuracy_dense():
     ref = fiber_mod.projected_area_quadrature(s, np.cos(th), np.sin(th), nodes=32)
     val = fiber_mod.fiber_sigma(s, np.cos(th), np.sin(th))
     assert np.max(np.abs(val / ref - 1)) < 1e-5
+    # Constant stddev (the phase's fast path: one interpolated row).
+    for sv in (0.0013, 0.05, 0.37, 3.3):
+        ref = fiber_mod.projected_area_quadrature(np.full(m, sv), np.cos(th), np.sin(th), nodes=32)
+        val = fiber_mod.fiber_sigma(np.array(sv), np.cos(th), np.sin(th))
+        assert np.max(np.abs(val / ref - 1)) < 1e-5
 
 
 def test_fiber_sigma_limits():

@@ -106,7 +106,7 @@ class Medium:
         """(n, 3): optical depth of the whole slab measured *along the normal* for light travelling
         along d, τ0 · sigma_scale(d). Divide by |d_z| for the rate along the ray per unit depth."""
         if not self.phase.directional:
-            return np.broadcast_to(self.optical_depth, (d.shape[0], 3))
+            return np.broadcast_to(self.optical_depth, (d.shape[0], 3)).copy()
         return self.optical_depth * self.phase.sigma_scale(d)[:, None]
 
     def sigma_s(self, d: np.ndarray) -> np.ndarray:
@@ -148,7 +148,7 @@ class Medium:
         rate, alive = self._rate(d)
         up = d[:, 2] > 0
         boundary = np.where(up, 0.0, 1.0)
-        dmax = np.where(up, depth, 1.0 - depth)  # depth left to the boundary
+        dmax = np.maximum(np.where(up, depth, 1.0 - depth), 0.0)  # depth left to the boundary
         u = rng.random((n, 2)) if not self.grey else rng.random((n, 1))
         if self.grey:
             r = rate[:, 0]
