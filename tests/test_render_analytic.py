@@ -139,3 +139,35 @@ def test_same_image_for_any_worker_count(workers):
     assert np.array_equal(one.film.sum, many.film.sum)
     assert np.array_equal(one.film.sum_sq, many.film.sum_sq)
     assert np.array_equal(one.film.count, many.film.count)
+
+
+def test_no_light_leaks_into_a_closed_box():
+    """Camera inside a closed cube, bright sun and sky outside: every pixel must be exactly black."""
+    sun = {"type": "sun", "to_world": [[1, 0, 0, 0], [0, 0.6, -0.8, 0], [0, 0.8, 0.6, 10], [0, 0, 0, 1]],
+           "strength": 1000.0, "color": [1, 1, 1], "angle": 3.0}
+    data = scene(32, 32, front_perspective(distance=0.5, half_width=0.8),
+                 {"wall": {"type": "diffuse", "color": 0.9}},
+                 {"box": {"shape": "cube", "size": 2.0}},
+                 [{"mesh": "box", "materials": ["wall"]}], lights=[sun],
+                 world={"type": "constant", "color": [1, 1, 1], "strength": 100.0},
+                 render={"spp": 16, "max_bounces": 6, "seed": 2})
+    result = render(data)
+    assert result.film.combined().max() == 0.0
+
+
+@pytest.mark.parametrize("tilt_deg", [60.0, 85.0])
+def test_no_shadow_acne_at_grazing_sun(tilt_deg):
+    """A plane lit at grazing incidence: any self-intersection would show as dark pixels."""
+    E, rho = 3.0, 0.5
+    c, s = np.cos(np.radians(tilt_deg)), np.sin(np.radians(tilt_deg))
+    light = {"type": "sun", "to_world": [[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 10], [0, 0, 0, 1]],
+             "strength": E, "color": [1, 1, 1], "angle": 0.0}
+    data = plane_scene(light, spp=4)
+    # Move plane and camera ~1 km from the origin: float32 precision there must not cause acne either.
+    far = np.array([800.0, -600.0, 150.0])
+    data["objects"][0]["to_world"] = [[1, 0, 0, far[0]], [0, 1, 0, far[1]], [0, 0, 1, far[2]], [0, 0, 0, 1]]
+    cam = np.array(data["camera"]["to_world"], float)
+    cam[:3, 3] += far
+    data["camera"]["to_world"] = cam.tolist()
+    result = render(data)
+    assert np.allclose(result.film.combined(), rho / np.pi * E * c, rtol=1e-4)
