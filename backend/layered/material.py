@@ -84,7 +84,7 @@ class LayeredMaterial(Material):
             return self.interfaces[0].bind(ctx)
         ifaces = [m.bind(ctx) for m in self.interfaces]
         media = [m.bind(ctx.uv) for m in self.media]
-        stack = BoundStack(ctx.n, ifaces, media, self.eta_slab, self.eta_bottom)
+        stack = BoundStack.build(ctx.n, ifaces, media, self.eta_slab, self.eta_bottom)
         return LayeredBSDF(stack, self.options, self.stats)
 
 
