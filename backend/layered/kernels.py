@@ -146,16 +146,24 @@ class Kernel:
 
 
 class NullKernel(Kernel):
+    """Index-matched pass-through (optionally tinted): a delta transmission wo = −wi."""
+
     delta_only = True
     transmissive = True
 
+    def __init__(self, tint=None):
+        self.tint = tint  # (3, 1|n) or None
+
     def take(self, idx):
-        return self
+        if self.tint is None or self.tint.shape[1] == 1:
+            return self
+        return NullKernel(self.tint[:, idx])
 
     def sample(self, wi, rng):
         m = wi.shape[1]
-        ok = wi[2] != 0
-        return -wi, np.broadcast_to(ok * 1.0, (3, m)), np.ones(m), np.ones(m), np.ones(m, bool)
+        ok = (wi[2] != 0) * 1.0
+        w = np.broadcast_to(ok, (3, m)) if self.tint is None else ok * self.tint
+        return -wi, w, np.ones(m), np.ones(m), np.ones(m, bool)
 
     def eval(self, wi, wo, rng, need_rev=True):
         m = wi.shape[1]
@@ -416,6 +424,10 @@ def kernel_for(bsdf) -> Kernel:
     if isinstance(bsdf, NullBSDF):
         return NullKernel()
     if type(bsdf) is DielectricBSDF:
+        if np.all(np.asarray(bsdf.eta) == 1.0):
+            # Equal indices on both sides: every microfacet refracts straight through, a delta
+            # transmission (the microfacet BTDF's half vector degenerates to 0/0 there).
+            return NullKernel(rgb_rows(bsdf.tint))
         return DielectricKernel.of(bsdf)
     if type(bsdf) is ConductorBSDF:
         return ConductorKernel.of(bsdf)

@@ -6,7 +6,8 @@ depth 0 (top) … 1 (bottom), so a medium vertex at normalised depth s in slab k
 Directions are in the material's local frame (z up); travelling along d changes t by −d_z per
 unit length.
 
-Refractive indices: ``eta_top`` = 1 (outside above), ``eta_slab[k]`` the index of slab k,
+Refractive indices: ``eta_top`` the index outside above (1, or the coating's for a nested stack),
+``eta_slab[k]`` the index of slab k,
 ``eta_bottom`` the index outside below (meaningful only for transmissive stacks).
 
 Slab kinds, decided at bind time from constants ("skip what is not needed"):
@@ -70,32 +71,34 @@ class BoundStack:
     """
 
     def __init__(self, n: int, kernels: list, slabs: list, eta_slab, eta_bottom: float,
-                 kinds: list[int], bsdfs: list | None = None):
+                 kinds: list[int], bsdfs: list | None = None, eta_top: float = 1.0):
         self.n = n
         self.kernels = kernels
         self.slabs = slabs          # SlabOps, or None for an empty slab
         self.kinds = kinds
         self.bsdfs = bsdfs          # the bound interface BSDFs (kept for take/inspection)
         self.N = len(kernels)
-        self.eta_top = 1.0
+        self.eta_top = float(eta_top)   # index above the stack (1; a coating's for a nested stack)
         self.eta_slab = np.asarray(eta_slab, dtype=np.float64).reshape(-1)
         self.eta_bottom = float(eta_bottom)
         self.transmissive = bool(kernels[-1].transmissive)
 
     @classmethod
-    def build(cls, n: int, ifaces: list, media: list, eta_slab, eta_bottom: float) -> "BoundStack":
+    def build(cls, n: int, ifaces: list, media: list, eta_slab, eta_bottom: float,
+              eta_top: float = 1.0) -> "BoundStack":
         from .kernels import kernel_for
         from .slab import SlabOps
         kinds = [slab_kind(m) for m in media]
         slabs = [None if k == EMPTY else SlabOps(m) for k, m in zip(kinds, media)]
-        return cls(n, [kernel_for(b) for b in ifaces], slabs, eta_slab, eta_bottom, kinds, ifaces)
+        return cls(n, [kernel_for(b) for b in ifaces], slabs, eta_slab, eta_bottom, kinds, ifaces,
+                   eta_top)
 
     def take(self, idx) -> "BoundStack":
         idx = np.asarray(idx)
         n = int(idx.sum()) if idx.dtype == bool else idx.size
         return BoundStack(n, [k.take(idx) for k in self.kernels],
                           [None if s is None else s.take(idx) for s in self.slabs],
-                          self.eta_slab, self.eta_bottom, self.kinds)
+                          self.eta_slab, self.eta_bottom, self.kinds, None, self.eta_top)
 
     def eta_corr(self, slab: np.ndarray, exit_top: np.ndarray) -> np.ndarray:
         """(η_exit-side / η_slab)²: converts subpaths sampled from the exit direction (importance

@@ -116,6 +116,12 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
         "c_pdf_fwd_prev": np.ones(n), "c_delta": np.zeros(n, dtype=bool),
         "c_delta_prev": np.zeros(n, dtype=bool), "c_P": np.zeros(n), "c_Q": np.zeros(n),
     }
+    chromatic = any(sl is not None and not sl.grey and k == SCATTERING
+                    for sl, k in zip(stack.slabs, stack.kinds)) and not approx
+    if chromatic:
+        # Path-level spectral MIS (slab.py): one hero channel per walk, density ratios r.
+        S["hero"] = np.minimum((rng.random(n) * 3.0).astype(np.int64), 2)
+        S["r"] = np.ones((3, n))
     # A start direction in the surface plane cannot enter the stack.
     S = _compact(S, w0[2] != 0)
 
@@ -209,8 +215,9 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
         alive = (~exits) & (np.abs(d_out[2]) >= GRAZING) & (bmax > 0)
         if i >= rr[0]:
             q = np.minimum(1.0, bmax / rr[1])
-            alive &= rng.random(m) < q
-            inv_q = 1.0 / np.where(q > 0, q, 1.0)
+            # q below 1e-300 would overflow 1/q; such lanes are (almost surely) killed anyway.
+            alive &= (rng.random(m) < q) & (q > 1e-300)
+            inv_q = 1.0 / np.where(q > 1e-300, q, 1.0)
             S["beta"] = beta * inv_q
             S["gamma"] = S["gamma"] * inv_q
         if i >= max_vertices:
@@ -258,7 +265,17 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
                 continue
             ops = stack.slabs[k].take(lk)
             s0 = tk - k
-            new_s, sc, w, pdf, alive_k = ops.free_flight(s0, dk, rng)
+            if ops.grey:
+                new_s, sc, w, pdf, alive_k = ops.free_flight(s0, dk, rng)
+            else:
+                r_in = S["r"] if whole else S["r"][:, pos]
+                new_s, sc, w, r_out, pdf, alive_k = ops.spectral_step(
+                    s0, dk, rng, S["hero"] if whole else S["hero"][pos], r_in)
+                if whole:
+                    S["r"] = r_out
+                else:
+                    S["r"] = S["r"].copy()
+                    S["r"][:, pos] = r_out
             lay = np.where(sc, k, new_layer if whole else new_layer[pos])
             if whole:
                 beta = beta * w
