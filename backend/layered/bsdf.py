@@ -54,6 +54,9 @@ class LayeredBSDF(BSDF):
         self.options = options
         self.transmissive = stack.transmissive
         self.stats = stats if stats is not None else new_stats()
+        k = stack.kernels
+        self._uni_blind_top = len(k) > 1 and k[0].delta_only and k[1].delta_only
+        self._uni_blind_bottom = len(k) > 1 and k[-1].delta_only and k[-2].delta_only
 
     # ------------------------------------------------------------------ helpers
     def _note(self, result) -> None:
@@ -122,8 +125,19 @@ class LayeredBSDF(BSDF):
             f = self._single(stack, a, b, rng, pdf=False)
             if stack.N > 1:
                 L = self._walk(stack, a, rng).records
-                if est == "uni":
+                uni = est == "uni"
+                if uni:
                     f += unidirectional(stack, b, L, rng)
+                    # NEE through the exit interface needs a non-delta interface at the exit or
+                    # across the slab next to it; otherwise the paths "medium → specular → specular
+                    # exit" have no unidirectional strategy: use the bidirectional estimator.
+                    need_bi = np.flatnonzero(np.where(b[2] > 0, self._uni_blind_top, self._uni_blind_bottom))
+                    if need_bi.size:
+                        Lb = self._walk(stack.take(need_bi), a[:, need_bi], rng).records
+                        Rb = self._walk(stack.take(need_bi), b[:, need_bi], rng).records
+                        f[:, need_bi] = self._single(stack.take(need_bi), a[:, need_bi], b[:, need_bi],
+                                                     rng, pdf=False) + bidirectional(
+                            stack.take(need_bi), b[:, need_bi], Lb, Rb, rng) * np.abs(b[2, need_bi])
                 else:
                     R = self._walk(stack, b, rng).records
                     f += bidirectional(stack, b, L, R, rng) * np.abs(b[2])
