@@ -160,8 +160,8 @@ class LayeredBSDF(BSDF):
                     slabs = stack.N - 1
                     nmax = np.where(a[2] * b[2] > 0, 2 * slabs + 1, slabs + 1)
                     cap = 2 * slabs
-                L = walk(stack, a, rng, approx=approx, max_vertices=cap)
-                R = walk(stack, b, rng, approx=approx, max_vertices=cap)
+                L = walk(stack, a, rng, approx=approx, max_vertices=cap, purpose="pdf")
+                R = walk(stack, b, rng, approx=approx, max_vertices=cap, purpose="pdf")
                 if not approx:
                     self._note(L)
                     self._note(R)

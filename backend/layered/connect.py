@@ -123,8 +123,8 @@ def _pairs(L: Records, R: Records, lanes: np.ndarray):
     start = np.repeat(np.cumsum(npair) - npair, npair)
     q = np.arange(total) - start
     cRp = R.count[pl]
-    iL = L.offset[pl] + q // cRp
-    iR = R.offset[pl] + q % cRp
+    iL = L.perm[L.offset[pl] + q // cRp]
+    iR = R.perm[R.offset[pl] + q % cRp]
     return pl, iL, iR
 
 

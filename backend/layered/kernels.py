@@ -159,7 +159,7 @@ class NullKernel(Kernel):
             return self
         return NullKernel(self.tint[:, idx])
 
-    def sample(self, wi, rng):
+    def sample(self, wi, rng, need_rev=True):
         m = wi.shape[1]
         ok = (wi[2] != 0) * 1.0
         w = np.broadcast_to(ok, (3, m)) if self.tint is None else ok * self.tint
@@ -181,7 +181,7 @@ class DiffuseKernel(Kernel):
     def take(self, idx):
         return self if self.color.shape[1] == 1 else DiffuseKernel(self.color[:, idx])
 
-    def sample(self, wi, rng):
+    def sample(self, wi, rng, need_rev=True):
         m = wi.shape[1]
         u = rng.random((2, m))
         r = np.sqrt(u[0])
@@ -244,7 +244,7 @@ class ConductorKernel(Kernel):
             pf = pr = sdiv(D * h[2], 4.0 * cih)
         return value, np.where(ok, pf, 0.0), np.where(ok, pr, 0.0)
 
-    def sample(self, wi, rng):
+    def sample(self, wi, rng, need_rev=True):
         m = wi.shape[1]
         s = np.where(wi[2] < 0, -1.0, 1.0)
         wis = np.stack([wi[0], wi[1], wi[2] * s])
@@ -255,7 +255,7 @@ class ConductorKernel(Kernel):
             c = dot3(wis, mm)
             wo_s = 2.0 * c * mm - wis
             wo = np.stack([wo_s[0], wo_s[1], wo_s[2] * s])
-            val, pf, pr = self.eval(wi, wo, rng)
+            val, pf, pr = self.eval(wi, wo, rng, need_rev)
             ok = (pf > 0) & front & (c > 0)
             weight = np.where(ok, val / np.where(ok, pf, 1.0), 0.0)
             pf = np.where(ok, pf, 0.0)
@@ -343,7 +343,7 @@ class DielectricKernel(Kernel):
         pr = np.where(refl, pr_r, 0.0) + np.where(trans, pr_t, 0.0)
         return value, pf, pr
 
-    def sample(self, wi, rng):
+    def sample(self, wi, rng, need_rev=True):
         m = wi.shape[1]
         u = rng.random((3, m))
         ci = wi[2]
@@ -358,7 +358,9 @@ class DielectricKernel(Kernel):
             wo_r = 2.0 * cim * mm - wi
             wo_t = -wi / e + (cim / e + cos_t) * mm
             wo = np.where(choose_r, wo_r, wo_t)
-            val, pf, pr = self.eval(wi, wo, rng)
+            val, pf, pr = self.eval(wi, wo, rng, need_rev)
+            if pr is None:
+                pr = pf  # not needed (a walk that records nothing); any finite placeholder
             # The chosen lobe must land on its side (a reflection below the surface, or a
             # refraction that stays above, is a failed sample), on a front-facing microfacet.
             side_ok = np.where(choose_r, wo[2] * ci > 0, (wo[2] * ci < 0) & (cos_t != 0))
@@ -399,13 +401,13 @@ class GenericKernel(Kernel):
     def take(self, idx):
         return GenericKernel(self.bsdf.take(idx))
 
-    def sample(self, wi, rng):
+    def sample(self, wi, rng, need_rev=True):
         a = np.ascontiguousarray(wi.T)
         s = self.bsdf.sample(a, rng, IMPORTANCE)
         delta = np.asarray(s.delta, dtype=bool)
         pf = np.where(delta, 1.0, s.pdf)
         pr = np.ones(a.shape[0])
-        nd = np.flatnonzero(~delta)
+        nd = np.flatnonzero(~delta) if need_rev else np.zeros(0, dtype=np.int64)
         if nd.size:
             b = self.bsdf if nd.size == a.shape[0] else self.bsdf.take(nd)
             pr[nd] = b.pdf(s.wo[nd], a[nd], rng, IMPORTANCE)

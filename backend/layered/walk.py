@@ -9,8 +9,8 @@ is a photon-like flux walk: its throughput after the exit vertex estimates
 f(w → w_exit)·|cos w_exit| / p(w_exit) for light arriving from w (``sample``); the estimators
 convert to the requested transport mode at the end (bsdf.py).
 
-Records (``record=True``): one row per vertex, sorted by (lane, vertex index), with everything the
-estimators need (directions point away from the vertex, as for BSDFs):
+Records (``record=True``): one entry per vertex (see :class:`Records` for the order), with what
+the estimators need (directions point away from the vertex, as for BSDFs):
 
   kind          1 interface, 0 medium;  layer: interface index or slab index;  t: global depth
   w_in, w_out   towards the previous vertex / the sampled next one (w_in of vertex 1 = start)
@@ -21,7 +21,6 @@ estimators need (directions point away from the vertex, as for BSDFs):
   pdf_rev       density of w_in given w_out (the reverse walk's choice), 1 for delta samples
   dens_fwd      density of this vertex's depth along the incoming edge (per unit depth for a
                 medium vertex, a pass probability for an interface), 1 for the first vertex
-  dens_rev      density of the previous vertex's depth sampled backwards along the same edge
   pdf_fwd_prev, delta_prev   the previous vertex's pdf_fwd and delta
   delta         the sampled direction came from a delta lobe
   P, Q          running MIS sums/products of the bidirectional estimator (connect.py)
@@ -46,30 +45,22 @@ from .stack import ABSORBING, EMPTY, GRAZING, SCATTERING, BoundStack
 RR_EVAL = (2, 1.0)
 RR_SAMPLE = (4, 0.25)
 
-FIELDS_F = ("t", "pdf_fwd", "pdf_rev", "dens_fwd", "dens_rev", "pdf_fwd_prev", "P", "Q", "gamma")
-FIELDS_V = ("w_in", "w_out", "thru0", "thru1")          # (3, R)
-FIELDS_I = ("lane", "k", "kind", "layer", "delta", "delta_prev")
-
-
 class Records:
-    """Struct of arrays, one row (column for vectors) per vertex; the vertices of a lane are
-    contiguous and in walk order: lane l owns rows offset[l] .. offset[l] + count[l] − 1."""
+    """Struct of arrays, one entry (column for vectors) per vertex, in the order the walk made
+    them (iteration-major). ``perm`` lists the entries lane by lane: lane l's vertices, in walk
+    order, are ``perm[offset[l] : offset[l] + count[l]]`` (no re-sorting of every field)."""
 
     def __init__(self, n: int, chunks: list[dict]):
         self.n = n
-        if chunks:
-            cat = {f: np.concatenate([c[f] for c in chunks], axis=-1) for f in chunks[0]}
-        else:
-            cat = {f: np.zeros((3, 0) if f in FIELDS_V else 0, dtype=np.int64 if f in FIELDS_I else float)
-                   for f in FIELDS_F + FIELDS_V + FIELDS_I}
-        lane = cat["lane"]
+        keys = chunks[0].keys() if chunks else ("lane", "k")
+        for f in keys:
+            v = [c[f] for c in chunks]
+            setattr(self, f, np.concatenate(v, axis=-1) if v else np.zeros(0, dtype=np.int64))
+        lane = self.lane
         self.count = np.bincount(lane, minlength=n).astype(np.int64)
         self.offset = np.concatenate([[0], np.cumsum(self.count)[:-1]]).astype(np.int64)
-        dest = self.offset[lane] + cat["k"] - 1
-        for f, v in cat.items():
-            out = np.empty_like(v)
-            out[..., dest] = v
-            setattr(self, f, out)
+        self.perm = np.empty(lane.size, dtype=np.int64)
+        self.perm[self.offset[lane] + self.k - 1] = np.arange(lane.size)
         self.size = lane.size
 
 
@@ -96,10 +87,13 @@ def _safe_ratio(a, b):
 
 
 def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bool = True,
-         approx: bool = False, max_vertices: int = 1024, rr: tuple = RR_EVAL) -> WalkResult:
+         approx: bool = False, max_vertices: int = 1024, rr: tuple = RR_EVAL,
+         purpose: str = "value") -> WalkResult:
     """Walk from direction ``w0`` ((3, n), pointing away from the surface): enter at the top if
     w0_z > 0, else at the bottom. ``approx``: media do not scatter (crossing a slab multiplies
-    ``gamma`` by its pass probability), for the approximate pdf."""
+    ``gamma`` by its pass probability), for the approximate pdf. ``purpose`` selects the recorded
+    fields: "value" (throughputs, for eval) or "pdf" (``Q`` and ``gamma``, for the pdf)."""
+    want_value = purpose == "value"
     n = w0.shape[1]
     N = stack.N
     exit_dir = np.zeros((3, n))
@@ -111,11 +105,13 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
     S = {
         "lane": np.arange(n), "kind": np.ones(n, dtype=np.int8), "layer": layer0,
         "t": layer0.astype(np.float64), "d_in": -w0, "beta": np.ones((3, n)), "gamma": np.ones(n),
-        "all_delta": np.ones(n, dtype=bool), "dens_fwd": np.ones(n), "dens_rev": np.ones(n),
-        "c_dens_fwd": np.ones(n), "c_pdf_rev": np.ones(n), "c_pdf_fwd": np.ones(n),
-        "c_pdf_fwd_prev": np.ones(n), "c_delta": np.zeros(n, dtype=bool),
-        "c_delta_prev": np.zeros(n, dtype=bool), "c_P": np.zeros(n), "c_Q": np.zeros(n),
+        "all_delta": np.ones(n, dtype=bool),
     }
+    if record:
+        S.update({"dens_fwd": np.ones(n), "dens_rev": np.ones(n), "c_dens_fwd": np.ones(n),
+                  "c_pdf_rev": np.ones(n), "c_pdf_fwd": np.ones(n), "c_pdf_fwd_prev": np.ones(n),
+                  "c_delta": np.zeros(n, dtype=bool), "c_delta_prev": np.zeros(n, dtype=bool),
+                  "c_P": np.zeros(n), "c_Q": np.zeros(n)})
     chromatic = any(sl is not None and not sl.grey and k == SCATTERING
                     for sl, k in zip(stack.slabs, stack.kinds)) and not approx
     if chromatic:
@@ -143,8 +139,7 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
                 P = np.zeros(m)
                 Q = S["c_pdf_rev"] * S["dens_rev"]
             else:
-                P = np.zeros(m)
-                Q = np.zeros(m)
+                P = Q = np.zeros(m)
         # ---------------------------------------------------------------- sample the vertex
         w_in = -d_in
         is_if = kind == 1
@@ -168,7 +163,7 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
                 continue
             whole = single and (pos is None or pos.size == m)
             ker = stack.kernels[l].take(lane if whole else lane[pos])
-            wo, w, pf, pr, dl = ker.sample(w_in if whole else w_in[:, pos], rng)
+            wo, w, pf, pr, dl = ker.sample(w_in if whole else w_in[:, pos], rng, record)
             if whole:
                 d_out, wgt, pdf_fwd, pdf_rev, delta = wo, w, pf, pr, dl
             else:
@@ -188,13 +183,15 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
         beta = S["beta"]
         thru1 = beta * wgt
         if record:
-            chunks.append({
-                "lane": lane, "k": np.full(m, i, dtype=np.int64), "kind": kind, "layer": layer,
-                "t": t, "w_in": w_in, "w_out": d_out, "thru0": beta, "thru1": thru1,
-                "gamma": S["gamma"], "pdf_fwd": pdf_fwd, "pdf_rev": pdf_rev,
-                "dens_fwd": S["dens_fwd"], "dens_rev": S["dens_rev"], "pdf_fwd_prev": S["c_pdf_fwd"],
-                "delta": delta, "delta_prev": S["c_delta"], "P": P, "Q": Q,
-            })
+            rec = {"lane": lane, "k": np.full(m, i, dtype=np.int64), "kind": kind, "layer": layer,
+                   "t": t, "w_in": w_in, "w_out": d_out, "pdf_fwd": pdf_fwd, "pdf_rev": pdf_rev,
+                   "dens_fwd": S["dens_fwd"], "pdf_fwd_prev": S["c_pdf_fwd"], "delta": delta,
+                   "delta_prev": S["c_delta"], "P": P}
+            if want_value:
+                rec["thru0"], rec["thru1"] = beta, thru1
+            else:
+                rec["gamma"], rec["Q"] = S["gamma"], Q
+            chunks.append(rec)
             S["c_dens_fwd"], S["c_pdf_rev"] = S["dens_fwd"], pdf_rev
             S["c_pdf_fwd_prev"], S["c_delta_prev"] = S["c_pdf_fwd"], S["c_delta"]
             S["c_pdf_fwd"], S["c_delta"], S["c_P"], S["c_Q"] = pdf_fwd, delta, P, Q
@@ -296,7 +293,8 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
                 else:
                     dens_rev[pos] = dr
         S["kind"], S["layer"], S["t"] = new_kind, new_layer, new_t
-        S["dens_fwd"], S["dens_rev"] = dens_fwd, dens_rev
+        if record:
+            S["dens_fwd"], S["dens_rev"] = dens_fwd, dens_rev
         S["beta"], S["gamma"] = beta, gamma
         S = _compact(S, beta.max(axis=0) > 0)
         i += 1
