@@ -19,7 +19,8 @@ def register(subparsers) -> None:
     info.add_argument("--json", action="store_true", help="machine-readable output")
     info.set_defaults(func=cmd_info)
 
-    plot = sub.add_parser("plot", help="polar candela curves (C0–C180 and C90–C270 planes)")
+    plot = sub.add_parser("plot", help="polar candela curves of the main planes (C0–C180 and "
+                                       "C90–C270; type B: H and V planes)")
     plot.add_argument("file")
     plot.add_argument("-o", "--output", required=True, help="output image (.png, .pdf, .svg)")
     plot.add_argument("--per-klm", action="store_true",
@@ -80,17 +81,29 @@ def cmd_info(args) -> int:
 
 
 def plane_curves(profile, n: int = 721) -> dict:
-    """Candela along the two main planes as lighting designers draw them.
+    """Candela along the two main planes as lighting designers draw them, γ in −180..180°.
 
-    Returns gamma (−180..180°, 0 = nadir = local −Z) and intensity for the C0–C180 plane (γ > 0 on
-    the C0 side) and the C90–C270 plane (γ > 0 on the C90 side), from the interpolated profile.
+    Types C/A: the C0–C180 plane (γ = vertical angle, γ > 0 on the C0 side, 0 = nadir = local −Z)
+    and the C90–C270 plane (γ > 0 on the C90 side). Type B: the horizontal plane V = 0 (γ = H)
+    and the vertical plane H = 0 (γ = V), 0 = the beam axis (local −X).
+    Returns {"gamma_deg": γ, label: intensity, ...} from the interpolated profile.
     """
     gamma = np.linspace(-180.0, 180.0, n)
-    v = np.radians(np.abs(gamma))
     out = {"gamma_deg": gamma}
-    for name, (pos, neg) in {"C0-C180": (0.0, 180.0), "C90-C270": (90.0, 270.0)}.items():
+    if profile.source.photometric_type == 2:
+        inside = np.abs(gamma) <= 90.0
+        # (h, v) in the Cycles frame: h = V + 90°, v = H + 90° (see lm63.py)
+        planes = {"H plane, V = 0": (np.full(n, 90.0), gamma + 90.0),
+                  "V plane, H = 0": (gamma + 90.0, np.full(n, 90.0))}
+        for label, (h, v) in planes.items():
+            I = profile.intensity_angles(np.radians(np.clip(h, 0, 359.999)), np.radians(np.clip(v, 0, 180)))
+            out[label] = np.where(inside, I, 0.0)
+        return out
+    v = np.radians(np.abs(gamma))
+    for label, (pos, neg) in {"C0 (right) – C180 (left)": (0.0, 180.0),
+                              "C90 (right) – C270 (left)": (90.0, 270.0)}.items():
         h = np.radians(np.where(gamma >= 0, pos, neg))
-        out[name] = profile.intensity_angles(h, v)
+        out[label] = profile.intensity_angles(h, v)
     return out
 
 
@@ -112,13 +125,14 @@ def cmd_plot(args) -> int:
 
     fig = plt.figure(figsize=(6.4, 6.8))
     ax = fig.add_subplot(projection="polar")
-    ax.set_theta_zero_location("S")   # nadir (γ = 0) at the bottom, as photometric diagrams
+    ax.set_theta_zero_location("S")   # nadir / beam axis (γ = 0) at the bottom, as photometric diagrams
     ax.set_theta_direction(1)          # γ > 0 to the right (counter-clockwise from the bottom)
-    g = np.radians(curves["gamma_deg"])
-    ax.plot(g, curves["C0-C180"] * scale, color="tab:red", lw=1.6, label="C0 – C180")
-    ax.plot(g, curves["C90-C270"] * scale, color="tab:blue", lw=1.4, ls="--", label="C90 – C270")
+    g = np.radians(curves.pop("gamma_deg"))
+    styles = [dict(color="tab:red", lw=1.6), dict(color="tab:blue", lw=1.4, ls="--")]
+    for (label, values), style in zip(curves.items(), styles):
+        ax.plot(g, values * scale, label=label, **style)
     ax.set_thetagrids(range(0, 360, 30), labels=[f"{a if a <= 180 else 360 - a}°" for a in range(0, 360, 30)])
-    peak = max(float(np.max(curves["C0-C180"])), float(np.max(curves["C90-C270"])), 1e-12) * scale
+    peak = max([float(np.max(c)) for c in curves.values()] + [1e-12]) * scale
     ax.set_rmax(_nice_ceiling(peak))
     ax.set_rlabel_position(100)
     ax.grid(True, alpha=0.4)
