@@ -37,13 +37,17 @@ def _describe(value: Any) -> str:
     return type(value).__name__
 
 
+def _fmt(v) -> str:
+    return str(int(v)) if float(v).is_integer() and abs(v) < 1e15 else f"{v:g}"
+
+
 def _range_text(lo, hi, lo_open, hi_open) -> str:
     if lo is not None and hi is not None:
-        return f"in {'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+        return f"in {'(' if lo_open else '['}{_fmt(lo)}, {_fmt(hi)}{')' if hi_open else ']'}"
     if lo is not None:
-        return f"{'>' if lo_open else '>='} {lo:g}"
+        return f"{'>' if lo_open else '>='} {_fmt(lo)}"
     if hi is not None:
-        return f"{'<' if hi_open else '<='} {hi:g}"
+        return f"{'<' if hi_open else '<='} {_fmt(hi)}"
     return ""
 
 
@@ -234,7 +238,7 @@ def check_number(value: Any, path: str, ctx: LoadContext, lo=None, hi=None,
         raise ctx.error(path, f"expected {what}, got {value}")
     if ((lo is not None and (value < lo or (lo_open and value == lo))) or
             (hi is not None and (value > hi or (hi_open and value == hi)))):
-        raise ctx.error(path, f"expected {what}, got {value:g}")
+        raise ctx.error(path, f"expected {what}, got {_fmt(value)}")
     return value
 
 

@@ -1,0 +1,96 @@
+"""Pixel filters (importance sampled, as Cycles) and the film accumulator.
+
+Filter importance sampling: each camera sample's offset from the pixel centre is drawn from the
+filter's (separable) 1-D profile, so every sample has weight 1 and the pixel value is a plain mean.
+This is what Cycles does (its default: Blackman–Harris, width 1.5 px). Consequence worth knowing:
+the filter must be non-negative (no Mitchell/Lanczos lobes).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .scene.reader import Node
+
+
+class PixelFilter:
+    TABLE = 1024
+
+    def __init__(self, kind: str = "blackman-harris", width: float = 1.5):
+        self.kind = kind
+        self.width = width
+        x = (np.arange(self.TABLE) + 0.5) / self.TABLE  # in [0, 1] across the filter support
+        if kind == "box":
+            f = np.ones_like(x)
+        elif kind == "gaussian":
+            # Cycles' Gaussian: exp(-2 v²) with v the offset in units of the half-width... over [-w/2, w/2]
+            v = (x - 0.5) * width
+            f = np.exp(-2.0 * v * v)
+        else:
+            a = 2.0 * np.pi * x
+            f = 0.35875 - 0.48829 * np.cos(a) + 0.14128 * np.cos(2 * a) - 0.01168 * np.cos(3 * a)
+        f = np.maximum(f, 0.0)
+        cdf = np.concatenate([[0.0], np.cumsum(f)])
+        self._cdf = cdf / cdf[-1]
+        self._grid = np.linspace(0.0, 1.0, self.TABLE + 1)
+
+    def sample(self, u: np.ndarray) -> np.ndarray:
+        """u (n, 2) uniform → pixel-centre offsets (n, 2) in pixels."""
+        if self.kind == "box" and self.width == 1.0:
+            return u - 0.5
+        x = np.interp(u, self._cdf, self._grid)
+        return (x - 0.5) * self.width
+
+
+def parse_filter(node: Node | None) -> PixelFilter:
+    if node is None:
+        return PixelFilter()
+    kind = node.string("type", "blackman-harris", choices=("blackman-harris", "gaussian", "box"))
+    width = node.number("width", 1.0 if kind == "box" else 1.5, lo=0.01, hi=10)
+    node.finish()
+    return PixelFilter(kind, width)
+
+
+class FilmAccumulator:
+    """Per-pixel float64 sums, merged from work items in a fixed order (bit-reproducible)."""
+
+    def __init__(self, width: int, height: int):
+        self.width, self.height = width, height
+        n = width * height
+        self.sum = np.zeros((n, 3))
+        self.sum_sq = np.zeros((n, 3))
+        self.albedo = np.zeros((n, 3))
+        self.normal = np.zeros((n, 3))
+        self.count = np.zeros(n, dtype=np.int64)
+
+    def add(self, pixels: np.ndarray, result: dict) -> None:
+        self.sum[pixels] += result["sum"]
+        self.sum_sq[pixels] += result["sum_sq"]
+        self.albedo[pixels] += result["albedo"]
+        self.normal[pixels] += result["normal"]
+        self.count[pixels] += result["count"]
+
+    def _mean(self, a: np.ndarray) -> np.ndarray:
+        c = np.maximum(self.count, 1)[:, None]
+        return (a / c).reshape(self.height, self.width, -1)
+
+    def combined(self) -> np.ndarray:
+        return self._mean(self.sum)
+
+    def variance_of_mean(self) -> np.ndarray:
+        """Unbiased sample variance divided by n, per channel (0 where n < 2)."""
+        n = self.count[:, None].astype(np.float64)
+        mean = self.sum / np.maximum(n, 1)
+        var = np.maximum(self.sum_sq / np.maximum(n, 1) - mean * mean, 0.0) * n / np.maximum(n - 1, 1)
+        out = np.where(n >= 2, var / np.maximum(n, 1), 0.0)
+        return out.reshape(self.height, self.width, 3)
+
+    def albedo_image(self) -> np.ndarray:
+        return self._mean(self.albedo)
+
+    def normal_image(self) -> np.ndarray:
+        n = self._mean(self.normal)
+        length = np.linalg.norm(n, axis=2, keepdims=True)
+        return np.where(length > 0, n / np.where(length > 0, length, 1), 0.0)
+
+    def counts(self) -> np.ndarray:
+        return self.count.reshape(self.height, self.width)

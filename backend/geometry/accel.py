@@ -1,0 +1,142 @@
+"""World-space triangle soup and the embree acceleration structure.
+
+Instances are flattened: every object's mesh is transformed to world space once at load, and all
+triangles go into one embree geometry, so ``primID`` is a global triangle index. (embreex has no
+instancing API; flattening costs memory only for heavily instanced scenes.)
+
+Ray offsetting: new rays start at the hit point moved along the geometric normal, to the side the
+ray leaves towards, by ``offset_scale(p)`` — a multiple of the float32 spacing at the point's
+magnitude. Hit points are recomputed in float64 from barycentrics (not o + t·d), so the offset only
+has to cover float32 vertex/traversal error: no self-intersection acne, and leaks only through gaps
+smaller than ~1e-5 relative to the scene coordinates.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..mathutil import abs_max3, cross, dot, normalize
+
+# Offset in units of the coordinate magnitude: 2^-16 ≈ 1.5e-5, i.e. ~128 float32 ulps.
+OFFSET_RELATIVE = 2.0 ** -16
+OFFSET_ABSOLUTE = 1e-7  # metres, for points near the origin
+
+
+@dataclass
+class TriangleSoup:
+    """All triangles of the scene in world space plus their shading attributes."""
+
+    vertices: np.ndarray          # (T, 3, 3) float32 world positions (what embree traces)
+    normals: np.ndarray | None    # (T, 3, 3) float32 world shading normals per corner, or None
+    uvs: np.ndarray | None        # (T, 3, 2) float32, or None
+    material: np.ndarray          # (T,) int32 global material index
+    object_id: np.ndarray         # (T,) int32 index into the scene's objects
+    camera_visible: np.ndarray    # (T,) bool
+    geo_normal: np.ndarray = None   # (T, 3) float64 unit geometric normal (CCW winding)
+    tangent: np.ndarray = None      # (T, 3) float64 unit dP/du (UV tangent), zeros where undefined
+    area: np.ndarray = None         # (T,) float64
+    # float64 copies for shading (gathering float32 and converting per hit is 3-4x slower)
+    vertices64: np.ndarray = None
+    normals64: np.ndarray = None
+    uvs64: np.ndarray = None
+
+    def __post_init__(self):
+        v = self.vertices.astype(np.float64)
+        self.vertices64 = v
+        self.normals64 = None if self.normals is None else self.normals.astype(np.float64)
+        self.uvs64 = None if self.uvs is None else self.uvs.astype(np.float64)
+        e1 = v[:, 1] - v[:, 0]
+        e2 = v[:, 2] - v[:, 0]
+        n = cross(e1, e2)
+        self.area = 0.5 * np.linalg.norm(n, axis=1)
+        self.geo_normal = normalize(n)
+        self.tangent = _uv_tangents(e1, e2, self.uvs)
+
+    @property
+    def count(self) -> int:
+        return int(self.vertices.shape[0])
+
+
+def _uv_tangents(e1: np.ndarray, e2: np.ndarray, uvs: np.ndarray | None) -> np.ndarray:
+    """dP/du per triangle (anisotropy follows the UV map, DESIGN.md §3)."""
+    if uvs is None:
+        return np.zeros_like(e1)
+    uv = uvs.astype(np.float64)
+    du1 = uv[:, 1, 0] - uv[:, 0, 0]
+    du2 = uv[:, 2, 0] - uv[:, 0, 0]
+    dv1 = uv[:, 1, 1] - uv[:, 0, 1]
+    dv2 = uv[:, 2, 1] - uv[:, 0, 1]
+    det = du1 * dv2 - du2 * dv1
+    ok = np.abs(det) > 1e-20
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    dpdu = (e1 * dv2[:, None] - e2 * dv1[:, None]) * inv[:, None]
+    return normalize(dpdu)
+
+
+def offset_scale(p: np.ndarray) -> np.ndarray:
+    return OFFSET_ABSOLUTE + OFFSET_RELATIVE * abs_max3(p)
+
+
+def offset_origin(p: np.ndarray, ng: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Move p off the surface along ±ng to the side direction d points to."""
+    side = np.where(dot(ng, d) >= 0, 1.0, -1.0)
+    return p + ng * (side * offset_scale(p))[:, None]
+
+
+class Accelerator:
+    """embree scene over a TriangleSoup. Built per process (embree objects do not pickle)."""
+
+    def __init__(self, soup: TriangleSoup):
+        from embreex import rtcore_scene as rtcs
+        from embreex.mesh_construction import TriangleMesh
+
+        self.soup = soup
+        self._scene = rtcs.EmbreeScene()
+        TriangleMesh(self._scene, np.ascontiguousarray(soup.vertices, dtype=np.float32))
+        self.rays_traced = 0
+        #: Set to a list to record every traced batch (benchmarks re-trace the render's own rays).
+        self.recorder: list | None = None
+
+    def intersect(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray | None = None):
+        """Closest hits. Returns (prim (n,) int64 with -1 = miss, t (n,), b1 (n,), b2 (n,))."""
+        n = o.shape[0]
+        if n == 0:
+            z = np.zeros(0)
+            return np.zeros(0, np.int64), z, z, z
+        o32 = np.ascontiguousarray(o, dtype=np.float32)
+        d32 = np.ascontiguousarray(d, dtype=np.float32)
+        dists = None if tmax is None else np.ascontiguousarray(np.minimum(tmax, 3e38), dtype=np.float32)
+        if self.recorder is not None:
+            self.recorder.append(("intersect", o32, d32, dists))
+        res = self._scene.run(o32, d32, dists=dists, output=True)
+        self.rays_traced += n
+        prim = res["primID"].astype(np.int64)
+        return prim, res["tfar"].astype(np.float64), res["u"].astype(np.float64), res["v"].astype(np.float64)
+
+    def occluded(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray) -> np.ndarray:
+        """True where something lies on the segment (0, tmax)."""
+        n = o.shape[0]
+        if n == 0:
+            return np.zeros(0, bool)
+        o32 = np.ascontiguousarray(o, dtype=np.float32)
+        d32 = np.ascontiguousarray(d, dtype=np.float32)
+        dists = np.ascontiguousarray(np.minimum(tmax, 3e38), dtype=np.float32)
+        if self.recorder is not None:
+            self.recorder.append(("occluded", o32, d32, dists))
+        # With query OCCLUDED embreex returns the hit primitive id, or -1 when the segment is free.
+        res = self._scene.run(o32, d32, dists=dists, query="OCCLUDED")
+        self.rays_traced += n
+        return np.asarray(res) != -1
+
+
+def retrace(accel: "Accelerator", batches: list) -> float:
+    """Trace recorded batches again with embree alone; returns seconds (benchmarks)."""
+    import time
+    t0 = time.perf_counter()
+    for kind, o32, d32, dists in batches:
+        if kind == "intersect":
+            accel._scene.run(o32, d32, dists=dists, output=True)
+        else:
+            accel._scene.run(o32, d32, dists=dists, query="OCCLUDED")
+    return time.perf_counter() - t0

@@ -1,0 +1,349 @@
+"""Wavefront unidirectional path tracer with next-event estimation and MIS (power heuristic).
+
+One call renders a *work item*: a set of pixels × a range of sample indices, all paths as rows of
+arrays. Each bounce: intersect every live ray (embree), add emission from lights the ray passed
+(lights are transparent, as in Cycles) and from emissive surfaces/the environment with MIS
+weights, then per material group (a loop over the materials present, not over rays): bind the
+BSDF once, sample a light (selection ∝ power) and evaluate the BSDF for it, sample the BSDF for
+the next direction. Shadow rays of all groups are traced in one embree call. Russian roulette
+after ``rr_depth`` bounces; dead lanes are compacted away.
+
+Path length: ``max_bounces`` has Cycles' meaning (0 = direct lighting only), so a path has at most
+``max_bounces + 2`` segments (camera → ... → light).
+
+Precision: shading state is float64 (see materials/base.py); rays go to embree as float32.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import stats
+from .geometry.accel import offset_origin
+from .materials.base import ShadingContext
+from .mathutil import Frame, dot, max3, normalize
+from .sampling.discrete import Discrete1D
+
+SHADOW_EPS = 1e-4  # shorten shadow rays by this fraction so they do not hit the light's own surface
+
+
+def power_heuristic(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a²/(a²+b²) with 0/0 → 0 (the reference implementation's last bug was this 0/0)."""
+    a2 = a * a
+    den = a2 + b * b
+    return np.where(den > 0, a2 / np.where(den > 0, den, 1.0), 0.0)
+
+
+class PathTracer:
+    def __init__(self, scene, accel):
+        self.scene = scene
+        self.accel = accel
+        self.soup = scene.soup
+        s = scene.settings
+        self.max_segments = s.max_bounces + 2
+        self.rr_depth = s.rr_depth
+        self.clamp = s.clamp
+        self.lights = list(scene.lights)
+        powers = np.array([max(float(l.power()), 0.0) for l in self.lights]) if self.lights else np.zeros(0)
+        self.selector = Discrete1D(powers) if self.lights and powers.sum() > 0 else None
+        self.hittable = [i for i, l in enumerate(self.lights) if l.is_hittable]
+        self.infinite = [i for i, l in enumerate(self.lights) if l.is_infinite]
+        self.mesh_light_index = None
+        self.emitter_of_tri = None
+        if scene.mesh_light is not None:
+            self.mesh_light_index = self.lights.index(scene.mesh_light)
+            self.emitter_of_tri = np.full(self.soup.count, -1, np.int64)
+            self.emitter_of_tri[scene.mesh_light.triangle_ids] = np.arange(scene.mesh_light.triangle_ids.size)
+        self.emissive_material = np.array([getattr(m, "emission", None) is not None for m in scene.materials] or [False])
+        self.any_hidden = bool(self.soup.count) and not bool(self.soup.camera_visible.all())
+        self.two_sided = np.array([m.two_sided for m in scene.materials] or [True])
+
+    def select_prob(self, light_index: int) -> float:
+        return float(self.selector.pmf[light_index]) if self.selector is not None else 0.0
+
+    # ------------------------------------------------------------------ work item
+    def render(self, pixels: np.ndarray, spp: int, rng: np.random.Generator) -> dict:
+        """Render ``spp`` samples in each of ``pixels`` (flat indices, row 0 = top). Per-pixel sums."""
+        scene = self.scene
+        W, H = scene.width, scene.height
+        P = pixels.size
+        n = P * spp
+        lane_pixel = np.repeat(pixels, spp)
+        px = (lane_pixel % W).astype(np.float64)
+        py = (lane_pixel // W).astype(np.float64)
+        off = scene.pixel_filter.sample(rng.random((n, 2)))
+        st = np.stack([(px + 0.5 + off[:, 0]) / W, (py + 0.5 + off[:, 1]) / H], axis=1)
+        lens_u = rng.random((n, 2)) if scene.camera.aperture_radius > 0 else None
+        o, d, tmin, tmax = scene.camera.generate_rays(st, lens_u)
+        o = o + d * tmin[:, None]
+        tmax = tmax - tmin
+
+        L = np.zeros((n, 3))
+        albedo = np.zeros((n, 3))
+        normal = np.zeros((n, 3))
+        lane = np.arange(n)
+        beta = np.ones((n, 3))
+        prev_pdf = np.zeros(n)
+        prev_delta = np.ones(n, dtype=bool)   # camera rays: emission seen directly gets weight 1
+
+        for segment in range(self.max_segments):
+            if lane.size == 0:
+                break
+            camera_ray = segment == 0
+            prim, t, b1, b2 = self.accel.intersect(o, d, tmax)
+            if camera_ray and self.any_hidden:
+                prim, t, b1, b2 = self._skip_hidden(o, d, tmax, prim, t, b1, b2)
+            t_surf = np.where(prim >= 0, t, np.inf)
+            self._add_light_hits(L, lane, o, d, np.minimum(t_surf, tmax), beta, prev_pdf, prev_delta, segment)
+            miss = prim < 0
+            if miss.any() and self.infinite:
+                self._add_escaped(L, lane[miss], d[miss], beta[miss], prev_pdf[miss], prev_delta[miss], segment)
+            hit = ~miss
+            lane, o, d, beta, prev_pdf, prev_delta = lane[hit], o[hit], d[hit], beta[hit], prev_pdf[hit], prev_delta[hit]
+            prim, t, b1, b2 = prim[hit], t[hit], b1[hit], b2[hit]
+            if lane.size == 0:
+                break
+            si = self._surface(prim, b1, b2, -d)
+            if self.emissive_material.any():
+                self._add_surface_emission(L, lane, o, d, t, si, beta, prev_pdf, prev_delta, segment)
+            last = segment == self.max_segments - 1
+            lane, o, d, beta, prev_pdf, prev_delta = self._scatter(
+                L, albedo if camera_ray else None, normal if camera_ray else None,
+                lane, si, beta, rng, segment, do_continue=not last)
+            tmax = np.full(lane.size, np.inf)
+
+        bad = ~np.all(np.isfinite(L), axis=1)
+        if bad.any():
+            stats.add("samples_nonfinite_dropped", int(bad.sum()))
+            L[bad] = 0.0
+        Lp = L.reshape(P, spp, 3)
+        return {
+            "sum": Lp.sum(axis=1),
+            "sum_sq": (Lp * Lp).sum(axis=1),
+            "albedo": albedo.reshape(P, spp, 3).sum(axis=1),
+            "normal": normal.reshape(P, spp, 3).sum(axis=1),
+            "count": np.full(P, spp, dtype=np.int64),
+        }
+
+    # ------------------------------------------------------------------ geometry
+    def _skip_hidden(self, o, d, tmax, prim, t, b1, b2, max_layers: int = 16):
+        """Camera rays pass through objects with visible_camera = false (bounded re-tracing)."""
+        prim, t, b1, b2 = prim.copy(), t.copy(), b1.copy(), b2.copy()
+        t_base = np.zeros(prim.size)
+        for _ in range(max_layers):
+            hidden = prim >= 0
+            hidden[hidden] = ~self.soup.camera_visible[prim[hidden]]
+            if not hidden.any():
+                break
+            idx = np.nonzero(hidden)[0]
+            p_hit = o[idx] + d[idx] * (t_base[idx] + t[idx])[:, None]
+            ng = self.soup.geo_normal[prim[idx]]
+            start = offset_origin(p_hit, ng, d[idx])
+            adv = dot(start - o[idx], d[idx])
+            p2, t2, u2, v2 = self.accel.intersect(start, d[idx], tmax[idx] - adv)
+            prim[idx], t[idx], b1[idx], b2[idx] = p2, t2, u2, v2
+            t_base[idx] = adv
+        return prim, t + t_base, b1, b2
+
+    def _surface(self, prim, b1, b2, wi):
+        soup = self.soup
+        bary = np.stack([1.0 - b1 - b2, b1, b2], axis=1)
+        # Hit points from barycentrics in float64 (not o + t·d): accurate to the vertex precision.
+        p = np.einsum("nij,ni->nj", soup.vertices64[prim], bary)
+        ng = soup.geo_normal[prim]
+        if soup.normals is not None:
+            ns = normalize(np.einsum("nij,ni->nj", soup.normals64[prim], bary))
+            degenerate = ns[:, 0] * ns[:, 0] + ns[:, 1] * ns[:, 1] + ns[:, 2] * ns[:, 2] == 0
+            if degenerate.any():
+                ns[degenerate] = ng[degenerate]
+        else:
+            ns = ng.copy()
+        if soup.uvs is not None:
+            uv = np.einsum("nij,ni->nj", soup.uvs64[prim], bary)
+        else:
+            uv = np.zeros((prim.size, 2))
+        return {"p": p, "ng": ng, "ns": ns, "uv": uv, "tangent": soup.tangent[prim],
+                "material": soup.material[prim], "prim": prim, "wi": wi}
+
+    # ------------------------------------------------------------------ emission
+    def _mis_weight_for_hit(self, light_index, pdf_light_sa, prev_pdf, prev_delta):
+        p_l = self.select_prob(light_index) * pdf_light_sa
+        return np.where(prev_delta, 1.0, power_heuristic(prev_pdf, p_l))
+
+    def _clamp(self, contrib: np.ndarray, segment: int) -> np.ndarray:
+        if self.clamp > 0 and segment > 0:
+            m = max3(contrib)
+            scale = np.where(m > self.clamp, self.clamp / np.where(m > 0, m, 1.0), 1.0)
+            return contrib * scale[:, None]
+        return contrib
+
+    def _add_light_hits(self, L, lane, o, d, t_limit, beta, prev_pdf, prev_delta, segment):
+        for li in self.hittable:
+            light = self.lights[li]
+            if segment == 0 and not getattr(light, "visible_camera", False):
+                continue
+            t = light.intersect(o, d, t_limit)
+            m = np.isfinite(t)
+            if not m.any():
+                continue
+            Le = light.eval_hit(o[m], d[m], t[m])
+            w = self._mis_weight_for_hit(li, light.pdf_hit(o[m], d[m], t[m]), prev_pdf[m], prev_delta[m])
+            np.add.at(L, lane[m], self._clamp(beta[m] * Le * w[:, None], segment))
+
+    def _add_escaped(self, L, lane, d, beta, prev_pdf, prev_delta, segment):
+        for li in self.infinite:
+            light = self.lights[li]
+            Le = light.eval_escaped(d)
+            w = self._mis_weight_for_hit(li, light.pdf_escaped(d), prev_pdf, prev_delta)
+            L[lane] += self._clamp(beta * Le * w[:, None], segment)
+
+    def _add_surface_emission(self, L, lane, o, d, t, si, beta, prev_pdf, prev_delta, segment):
+        emits = self.emissive_material[si["material"]]
+        front = dot(d, si["ng"]) < 0   # emitters are one-sided: the counter-clockwise front
+        m = emits & front
+        if not m.any():
+            return
+        idx = np.nonzero(m)[0]
+        Le = np.zeros((idx.size, 3))
+        mats = si["material"][idx]
+        for mi in np.unique(mats):
+            g = mats == mi
+            value = self.scene.materials[mi].emission.bind(si["uv"][idx[g]])
+            Le[g] = np.broadcast_to(np.asarray(value, dtype=np.float64).reshape(-1, 3), (int(g.sum()), 3))
+        w = np.ones(idx.size)
+        if self.mesh_light_index is not None:
+            light = self.lights[self.mesh_light_index]
+            local = self.emitter_of_tri[si["prim"][idx]]
+            ok = local >= 0
+            pdf = np.zeros(idx.size)
+            if ok.any():
+                pdf[ok] = light.pdf_hit_triangle(o[idx[ok]], d[idx[ok]], t[idx[ok]], local[ok])
+            w = self._mis_weight_for_hit(self.mesh_light_index, pdf, prev_pdf[idx], prev_delta[idx])
+        L[lane[idx]] += self._clamp(beta[idx] * Le * w[:, None], segment)
+
+    # ------------------------------------------------------------------ scattering
+    def _scatter(self, L, albedo_aov, normal_aov, lane, si, beta, rng, segment, do_continue):
+        # Sort lanes by material once; every material group is then a contiguous slice, so the
+        # per-group work below uses views instead of gathered copies.
+        mats = si["material"]
+        order = np.argsort(mats, kind="stable")
+        if not np.all(order[:-1] < order[1:]):
+            lane, beta = lane[order], beta[order]
+            si = {k: v[order] for k, v in si.items()}
+            mats = si["material"]
+        n = lane.size
+        wi, ng, ns = si["wi"], si["ng"], si["ns"]
+        two_sided = self.two_sided[mats]
+        # Reflection-only materials are seen from both sides: turn the normals towards the viewer,
+        # and where the interpolated shading normal still faces away, fall back to the geometric one.
+        flip = np.where(two_sided & (dot(wi, ng) < 0), -1.0, 1.0)[:, None]
+        ng = ng * flip
+        ns = ns * flip
+        bad_shading = two_sided & (dot(wi, ns) <= 0)
+        if bad_shading.any():
+            ns[bad_shading] = ng[bad_shading]
+        frame = Frame.from_normal_tangent(ns, si["tangent"])
+        wi_local = frame.to_local(wi)
+        p = si["p"]
+        if normal_aov is not None:
+            normal_aov[lane] = si["ns"]
+
+        new_dir = np.zeros((n, 3))
+        new_beta = np.zeros((n, 3))
+        new_pdf = np.zeros(n)
+        new_delta = np.zeros(n, dtype=bool)
+        shadow = []  # (lane indices into this batch, origin, dir, tmax, contribution)
+        can_nee = self.selector is not None and segment + 1 < self.max_segments
+
+        bounds = np.concatenate([[0], np.flatnonzero(np.diff(mats)) + 1, [n]])
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            g = slice(int(a), int(b))
+            material = self.scene.materials[mats[a]]
+            bsdf = material.bind(ShadingContext(si["uv"][g]))
+            fr = Frame(frame.s[g], frame.t[g], frame.n[g])
+            wi_g = wi_local[g]
+            if albedo_aov is not None:
+                albedo_aov[lane[g]] = np.broadcast_to(np.asarray(bsdf.albedo(), dtype=np.float64), (b - a, 3))
+            if can_nee and not bsdf.delta_only:
+                found = self._nee(bsdf, wi_g, fr, p[g], ng[g], beta[g], rng)
+                if found is not None:
+                    shadow.append((found[0] + a,) + found[1:])
+            if do_continue:
+                smp = bsdf.sample(wi_g, rng)
+                d_world = fr.to_world(smp.wo)
+                new_dir[g] = d_world
+                # Leak guard: the sampled side must agree for the shading and the geometric normal.
+                ok = (dot(d_world, ng[g]) * smp.wo[:, 2]) > 0
+                new_beta[g] = beta[g] * smp.weight * ok[:, None]
+                new_pdf[g] = smp.pdf
+                new_delta[g] = smp.delta
+
+        if shadow:
+            idx = np.concatenate([x[0] for x in shadow])
+            if idx.size:
+                so = np.concatenate([x[1] for x in shadow])
+                sd = np.concatenate([x[2] for x in shadow])
+                st = np.concatenate([x[3] for x in shadow])
+                sc = np.concatenate([x[4] for x in shadow])
+                free = ~self.accel.occluded(so, sd, st)
+                # One shadow ray per lane and bounce: lane indices are unique, plain += is exact.
+                L[lane[idx[free]]] += self._clamp(sc[free], segment)
+
+        if not do_continue:
+            return lane[:0], p[:0], new_dir[:0], new_beta[:0], new_pdf[:0], new_delta[:0]
+        # Russian roulette (unbiased: survivors are divided by the survival probability).
+        peak = max3(new_beta)
+        if segment + 1 >= self.rr_depth:
+            q = np.minimum(peak, 1.0)
+            survive = rng.random(n) < q
+            new_beta = new_beta * np.where(survive, 1.0 / np.where(q > 0, q, 1.0), 0.0)[:, None]
+            peak = np.where(survive, peak, 0.0)
+        finite = np.isfinite(peak)
+        if not finite.all():
+            stats.add("paths_nonfinite_killed", int((~finite).sum()))
+        alive = (peak > 0) & finite
+        origin = offset_origin(p[alive], ng[alive], new_dir[alive])
+        return lane[alive], origin, new_dir[alive], new_beta[alive], new_pdf[alive], new_delta[alive]
+
+    def _nee(self, bsdf, wi_g, frame, p, ng, beta, rng):
+        """Light sample + BSDF eval for one material group (all arrays are that group's lanes)."""
+        m = wi_g.shape[0]
+        u_sel = rng.random(m)
+        u_light = rng.random((m, 2))
+        if len(self.lights) == 1:
+            li_of = np.zeros(m, np.int64)
+            sel_p = np.ones(m)
+            light = self.lights[0]
+            ls = light.sample(p, u_light)
+            wi_w, dist, value, lpdf = ls.wi, ls.dist, ls.value, ls.pdf
+            is_delta = np.full(m, light.is_delta)
+        else:
+            li_of, sel_p, _ = self.selector.sample(u_sel)
+            wi_w = np.zeros((m, 3))
+            dist = np.zeros(m)
+            value = np.zeros((m, 3))
+            lpdf = np.zeros(m)
+            is_delta = np.zeros(m, dtype=bool)
+            for li in np.unique(li_of):
+                k = li_of == li
+                light = self.lights[li]
+                ls = light.sample(p[k], u_light[k])
+                wi_w[k], dist[k], value[k], lpdf[k] = ls.wi, ls.dist, ls.value, ls.pdf
+                is_delta[k] = light.is_delta
+        wo_l = frame.to_local(wi_w)
+        live = (max3(value) > 0) & ((dot(wi_w, ng) * wo_l[:, 2]) > 0)
+        if not live.any():
+            return None
+        # Evaluate every lane (cheaper than gathering the live ones when most are live).
+        f = bsdf.eval(wi_g, wo_l, rng)
+        w = 1.0 / sel_p
+        if not is_delta.all():
+            bp = bsdf.pdf(wi_g, wo_l, rng)
+            w = np.where(is_delta, 1.0, power_heuristic(sel_p * lpdf, bp)) / sel_p
+        contrib = beta * f * (value * (w * live)[:, None])
+        keep = np.flatnonzero(max3(contrib) > 0)
+        if keep.size == 0:
+            return None
+        origin = offset_origin(p[keep], ng[keep], wi_w[keep])
+        d_keep = dist[keep]
+        tmax = np.where(np.isfinite(d_keep), d_keep * (1.0 - SHADOW_EPS), np.inf)
+        return keep, origin, wi_w[keep], tmax, contrib[keep]

@@ -1,0 +1,271 @@
+"""Render orchestration: work items, worker processes, exact merging, progress, adaptivity, cancel.
+
+Work is cut into *items* (a band of pixels × a block of sample indices) whose shape depends only
+on the image, the spp and the merged results so far — never on the worker count. Each item draws
+its random numbers from ``SeedSequence([seed, round, band])`` and is rendered entirely by one
+process, and the master adds item results in item order. Hence the same seed and spp give a
+bit-identical image for any number of workers (tested).
+
+Adaptive sampling (``noise_target`` > 0): after every round the master marks pixels whose relative
+standard error of the mean is below the target (and that have ``min_spp`` samples) as converged;
+later rounds only trace the others.
+
+Workers are separate processes (embreex holds the GIL), started with the portable ``spawn``
+method; each loads the scene and builds its own embree scene once.
+"""
+from __future__ import annotations
+
+import math
+import os
+import signal
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import stats
+from .film import FilmAccumulator
+from .mathutil import LUMINANCE
+
+LANES_PER_ITEM = 1 << 16   # paths per work item: large enough to amortise NumPy call overhead
+MIN_ITEMS_PER_ROUND = 4    # so that several workers have something to do on small images
+
+
+@dataclass
+class RenderOptions:
+    spp: int | None = None
+    seed: int | None = None
+    workers: int | None = None
+    time_limit: float | None = None
+    noise_target: float | None = None
+    min_spp: int | None = None
+    max_bounces: int | None = None
+    resolution: tuple[int, int] | None = None
+
+    def apply(self, scene) -> None:
+        s = scene.settings
+        for name in ("spp", "seed", "time_limit", "noise_target", "min_spp", "max_bounces"):
+            value = getattr(self, name)
+            if value is not None:
+                setattr(s, name, value)
+        if self.resolution is not None:
+            sx = self.resolution[0] / scene.width
+            sy = self.resolution[1] / scene.height
+            scene.width, scene.height = self.resolution
+            if scene.crop is not None:
+                x0, y0, x1, y1 = scene.crop
+                scene.crop = (int(x0 * sx), int(y0 * sy), max(int(x1 * sx), int(x0 * sx) + 1),
+                              max(int(y1 * sy), int(y0 * sy) + 1))
+
+
+@dataclass
+class RenderResult:
+    film: FilmAccumulator
+    spp_done: int
+    elapsed: float
+    cpu_time: float
+    interrupted: bool
+    stats: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
+
+
+# --------------------------------------------------------------------------- worker side
+
+_WORKER = {}
+
+
+def _scene_from_source(source):
+    from .scene.loader import load_scene, load_scene_data
+    if isinstance(source, (str, Path)):
+        return load_scene(source)
+    data, where, base = source
+    return load_scene_data(data, where, Path(base) if base else None)
+
+
+def _init_worker(source, options: RenderOptions):
+    # Ctrl-C goes to the whole process group; the master decides how to stop.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _setup_local(source, options)
+
+
+def _setup_local(source, options: RenderOptions, scene=None):
+    from .geometry.accel import Accelerator
+    from .integrator import PathTracer
+    if scene is None:
+        scene = _scene_from_source(source)
+        options.apply(scene)
+    accel = Accelerator(scene.soup)
+    _WORKER["tracer"] = PathTracer(scene, accel)
+    _WORKER["accel"] = accel
+    return scene
+
+
+def _render_item(item) -> tuple:
+    key, pixels, spp, seed = item
+    tracer = _WORKER["tracer"]
+    accel = _WORKER["accel"]
+    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, *key])))
+    rays0 = accel.rays_traced
+    t0 = time.process_time()
+    result = tracer.render(pixels, spp, rng)
+    info = stats.take()
+    info["rays"] = info.get("rays", 0) + accel.rays_traced - rays0
+    info["cpu_time"] = time.process_time() - t0
+    info["paths"] = int(pixels.size) * spp
+    return key, result, info
+
+
+# --------------------------------------------------------------------------- master side
+
+def plan_round(active: np.ndarray, spp_block: int, round_index: int, seed: int) -> list:
+    """Split the active pixels into bands of about LANES_PER_ITEM lanes."""
+    per_band = max(1, LANES_PER_ITEM // spp_block)
+    n_bands = max(math.ceil(active.size / per_band), min(MIN_ITEMS_PER_ROUND, active.size))
+    bands = np.array_split(active, n_bands)
+    return [((round_index, b), band, spp_block, seed) for b, band in enumerate(bands) if band.size]
+
+
+def choose_spp_block(pixel_count: int, spp: int) -> int:
+    """Samples per item per pixel: fill LANES_PER_ITEM for small images, 1 for large ones."""
+    block = max(1, LANES_PER_ITEM * MIN_ITEMS_PER_ROUND // max(pixel_count, 1))
+    return int(min(block, spp))
+
+
+def relative_error(film: FilmAccumulator, pixels: np.ndarray) -> np.ndarray:
+    n = film.count[pixels].astype(np.float64)
+    mean = film.sum[pixels] / np.maximum(n, 1)[:, None]
+    var = np.maximum(film.sum_sq[pixels] / np.maximum(n, 1)[:, None] - mean * mean, 0.0)
+    var_mean = var * (n / np.maximum(n - 1, 1) / np.maximum(n, 1))[:, None]
+    lum = np.abs(mean @ LUMINANCE)
+    # Absolute floor so near-black pixels converge (relative error is meaningless there).
+    return np.sqrt(var_mean @ (LUMINANCE ** 2)) / np.maximum(lum, 1e-3)
+
+
+class Renderer:
+    """Runs a render; calls ``on_progress(event_dict)`` as items complete."""
+
+    def __init__(self, scene, source, options: RenderOptions | None = None, on_progress=None,
+                 partial_callback=None, partial_interval: float = 2.0):
+        self.scene = scene
+        self.source = source
+        self.options = options or RenderOptions()
+        self.on_progress = on_progress or (lambda event: None)
+        self.partial_callback = partial_callback
+        self.partial_interval = partial_interval
+        self._stop = False
+
+    def request_stop(self, *_):
+        self._stop = True
+
+    def run(self) -> RenderResult:
+        scene = self.scene
+        s = scene.settings
+        W, H = scene.width, scene.height
+        x0, y0, x1, y1 = scene.crop or (0, 0, W, H)
+        ys, xs = np.mgrid[y0:y1, x0:x1]
+        all_pixels = (ys * W + xs).ravel().astype(np.int64)
+        film = FilmAccumulator(W, H)
+        spp = s.spp
+        block = choose_spp_block(all_pixels.size, spp)
+        rounds = math.ceil(spp / block)
+        workers = self.options.workers or os.cpu_count() or 1
+        workers = max(1, min(workers, 64))
+        totals: dict = {}
+        t_start = time.perf_counter()
+        cpu_start = time.process_time()
+        last_partial = t_start
+        active = all_pixels
+        done_samples = 0            # lane-samples merged
+        planned_samples = all_pixels.size * spp
+        spp_done = 0
+        interrupted = False
+        self.on_progress({"event": "start", "width": W, "height": H, "spp": spp, "workers": workers})
+
+        executor = None
+        if workers > 1:
+            executor = ProcessPoolExecutor(max_workers=workers, mp_context=_spawn_context(),
+                                           initializer=_init_worker, initargs=(self.source, self.options))
+            mapper = executor.map
+        else:
+            _setup_local(self.source, self.options, scene)
+            mapper = map
+        try:
+            for r in range(rounds):
+                if self._stop or active.size == 0:
+                    break
+                this_block = min(block, spp - r * block)
+                items = plan_round(active, this_block, r, s.seed)
+                for key, result, info in mapper(_render_item, items):
+                    band = items[key[1]][1]
+                    film.add(band, result)
+                    stats.merge(totals, info)
+                    done_samples += band.size * this_block
+                    now = time.perf_counter()
+                    elapsed = now - t_start
+                    frac = min(done_samples / max(planned_samples, 1), 1.0)
+                    rate = done_samples / max(elapsed, 1e-9)
+                    self.on_progress({"event": "progress", "done": spp_done, "round": r,
+                                      "total": spp, "fraction": round(frac, 4), "elapsed": round(elapsed, 3),
+                                      "eta": round((planned_samples - done_samples) / max(rate, 1e-9), 2),
+                                      "samples_per_second": round(rate, 1)})
+                    if self.partial_callback and now - last_partial >= self.partial_interval:
+                        self.partial_callback(film, spp_done)
+                        last_partial = now
+                    if s.time_limit and elapsed > s.time_limit:
+                        self._stop = True
+                    if self._stop:
+                        interrupted = not (s.time_limit and elapsed > s.time_limit)
+                        break
+                else:
+                    spp_done += this_block
+                    if s.noise_target > 0:
+                        ready = film.count[active] >= s.min_spp
+                        if ready.any():
+                            err = relative_error(film, active)
+                            converged = ready & (err < s.noise_target)
+                            # Samples not taken any more leave the plan (for progress and ETA).
+                            planned_samples -= int(converged.sum()) * (spp - spp_done)
+                            active = active[~converged]
+                    continue
+                break
+        except KeyboardInterrupt:
+            interrupted = True
+        finally:
+            if executor is not None:
+                executor.shutdown(wait=not (self._stop or interrupted), cancel_futures=True)
+                if self._stop or interrupted:
+                    _terminate_pool(executor)
+        elapsed = time.perf_counter() - t_start
+        totals["master_cpu_time"] = time.process_time() - cpu_start
+        return RenderResult(film, spp_done, elapsed, totals.get("cpu_time", 0.0), interrupted, totals,
+                            list(scene.warnings))
+
+
+def _spawn_context():
+    import multiprocessing
+    return multiprocessing.get_context("spawn")
+
+
+def _terminate_pool(executor) -> None:
+    procs = getattr(executor, "_processes", None) or {}
+    for p in list(procs.values()):
+        try:
+            p.terminate()
+        except Exception:  # noqa: BLE001 - best effort on shutdown
+            pass
+    for p in list(procs.values()):
+        try:
+            p.join(timeout=2)
+        except Exception:  # noqa: BLE001
+            pass
+
+
+def install_signal_handlers(renderer: Renderer) -> None:
+    """SIGINT/SIGTERM stop the render cleanly; what is done is still written."""
+    signal.signal(signal.SIGINT, renderer.request_stop)
+    try:
+        signal.signal(signal.SIGTERM, renderer.request_stop)
+    except (ValueError, OSError):  # not in the main thread / unsupported
+        pass

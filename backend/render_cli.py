@@ -1,0 +1,207 @@
+"""``render`` and ``validate`` sub-commands (docs/cli.md)."""
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .errors import LaminaError
+
+
+def register(sub) -> None:
+    p = sub.add_parser("render", help="render a scene to an EXR (and optional PNG preview)")
+    p.add_argument("scene", help="scene description (.json), see docs/scene-format.md")
+    p.add_argument("-o", "--output", required=True, help="output EXR path")
+    p.add_argument("--png", help="also write a display preview (PNG/JPEG, sRGB)")
+    p.add_argument("--spp", type=_positive_int, help="samples per pixel (overrides the scene)")
+    p.add_argument("--seed", type=_non_negative_int, help="random seed (overrides the scene)")
+    p.add_argument("--workers", type=_positive_int, help="worker processes (default: all cores)")
+    p.add_argument("--max-bounces", type=_non_negative_int, help="Cycles-style max bounces")
+    p.add_argument("--time-limit", type=float, help="seconds; stop after this time")
+    p.add_argument("--noise-target", type=float, help="adaptive sampling: relative error target")
+    p.add_argument("--min-spp", type=_positive_int, help="adaptive sampling: samples before a pixel may stop")
+    p.add_argument("--resolution", type=_resolution, help="WxH, overrides the film size")
+    p.add_argument("--progress", choices=("bar", "json", "none"), default=None,
+                   help="progress display (default: bar on a terminal, none otherwise)")
+    p.add_argument("--partial", help="write partial results to this .npy path (add-on protocol)")
+    p.add_argument("--partial-interval", type=float, default=2.0, help="seconds between partial results")
+    p.add_argument("--half", action="store_true", help="write half-float EXR")
+    p.set_defaults(func=cmd_render)
+
+    v = sub.add_parser("validate", help="load and check a scene, print warnings and a summary")
+    v.add_argument("scene")
+    v.add_argument("--json", action="store_true")
+    v.set_defaults(func=cmd_validate)
+
+
+def _positive_int(text: str) -> int:
+    import argparse
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def _non_negative_int(text: str) -> int:
+    import argparse
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return value
+
+
+def _resolution(text: str) -> tuple[int, int]:
+    import argparse
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+        if w < 1 or h < 1:
+            raise ValueError
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WxH such as 640x480, got {text!r}") from None
+    return w, h
+
+
+class ProgressPrinter:
+    def __init__(self, mode: str):
+        self.mode = mode
+        self.last = 0.0
+
+    def emit(self, event: dict) -> None:
+        if self.mode == "json":
+            sys.stdout.write(json.dumps(event) + "\n")
+            sys.stdout.flush()
+        elif self.mode == "bar":
+            kind = event.get("event")
+            if kind == "progress":
+                now = time.perf_counter()
+                if now - self.last < 0.2 and event["fraction"] < 1:
+                    return
+                self.last = now
+                frac = event["fraction"]
+                bar = "#" * int(frac * 30)
+                sys.stderr.write(f"\r[{bar:<30}] {frac * 100:5.1f}%  {event['samples_per_second'] / 1e3:8.1f} k samples/s"
+                                 f"  elapsed {event['elapsed']:6.1f} s  ETA {event['eta']:6.1f} s ")
+                sys.stderr.flush()
+            elif kind in ("warning",):
+                sys.stderr.write(f"warning: {event['message']}\n")
+            elif kind == "done":
+                sys.stderr.write("\n")
+        elif event.get("event") == "warning":
+            sys.stderr.write(f"warning: {event['message']}\n")
+
+
+def cmd_render(args) -> int:
+    from .render import Renderer, RenderOptions, install_signal_handlers
+    from .scene.loader import load_scene
+
+    mode = args.progress or ("bar" if sys.stderr.isatty() else "none")
+    printer = ProgressPrinter(mode)
+    output = Path(args.output)
+    if output.suffix.lower() != ".exr":
+        raise LaminaError(f"output must be an .exr file, got {output}")
+    try:
+        scene = load_scene(args.scene)
+        options = RenderOptions(spp=args.spp, seed=args.seed, workers=args.workers,
+                                time_limit=args.time_limit, noise_target=args.noise_target,
+                                min_spp=args.min_spp, max_bounces=args.max_bounces,
+                                resolution=args.resolution)
+        options.apply(scene)
+        for w in scene.warnings:
+            printer.emit({"event": "warning", "message": w})
+        source = str(Path(args.scene).resolve())
+
+        partial_cb = None
+        if args.partial:
+            def partial_cb(film, spp_done):
+                _write_partial(Path(args.partial), film)
+                printer.emit({"event": "partial", "path": str(Path(args.partial).resolve()), "spp": spp_done})
+        renderer = Renderer(scene, source, options, printer.emit, partial_cb, args.partial_interval)
+        install_signal_handlers(renderer)
+        result = renderer.run()
+        write_outputs(result, output, args.png, args.half)
+        if args.partial:
+            _write_partial(Path(args.partial), result.film, aovs=True)
+        summary = summarise(result)
+        printer.emit({"event": "done", "path": str(output.resolve()), **summary})
+        if mode != "json":
+            print(format_summary(summary, output), file=sys.stderr)
+        return 130 if result.interrupted else 0
+    except LaminaError as exc:
+        if mode == "json":
+            printer.emit({"event": "error", "message": str(exc)})
+        raise
+
+
+def write_outputs(result, output: Path, png: str | None, half: bool = False) -> None:
+    from .imageio import write_exr, write_preview
+    film = result.film
+    rgb = film.combined()
+    alpha = (film.counts() > 0).astype(np.float32)[:, :, None]
+    layers = {"": np.concatenate([rgb, alpha], axis=2), "albedo": film.albedo_image(),
+              "normal": film.normal_image(), "variance": film.variance_of_mean(),
+              "samples": film.counts()[:, :, None].astype(np.float32)}
+    write_exr(output, layers, half=half)
+    if png:
+        write_preview(png, rgb)
+
+
+def _write_partial(path: Path, film, aovs: bool = False) -> None:
+    from .imageio import write_npy
+    rgb = film.combined()
+    alpha = (film.counts() > 0).astype(np.float32)[:, :, None]
+    write_npy(path, np.concatenate([rgb, alpha], axis=2))
+    if aovs:
+        write_npy(path.with_suffix(".aovs.npy"), np.concatenate([film.albedo_image(), film.normal_image()], axis=2))
+
+
+def summarise(result) -> dict:
+    st = result.stats
+    paths = st.get("paths", 0)
+    rays = st.get("rays", 0)
+    out = {"elapsed": round(result.elapsed, 3), "spp": result.spp_done, "interrupted": result.interrupted,
+           "paths": paths, "rays": rays, "worker_cpu_time": round(result.cpu_time, 3),
+           "paths_per_second": round(paths / max(result.elapsed, 1e-9), 1),
+           "rays_per_second": round(rays / max(result.elapsed, 1e-9), 1)}
+    for k, v in st.items():
+        if k not in ("paths", "rays", "cpu_time", "master_cpu_time"):
+            out[k] = v
+    return out
+
+
+def format_summary(summary: dict, output: Path) -> str:
+    lines = [f"wrote {output}  ({summary['spp']} spp, {summary['elapsed']:.2f} s, "
+             f"{summary['paths_per_second'] / 1e3:.1f} k paths/s, {summary['rays_per_second'] / 1e6:.2f} M rays/s)"]
+    extra = {k: v for k, v in summary.items() if k not in ("elapsed", "spp", "interrupted", "paths", "rays",
+                                                          "worker_cpu_time", "paths_per_second", "rays_per_second")}
+    if extra:
+        lines.append("statistics: " + ", ".join(f"{k} = {v}" for k, v in sorted(extra.items())))
+    if summary["interrupted"]:
+        lines.append("render interrupted: the image holds the samples done so far")
+    return "\n".join(lines)
+
+
+def cmd_validate(args) -> int:
+    from .scene.loader import load_scene
+    scene = load_scene(args.scene)
+    info = {"scene": str(args.scene), "width": scene.width, "height": scene.height,
+            "triangles": scene.soup.count, "materials": scene.material_names,
+            "lights": [type(l).__name__ for l in scene.lights], "spp": scene.settings.spp,
+            "warnings": scene.warnings}
+    if args.json:
+        print(json.dumps(info, indent=2))
+    else:
+        for w in scene.warnings:
+            print(f"warning: {w}", file=sys.stderr)
+        print(f"{args.scene}: OK — {scene.width}×{scene.height}, {scene.soup.count} triangles, "
+              f"{len(scene.materials)} materials, {len(scene.lights)} lights, {scene.settings.spp} spp")
+    return 0

@@ -1,0 +1,306 @@
+"""Load and validate a scene description (docs/scene-format.md) into a renderable :class:`Scene`.
+
+Everything a user can get wrong is reported as a SceneError naming the file and field; the
+warnings (degenerate triangles dropped, texels sanitised, missing material slots...) are collected
+in ``Scene.warnings`` for the CLI/add-on to show.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SceneError
+from ..geometry.accel import TriangleSoup
+from ..geometry.mesh import Mesh, parse_mesh
+from .reader import LoadContext, Node, dispatch
+
+FORMAT = "lamina-scene"
+VERSION = 1
+
+
+@dataclass
+class RenderSettings:
+    spp: int = 16
+    max_bounces: int = 12
+    rr_depth: int = 3
+    seed: int = 0
+    clamp: float = 0.0
+    noise_target: float = 0.0
+    min_spp: int = 16
+    time_limit: float = 0.0
+
+
+@dataclass
+class Scene:
+    source: str
+    width: int
+    height: int
+    pixel_filter: object
+    crop: tuple[int, int, int, int] | None
+    camera: object
+    settings: RenderSettings
+    materials: list
+    material_names: list[str]
+    soup: TriangleSoup
+    lights: list                      # every light incl. mesh lights and the world
+    world: object | None
+    mesh_light: object | None
+    warnings: list[str] = field(default_factory=list)
+    center: np.ndarray = None
+    radius: float = 1.0
+
+
+def load_scene(path: str | Path) -> Scene:
+    path = Path(path)
+    where = str(path)
+    if not path.is_file():
+        raise SceneError(where, "", "scene file not found")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(where, "", f"cannot read file: {exc}") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise SceneError(where, "", f"not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}") from None
+    return load_scene_data(data, where, path.parent)
+
+
+def load_scene_data(data, where: str = "<scene>", base_dir: Path | None = None) -> Scene:
+    ctx = LoadContext(where, base_dir)
+    root = Node(data, "", ctx)
+    root.require_object()
+    fmt = root.string("format")
+    if fmt != FORMAT:
+        raise root.fail(f"expected {FORMAT!r}, got {fmt!r}", "format")
+    version = root.integer("version")
+    if version != VERSION:
+        raise root.fail(f"unsupported scene version {version} (this Lamina reads version {VERSION})", "version")
+
+    settings = parse_settings(root.optional_child("render"), ctx)
+    width, height, pixel_filter, crop = parse_film(root.child("film"))
+    from ..camera import parse_camera
+    camera = parse_camera(root.child("camera"))
+
+    materials, names = parse_materials(root.optional_child("materials"))
+    meshes = {}
+    meshes_node = root.optional_child("meshes")
+    if meshes_node is not None:
+        for name, mnode in meshes_node.entries():
+            meshes[name] = parse_mesh(mnode)
+    soup = flatten_objects(root.optional_child("objects"), meshes, materials, names, ctx)
+
+    from ..lights import load_all as load_lights
+    light_parsers, world_parsers = load_lights()
+    lights = []
+    lights_node = root.optional_child("lights")
+    if lights_node is not None:
+        for lnode in lights_node.items():
+            lights.append(dispatch(lnode, light_parsers))
+    world = None
+    world_node = root.optional_child("world")
+    if world_node is not None:
+        world_node.require_object()
+        if world_node.value.get("type") != "none":
+            world = dispatch(world_node, world_parsers)
+        else:
+            world_node.ignore("type")
+            world_node.finish()
+    root.finish()
+
+    mesh_light = build_mesh_light(soup, materials)
+    all_lights = list(lights) + ([mesh_light] if mesh_light is not None else []) + ([world] if world is not None else [])
+    center, radius = scene_bounds(soup, lights, camera)
+    for light in all_lights:
+        light.prepare(center, radius)
+    scene = Scene(ctx.where, width, height, pixel_filter, crop, camera, settings, materials, names,
+                  soup, all_lights, world, mesh_light, ctx.warnings, center, radius)
+    if not all_lights:
+        ctx.warn("", "the scene has no lights and no world: the image will be black")
+    return scene
+
+
+# --------------------------------------------------------------------------- sections
+
+def parse_settings(node: Node | None, ctx: LoadContext) -> RenderSettings:
+    s = RenderSettings()
+    if node is None:
+        ctx.cache["layered_defaults"] = {}
+        return s
+    s.spp = node.integer("spp", s.spp, lo=1, hi=1 << 24)
+    s.max_bounces = node.integer("max_bounces", s.max_bounces, lo=0, hi=1024)
+    s.rr_depth = node.integer("rr_depth", s.rr_depth, lo=0, hi=1024)
+    s.seed = node.integer("seed", s.seed, lo=0, hi=2**63 - 1)
+    s.clamp = node.number("clamp", s.clamp, lo=0)
+    s.noise_target = node.number("noise_target", s.noise_target, lo=0, hi=1)
+    s.min_spp = node.integer("min_spp", s.min_spp, lo=1, hi=1 << 24)
+    s.time_limit = node.number("time_limit", s.time_limit, lo=0)
+    layered = node.optional_child("layered")
+    ctx.cache["layered_defaults"] = dict(layered.require_object().value) if layered is not None else {}
+    node.finish()
+    return s
+
+
+def parse_film(node: Node):
+    from ..film import parse_filter
+    width = node.integer("width", lo=1, hi=65536)
+    height = node.integer("height", lo=1, hi=65536)
+    pixel_filter = parse_filter(node.optional_child("filter"))
+    crop = None
+    if node.has("crop"):
+        c = node.vector("crop", 4)
+        x0, y0, x1, y1 = (int(round(v)) for v in c)
+        if not (0 <= x0 < x1 <= width and 0 <= y0 < y1 <= height):
+            raise node.fail(f"expected 0 <= x0 < x1 <= {width} and 0 <= y0 < y1 <= {height}, got {c.tolist()}", "crop")
+        crop = (x0, y0, x1, y1)
+    node.finish()
+    return width, height, pixel_filter, crop
+
+
+def parse_material(node: Node):
+    """A material object, or a string naming a preset."""
+    from ..materials import load_all
+    if isinstance(node.value, str):
+        from ..presets import resolve_preset  # the preset library resolves names
+        return resolve_preset(node.value, node)
+    return dispatch(node, load_all())
+
+
+def parse_materials(node: Node | None):
+    materials, names = [], []
+    if node is None:
+        return materials, names
+    for name, mnode in node.entries():
+        materials.append(parse_material(mnode))
+        names.append(name)
+    return materials, names
+
+
+def default_material():
+    from ..materials import load_all
+    ctx = LoadContext("<default material>")
+    return dispatch(Node({"type": "diffuse", "color": [0.8, 0.8, 0.8]}, "", ctx), load_all())
+
+
+def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list, names: list[str],
+                    ctx: LoadContext) -> TriangleSoup:
+    verts, norms, uvs, mats, objs, cam = [], [], [], [], [], []
+    any_normals = any_uvs = False
+    default_index = None
+    items = node.items() if node is not None else []
+    for oi, onode in enumerate(items):
+        onode.require_object()
+        onode.string("name", f"object {oi}")
+        mesh_name = onode.string("mesh")
+        if mesh_name not in meshes:
+            raise onode.fail(f"unknown mesh {mesh_name!r} (known: {', '.join(sorted(meshes)) or 'none'})", "mesh")
+        mesh = meshes[mesh_name]
+        m = onode.matrix4("to_world", np.eye(4).tolist())
+        visible = onode.boolean("visible_camera", True)
+        slot_names = []
+        slots_node = onode.optional_child("materials")
+        if slots_node is not None:
+            for snode in slots_node.items():
+                if not isinstance(snode.value, str):
+                    raise snode.fail(f"expected a material name, got {snode.value!r}")
+                slot_names.append(snode.value)
+        onode.finish()
+        slot_index = []
+        for si, sname in enumerate(slot_names):
+            if sname in names:
+                slot_index.append(names.index(sname))
+            else:
+                raise ctx.error(f"objects[{oi}].materials[{si}]",
+                                f"unknown material {sname!r} (known: {', '.join(names) or 'none'})")
+        tri_slots = mesh.material_indices if mesh.material_indices is not None else np.zeros(mesh.triangle_count, np.int32)
+        if len(slot_index) == 0 or (tri_slots.size and tri_slots.max() >= len(slot_index)):
+            if default_index is None:
+                materials.append(default_material())
+                names.append("<default>")
+                default_index = len(materials) - 1
+            missing = int((tri_slots >= len(slot_index)).sum())
+            ctx.warn(f"objects[{oi}]", f"{missing} triangle(s) use a material slot that is not set: grey diffuse used")
+        lut = np.array(slot_index + [default_index if default_index is not None else 0], dtype=np.int32)
+        tri_mat = lut[np.minimum(tri_slots, len(slot_index))]
+
+        p = mesh.positions.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+        v = p[mesh.indices]
+        nrm = None
+        if mesh.normals is not None:
+            normal_matrix = np.linalg.inv(m[:3, :3]).T
+            nrm = mesh.normals.astype(np.float64) @ normal_matrix.T
+            nrm /= np.maximum(np.linalg.norm(nrm, axis=2, keepdims=True), 1e-30)
+            any_normals = True
+        uv = mesh.uvs
+        if uv is not None:
+            any_uvs = True
+        if np.linalg.det(m[:3, :3]) < 0:
+            # A mirroring transform reverses the winding: swap two corners to keep CCW = front.
+            v = v[:, [0, 2, 1]]
+            nrm = None if nrm is None else nrm[:, [0, 2, 1]]
+            uv = None if uv is None else uv[:, [0, 2, 1]]
+        verts.append(v)
+        norms.append(nrm)
+        uvs.append(uv)
+        mats.append(tri_mat)
+        objs.append(np.full(mesh.triangle_count, oi, np.int32))
+        cam.append(np.full(mesh.triangle_count, visible))
+    if not verts:
+        empty = np.zeros((0, 3, 3), np.float32)
+        return TriangleSoup(empty, None, None, np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, bool))
+    vertices = np.concatenate(verts).astype(np.float32)
+    normals = None
+    if any_normals:
+        normals = np.concatenate([n if n is not None else _flat_normals(v) for n, v in zip(norms, verts)]).astype(np.float32)
+    uv_all = None
+    if any_uvs:
+        uv_all = np.concatenate([u if u is not None else np.zeros((v.shape[0], 3, 2), np.float32)
+                                 for u, v in zip(uvs, verts)]).astype(np.float32)
+    return TriangleSoup(vertices, normals, uv_all, np.concatenate(mats), np.concatenate(objs), np.concatenate(cam))
+
+
+def _flat_normals(v: np.ndarray) -> np.ndarray:
+    n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    return np.repeat(n[:, None, :], 3, axis=1)
+
+
+def build_mesh_light(soup: TriangleSoup, materials: list):
+    emissive = [i for i, m in enumerate(materials) if getattr(m, "emission", None) is not None]
+    if not emissive or soup.count == 0:
+        return None
+    tri = np.nonzero(np.isin(soup.material, emissive))[0]
+    if tri.size == 0:
+        return None
+    radiance = np.zeros((tri.size, 3))
+    centroid_uv = soup.uvs[tri].mean(axis=1).astype(np.float64) if soup.uvs is not None else np.zeros((tri.size, 2))
+    for mi in emissive:
+        sel = soup.material[tri] == mi
+        if sel.any():
+            value = np.asarray(materials[mi].emission.bind(centroid_uv[sel]), dtype=np.float64)
+            radiance[sel] = np.broadcast_to(value.reshape(-1, 3), (int(sel.sum()), 3))
+    keep = radiance.max(axis=1) > 0
+    tri, radiance = tri[keep], radiance[keep]
+    if tri.size == 0:
+        return None
+    from ..lights.mesh import MeshLight
+    light = MeshLight(soup.vertices[tri].astype(np.float64), radiance)
+    light.triangle_ids = tri  # global triangle index of each emitter
+    return light
+
+
+def scene_bounds(soup: TriangleSoup, lights: list, camera) -> tuple[np.ndarray, float]:
+    pts = [soup.vertices.reshape(-1, 3).astype(np.float64)] if soup.count else []
+    pts.append(camera.to_world[:3, 3][None, :])
+    for light in lights:
+        pos = getattr(light, "position", None)
+        if pos is not None:
+            pts.append(np.asarray(pos, dtype=np.float64).reshape(1, 3))
+    allp = np.concatenate(pts)
+    lo, hi = allp.min(axis=0), allp.max(axis=0)
+    center = 0.5 * (lo + hi)
+    radius = max(float(np.linalg.norm(hi - lo)) * 0.5, 1e-3)
+    return center, radius
