@@ -143,18 +143,73 @@ def _load_light(spec: dict, tmp_path: Path):
     return dispatch(lights[0], registry), ctx
 
 
+def _expected_irradiance_weight(prof, M, power, p, spot=None):
+    """I(ω)/r² at points p from the table, the light at M (rotation + translation): (n,)."""
+    R, pos = M[:3, :3], M[:3, 3]
+    d = p - pos
+    r2 = np.einsum("ij,ij->i", d, d)
+    local = (d @ R) / np.sqrt(r2)[:, None]
+    f = np.ones(p.shape[0])
+    if spot is not None:
+        size, blend = spot
+        ch = math.cos(math.radians(size / 2))
+        t = np.clip((-local[:, 2] - ch) / ((1 - ch) * blend), 0, 1)
+        f = t * t * (3 - 2 * t)
+    return power * prof.intensity(local) / EFFICACY * f / r2
+
+
 def test_scene_point_and_spot_with_ies(tmp_path):
+    """Whichever module builds it (backend.ies wrapper or the point/spot lights with an IES
+    factor), a scene light with an "ies" field emits the table's intensity."""
     (tmp_path / "lamp.ies").write_bytes((IES_DIR / "rab_asym360_45deg_lm02.ies").read_bytes())
-    M = _to_world(rotation_matrix((0, 0, 1), 90), [0, 0, 3]).tolist()
-    light, ctx = _load_light({"type": "point", "to_world": M, "power": 50, "color": [1, 1, 1],
-                              "ies": {"file": "lamp.ies"}}, tmp_path)
-    assert isinstance(light, IESLight) and light.cos_half is None and light.power_w == 50
+    M = _to_world(rotation_matrix((1, 0, 1), 50), [0, 0, 3])
+    p = _plane_points(n=15, half=4.0)
+    light, ctx = _load_light({"type": "point", "to_world": M.tolist(), "power": 50,
+                              "color": [1, 1, 1], "ies": {"file": "lamp.ies"}}, tmp_path)
+    prof = IESProfile.from_file(IES_DIR / "rab_asym360_45deg_lm02.ies")
+    ls = light.sample(p, np.full((p.shape[0], 2), 0.5))
+    np.testing.assert_allclose(ls.value[:, 1], _expected_irradiance_weight(prof, M, 50, p), rtol=1e-9)
+    # Light selection must use the real emitted power P × flux / 177.83 (issue 4), which exceeds
+    # P for any beam: a point light must not clamp its mean directional factor at 1 (use
+    # IESEmission.mean_factor).
+    assert light.power() == pytest.approx(50 * prof.flux / EFFICACY, rel=1e-6), type(light)
     assert ctx.warnings == []
+
+    raw = (IES_DIR / "erco_defined_spot_lm95.ies").read_bytes()
+    text = raw.decode("latin-1")
+    spot, ctx = _load_light({"type": "spot", "to_world": M.tolist(), "power": 5, "spot_size": 40,
+                             "spot_blend": 0.1, "ies": {"data": text}}, tmp_path)
+    sprof = IESProfile.from_text(raw)
+    ls = spot.sample(p, np.full((p.shape[0], 2), 0.5))
+    want = _expected_irradiance_weight(sprof, M, 5, p, spot=(40, 0.1))
+    np.testing.assert_allclose(ls.value[:, 1], want, rtol=1e-9, atol=1e-12 * want.max())
+    assert np.count_nonzero(want) > 5
+
+
+def test_ies_emission_factor():
+    """The factor a point light multiplies its isotropic intensity P/(4π) by."""
+    from backend.ies.light import IESEmission
+    prof = IESProfile.from_file(IES_DIR / "hew_overhead_quad90_8lamps_lm95.ies")
+    em = IESEmission(prof)
+    d = np.array([[0, 0, -1.0], [0.6, 0, -0.8]])
+    np.testing.assert_allclose(10 / (4 * np.pi) * em(d), 10 * prof.intensity(d) / EFFICACY, rtol=1e-12)
+    # mean over the sphere = flux / 177.83 lm (≈ 208 here: a beam concentrates, no clamp at 1)
+    assert em.mean_factor() == pytest.approx(prof.flux / EFFICACY, rel=1e-12) and em.mean_factor() > 100
+    R = rotation_matrix((1, 0, 0), 30.0)
+    scaled = IESLight(prof, _to_world(R, [0, 0, 2], scale=(2.0, 0.5, 1.0)), 1.0)
+    assert em.mean_factor(R @ np.diag([2.0, 0.5, 1.0])) == pytest.approx(scaled.power(), rel=1e-12)
+
+
+def test_radius_warning_on_the_wrapper_route(tmp_path):
+    from backend.lights import load_all
+    registry, _ = load_all()
+    if not getattr(registry["point"], "_ies_wrapper", False):
+        pytest.skip("point lights handle IES themselves (sphere lights with IES are supported)")
+    M = np.eye(4).tolist()
     text = (IES_DIR / "erco_defined_spot_lm95.ies").read_bytes().decode("latin-1")
-    spot, ctx = _load_light({"type": "spot", "to_world": M, "power": 5, "spot_size": 40,
-                             "spot_blend": 0.1, "radius": 0.1, "ies": {"data": text}}, tmp_path)
-    assert isinstance(spot, IESLight) and spot.spot_size_deg == 40 and spot.spot_blend == 0.1
-    assert any("radius ignored" in w for w in ctx.warnings)
+    light, ctx = _load_light({"type": "point", "to_world": M, "power": 5, "radius": 0.1,
+                              "soft_falloff": True, "ies": {"data": text}}, tmp_path)
+    assert isinstance(light, IESLight) and any("radius ignored" in w for w in ctx.warnings)
 
 
 def test_scene_errors(tmp_path):

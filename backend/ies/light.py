@@ -10,11 +10,14 @@ interpolation of the table (:mod:`backend.ies.profile`). A spot light multiplies
 attenuation smoothstep((cos − cos(size/2)) / ((1 − cos(size/2)) · blend)), cos = −ω_local.z.
 
 Scene files: ``"ies": {"file": "lamp.ies"}`` (relative to the scene file) or
-``{"data": "<LM-63 text>"}`` on a ``point`` or ``spot`` light. This module wraps the ``point`` and
-``spot`` parsers registered by ``backend.lights.point``/``spot``: a light node with an ``ies`` field
-is built here, any other node goes to the original parser. The point/spot modules therefore need
-not know about IES at all; :func:`parse_ies` and :class:`IESLight` are public for code that wants
-to build IES lights itself.
+``{"data": "<LM-63 text>"}`` on a ``point`` or ``spot`` light. Two ways to plug this in, chosen at
+import time so that either order of development works:
+
+* If ``backend.lights.point`` reads the ``ies`` field itself (it calls :func:`parse_profile` and
+  multiplies its point/spot intensity P/(4π) by the returned :class:`IESEmission` factor, which
+  also gives IES on sphere lights as in Cycles), nothing else happens here.
+* Otherwise this module wraps the registered ``point``/``spot`` parsers: a node with ``ies`` is
+  built as an :class:`IESLight` (a delta emitter), any other node goes to the original parser.
 """
 from __future__ import annotations
 
@@ -98,26 +101,13 @@ class IESLight(Light):
 
     # ------------------------------------------------------------------ power
     def emitted_flux_cd_sr(self) -> float:
-        """∫ candela × spot dω over *world* directions [cd·sr]; equals ∫ over local ones times the
-        Jacobian |det M| / |M ω_l|³ of ω_l ↦ normalize(M ω_l) (1 for a pure rotation)."""
-        M = self.matrix
-        det = abs(float(np.linalg.det(M)))
-        orthonormal = np.allclose(M.T @ M, np.eye(3), atol=1e-9)
-        if orthonormal and self.cos_half is None:
-            return self.profile.flux
-
-        def weight(d_local):
-            w = np.ones(d_local.shape[0])
-            if self.cos_half is not None:
-                w = spot_attenuation(-d_local[:, 2], self.cos_half, self.smooth_inv)
-            if not orthonormal:
-                m = np.linalg.norm(d_local @ M.T, axis=1)
-                w = w * det / np.maximum(m, 1e-300) ** 3
-            return w
-
-        # The spot edge is not aligned with table cells: more nodes per cell keep the quadrature
-        # error of that kink small (this number only steers light selection).
-        return self.profile.integrate(weight, nodes=(6, 12))
+        """∫ candela × spot dω over *world* directions [cd·sr = lm]: over local directions with
+        the Jacobian |det M| / |M ω_l|³ of ω_l ↦ normalize(M ω_l) (1 for a pure rotation)."""
+        weight = None
+        if self.cos_half is not None:
+            def weight(d_local):
+                return spot_attenuation(-d_local[:, 2], self.cos_half, self.smooth_inv)
+        return IESEmission(self.profile).mean_factor(self.matrix, weight) * LUMINOUS_EFFICACY
 
     def power(self) -> float:
         """Emitted power [W] (luminance of the RGB power), integrated from the profile."""
@@ -161,6 +151,49 @@ def parse_ies(node) -> IESProfile:
     return profile
 
 
+class IESEmission:
+    """The IES directional factor relative to an isotropic light of the same power.
+
+    A point light of power P has I = P/(4π) W/sr; with IES, Cycles gives P · cd / 177.83 W/sr, so
+    the factor is 4π · cd(ω_local) / 177.83 (Cycles bakes 4π/177.83 into its IES table).
+    ``__call__`` takes unit local directions (n, 3) and returns (n,).
+    """
+
+    def __init__(self, profile: IESProfile):
+        self.profile = profile
+        self.scale = 4.0 * np.pi / LUMINOUS_EFFICACY
+
+    def __call__(self, local_dirs: np.ndarray) -> np.ndarray:
+        return self.scale * self.profile.intensity(local_dirs)
+
+    def mean_factor(self, matrix: np.ndarray | None = None, weight=None) -> float:
+        """Mean of the factor (× optional ``weight(local_dirs)``, e.g. a spot cone) over the *world*
+        sphere for a light whose ``to_world`` 3×3 part is ``matrix``: the emitted power is
+        P × this. Exact quadrature of the interpolated table (not clamped to ≤ 1: a beam that
+        concentrates flux has a mean factor of flux/177.83 lm, often well above 1)."""
+        M = np.eye(3) if matrix is None else np.asarray(matrix, dtype=np.float64)
+        det = abs(float(np.linalg.det(M)))
+        orthonormal = np.allclose(M.T @ M, np.eye(3), atol=1e-9)
+        if orthonormal and weight is None:
+            total = self.profile.flux
+        else:
+            def w(d_local):
+                out = np.ones(d_local.shape[0]) if weight is None else np.asarray(weight(d_local), float)
+                if not orthonormal:
+                    m = np.linalg.norm(d_local @ M.T, axis=1)
+                    out = out * det / np.maximum(m, 1e-300) ** 3
+                return out
+            # A spot edge is not aligned with table cells: more nodes per cell keep that kink's
+            # quadrature error small (this number only steers light selection).
+            total = self.profile.integrate(w, nodes=(6, 12))
+        return self.scale * total / (4.0 * np.pi)
+
+
+def parse_profile(node) -> IESEmission:
+    """The ``ies`` object of a point/spot light → its directional factor (see IESEmission)."""
+    return IESEmission(parse_ies(node))
+
+
 def ies_light_from_node(node, spot: bool) -> IESLight:
     """A ``point``/``spot`` light node that has an ``ies`` field → :class:`IESLight`."""
     to_world = node.matrix4("to_world")
@@ -168,6 +201,7 @@ def ies_light_from_node(node, spot: bool) -> IESLight:
     power = node.number("power", lo=0.0)
     radius = node.number("radius", 0.0, lo=0.0)
     node.boolean("visible_camera", False)  # a delta light is never seen by camera rays
+    node.boolean("soft_falloff", False)    # only matters for radius > 0, which is ignored here
     if radius > 0:
         node.ctx.warn(node.sub("radius"), "IES lights are point emitters in Lamina: radius ignored "
                                           "(soft shadows of a sphere light are not reproduced)")
@@ -200,13 +234,18 @@ def _wrap(type_name: str, spot: bool) -> None:
 def _install() -> None:
     # Import the plain parsers first so they are registered before being wrapped (later imports of
     # those modules are cached and do not re-register).
+    package = __package__.rsplit(".", 1)[0]
+    modules = {}
     for mod in ("point", "spot"):
-        name = f"{__package__.rsplit('.', 1)[0]}.lights.{mod}"
+        name = f"{package}.lights.{mod}"
         try:
-            importlib.import_module(name)
+            modules[mod] = importlib.import_module(name)
         except ModuleNotFoundError as exc:
             if exc.name != name:
                 raise
+    point = modules.get("point")
+    if point is not None and hasattr(point, "parse_profile"):
+        return  # point/spot lights read "ies" themselves through parse_profile()
     _wrap("point", spot=False)
     _wrap("spot", spot=True)
 
