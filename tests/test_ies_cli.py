@@ -45,7 +45,7 @@ def test_info_text_lists_the_essentials():
     for text in ("LM-63-1995", "photometric type   C", "vertical angles    19 (0..90°)",
                  "horizontal angles  5 (0..90°)", "symmetry           quadrilateral",
                  "lamps              8 × 5000 lm", "lumens stated      40,000.0",
-                 "19,267.0 cd at h = 45°, v = 10°", "[LUMINAIRE] 8/54W"):
+                 "19,267.0 cd at file angles H = 45°, V = 10°; local direction [-0.123, -0.123, -0.985]", "[LUMINAIRE] 8/54W"):
         assert text in out, text
 
 

@@ -60,8 +60,9 @@ def cmd_info(args) -> int:
         f"lumens stated      {_fmt(s['lumens_stated'])}" + ("" if s["lumens_stated"] else " (absolute photometry)"),
         f"lumens integrated  {_fmt(s['lumens_integrated'])}"
         + (f"  (light output ratio {s['light_output_ratio']:.3f})" if s["light_output_ratio"] else ""),
-        f"peak               {pk['candela']:,.1f} cd at h = {pk['h_deg']:g}°, v = {pk['v_deg']:g}° "
-        f"(local direction [{', '.join(f'{c:.3f}' for c in pk['direction_local'])}])",
+        f"peak               {pk['candela']:,.1f} cd at file angles H = {pk['file_horizontal_deg']:g}°, "
+        f"V = {pk['file_vertical_deg']:g}°; local direction "
+        f"[{', '.join(f'{c:.3f}' for c in pk['direction_local'])}] (h = {pk['h_deg']:g}°, v = {pk['v_deg']:g}°)",
         f"input watts        {s['input_watts']:g}",
         f"units / opening    {s['units']}, {' × '.join(f'{x:g}' for x in s['luminous_opening'])}",
     ]

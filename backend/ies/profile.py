@@ -168,13 +168,18 @@ class IESProfile:
 
     @cached_property
     def peak(self) -> dict:
-        """Peak of the table: candela, its (h, v) in degrees and the local direction."""
+        """Peak of the table: candela, its (h, v) in the Cycles frame [deg], the local direction,
+        and the file's own (horizontal, vertical) angles of that entry."""
         i, j = np.unravel_index(int(np.argmax(self.candela)), self.candela.shape)
         h, v = float(self.h_deg[i]), float(self.v_deg[j])
         d = angles_to_directions(np.radians([h]), np.radians([v]))[0]
         d = np.where(np.abs(d) < 1e-12, 0.0, d)
+        f = self.source
+        fi, fj = np.unravel_index(int(np.argmax(f.candela)), f.candela.shape)
         return {"candela": float(self.candela[i, j]), "h_deg": h, "v_deg": v,
-                "direction_local": [float(x) for x in d]}
+                "direction_local": [float(x) for x in d],
+                "file_horizontal_deg": float(f.horizontal_angles[fi]),
+                "file_vertical_deg": float(f.vertical_angles[fj])}
 
     # ------------------------------------------------------------------ description
     @property
