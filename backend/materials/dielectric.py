@@ -41,7 +41,9 @@ class DielectricBSDF(BSDF):
     def __init__(self, n, eta, tint, alpha_u, alpha_v, distribution=GGX,
                  masking=HEIGHT_CORRELATED):
         self.n = n
-        self.eta = eta                    # ior / ior_above; () or (n,)
+        # ior / ior_above; () or (n,). A texture may hold 0 (texels are clamped to the range's
+        # closed end): keep the index positive so 1/eta stays finite.
+        self.eta = np.maximum(np.asarray(eta, dtype=np.float64), 1e-4)
         self.tint = tint                  # (1, 3) or (n, 3) transmission colour
         self.alpha_u, self.alpha_v = alpha_u, alpha_v
         self.distribution, self.masking = distribution, masking
