@@ -157,7 +157,7 @@ def parse_conductor(node) -> ConductorMaterial:
         node.ignore("eta", "k")
     ru, rv = parse_roughness(node, 0.1)
     dist, masking = parse_microfacet_kind(node)
-    tint = node.param("tint", [1.0, 1.0, 1.0], channels=3, lo=0.0, hi=1.0, color=True)
+    tint = node.param("tint", [1.0, 1.0, 1.0], channels=3, lo=0.0, color=True)
     eta_above = node.number("eta_above", 1.0, lo=0.0, lo_open=True)
     return ConductorMaterial(eta, k, ru, rv, dist, masking, tint, eta_above,
                              emission=parse_emission(node))

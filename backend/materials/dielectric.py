@@ -194,7 +194,6 @@ def parse_dielectric(node) -> DielectricMaterial:
     ior_above = node.number("ior_above", 1.0, lo=0.0, lo_open=True)
     ru, rv = parse_roughness(node, 0.0)
     dist, masking = parse_microfacet_kind(node)
-    tint = node.param("transmission_color", [1.0, 1.0, 1.0], channels=3, lo=0.0, hi=1.0,
-                      color=True)
+    tint = node.param("transmission_color", [1.0, 1.0, 1.0], channels=3, lo=0.0, color=True)
     return DielectricMaterial(ior, ior_above, ru, rv, dist, masking, tint,
                               emission=parse_emission(node))
