@@ -20,7 +20,7 @@ import numpy as np
 from . import stats
 from .geometry.accel import offset_origin
 from .materials.base import ShadingContext
-from .mathutil import Frame, dot, normalize
+from .mathutil import Frame, dot, max3, normalize
 from .sampling.discrete import Discrete1D
 
 SHADOW_EPS = 1e-4  # shorten shadow rays by this fraction so they do not hit the light's own surface
@@ -55,6 +55,7 @@ class PathTracer:
             self.emitter_of_tri[scene.mesh_light.triangle_ids] = np.arange(scene.mesh_light.triangle_ids.size)
         self.emissive_material = np.array([getattr(m, "emission", None) is not None for m in scene.materials] or [False])
         self.any_hidden = bool(self.soup.count) and not bool(self.soup.camera_visible.all())
+        self.two_sided = np.array([m.two_sided for m in scene.materials] or [True])
 
     def select_prob(self, light_index: int) -> float:
         return float(self.selector.pmf[light_index]) if self.selector is not None else 0.0
@@ -145,20 +146,19 @@ class PathTracer:
 
     def _surface(self, prim, b1, b2, wi):
         soup = self.soup
-        b0 = 1.0 - b1 - b2
-        v = soup.vertices[prim].astype(np.float64)
-        p = v[:, 0] * b0[:, None] + v[:, 1] * b1[:, None] + v[:, 2] * b2[:, None]
+        bary = np.stack([1.0 - b1 - b2, b1, b2], axis=1)
+        # Hit points from barycentrics in float64 (not o + t·d): accurate to the vertex precision.
+        p = np.einsum("nij,ni->nj", soup.vertices64[prim], bary)
         ng = soup.geo_normal[prim]
         if soup.normals is not None:
-            nn = soup.normals[prim].astype(np.float64)
-            ns = normalize(nn[:, 0] * b0[:, None] + nn[:, 1] * b1[:, None] + nn[:, 2] * b2[:, None])
-            degenerate = ~np.any(ns != 0, axis=1)
-            ns[degenerate] = ng[degenerate]
+            ns = normalize(np.einsum("nij,ni->nj", soup.normals64[prim], bary))
+            degenerate = ns[:, 0] * ns[:, 0] + ns[:, 1] * ns[:, 1] + ns[:, 2] * ns[:, 2] == 0
+            if degenerate.any():
+                ns[degenerate] = ng[degenerate]
         else:
             ns = ng.copy()
         if soup.uvs is not None:
-            uu = soup.uvs[prim].astype(np.float64)
-            uv = uu[:, 0] * b0[:, None] + uu[:, 1] * b1[:, None] + uu[:, 2] * b2[:, None]
+            uv = np.einsum("nij,ni->nj", soup.uvs64[prim], bary)
         else:
             uv = np.zeros((prim.size, 2))
         return {"p": p, "ng": ng, "ns": ns, "uv": uv, "tangent": soup.tangent[prim],
@@ -171,7 +171,7 @@ class PathTracer:
 
     def _clamp(self, contrib: np.ndarray, segment: int) -> np.ndarray:
         if self.clamp > 0 and segment > 0:
-            m = contrib.max(axis=1)
+            m = max3(contrib)
             scale = np.where(m > self.clamp, self.clamp / np.where(m > 0, m, 1.0), 1.0)
             return contrib * scale[:, None]
         return contrib
@@ -222,19 +222,25 @@ class PathTracer:
 
     # ------------------------------------------------------------------ scattering
     def _scatter(self, L, albedo_aov, normal_aov, lane, si, beta, rng, segment, do_continue):
-        n = lane.size
-        wi = si["wi"]
-        ng = si["ng"].copy()
-        ns = si["ns"].copy()
+        # Sort lanes by material once; every material group is then a contiguous slice, so the
+        # per-group work below uses views instead of gathered copies.
         mats = si["material"]
-        two_sided = np.array([m.two_sided for m in self.scene.materials])[mats]
+        order = np.argsort(mats, kind="stable")
+        if not np.all(order[:-1] < order[1:]):
+            lane, beta = lane[order], beta[order]
+            si = {k: v[order] for k, v in si.items()}
+            mats = si["material"]
+        n = lane.size
+        wi, ng, ns = si["wi"], si["ng"], si["ns"]
+        two_sided = self.two_sided[mats]
         # Reflection-only materials are seen from both sides: turn the normals towards the viewer,
         # and where the interpolated shading normal still faces away, fall back to the geometric one.
-        back = two_sided & (dot(wi, ng) < 0)
-        ng[back] = -ng[back]
-        ns[back] = -ns[back]
+        flip = np.where(two_sided & (dot(wi, ng) < 0), -1.0, 1.0)[:, None]
+        ng = ng * flip
+        ns = ns * flip
         bad_shading = two_sided & (dot(wi, ns) <= 0)
-        ns[bad_shading] = ng[bad_shading]
+        if bad_shading.any():
+            ns[bad_shading] = ng[bad_shading]
         frame = Frame.from_normal_tangent(ns, si["tangent"])
         wi_local = frame.to_local(wi)
         p = si["p"]
@@ -248,86 +254,96 @@ class PathTracer:
         shadow = []  # (lane indices into this batch, origin, dir, tmax, contribution)
         can_nee = self.selector is not None and segment + 1 < self.max_segments
 
-        order = np.argsort(mats, kind="stable")
-        sorted_mats = mats[order]
-        bounds = np.flatnonzero(np.diff(sorted_mats)) + 1
-        for group in np.split(order, bounds):
-            if group.size == 0:
-                continue
-            material = self.scene.materials[mats[group[0]]]
-            bsdf = material.bind(ShadingContext(si["uv"][group]))
-            wi_g = wi_local[group]
+        bounds = np.concatenate([[0], np.flatnonzero(np.diff(mats)) + 1, [n]])
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            g = slice(int(a), int(b))
+            material = self.scene.materials[mats[a]]
+            bsdf = material.bind(ShadingContext(si["uv"][g]))
+            fr = Frame(frame.s[g], frame.t[g], frame.n[g])
+            wi_g = wi_local[g]
             if albedo_aov is not None:
-                albedo_aov[lane[group]] = np.broadcast_to(np.asarray(bsdf.albedo(), dtype=np.float64), (group.size, 3))
+                albedo_aov[lane[g]] = np.broadcast_to(np.asarray(bsdf.albedo(), dtype=np.float64), (b - a, 3))
             if can_nee and not bsdf.delta_only:
-                shadow.append(self._nee(bsdf, group, wi_g, frame, p, ng, beta, rng))
+                found = self._nee(bsdf, wi_g, fr, p[g], ng[g], beta[g], rng)
+                if found is not None:
+                    shadow.append((found[0] + a,) + found[1:])
             if do_continue:
-                s = bsdf.sample(wi_g, rng)
-                new_dir[group] = frame.take(group).to_world(s.wo)
-                new_beta[group] = beta[group] * s.weight
-                new_pdf[group] = s.pdf
-                new_delta[group] = s.delta
+                smp = bsdf.sample(wi_g, rng)
+                d_world = fr.to_world(smp.wo)
+                new_dir[g] = d_world
                 # Leak guard: the sampled side must agree for the shading and the geometric normal.
-                bad = (dot(new_dir[group], ng[group]) * s.wo[:, 2]) <= 0
-                new_beta[group[bad]] = 0.0
+                ok = (dot(d_world, ng[g]) * smp.wo[:, 2]) > 0
+                new_beta[g] = beta[g] * smp.weight * ok[:, None]
+                new_pdf[g] = smp.pdf
+                new_delta[g] = smp.delta
 
         if shadow:
-            idx = np.concatenate([s[0] for s in shadow])
+            idx = np.concatenate([x[0] for x in shadow])
             if idx.size:
-                so = np.concatenate([s[1] for s in shadow])
-                sd = np.concatenate([s[2] for s in shadow])
-                st = np.concatenate([s[3] for s in shadow])
-                sc = np.concatenate([s[4] for s in shadow])
-                blocked = self.accel.occluded(so, sd, st)
-                free = ~blocked
-                np.add.at(L, lane[idx[free]], self._clamp(sc[free], segment))
+                so = np.concatenate([x[1] for x in shadow])
+                sd = np.concatenate([x[2] for x in shadow])
+                st = np.concatenate([x[3] for x in shadow])
+                sc = np.concatenate([x[4] for x in shadow])
+                free = ~self.accel.occluded(so, sd, st)
+                # One shadow ray per lane and bounce: lane indices are unique, plain += is exact.
+                L[lane[idx[free]]] += self._clamp(sc[free], segment)
 
         if not do_continue:
             return lane[:0], p[:0], new_dir[:0], new_beta[:0], new_pdf[:0], new_delta[:0]
         # Russian roulette (unbiased: survivors are divided by the survival probability).
+        peak = max3(new_beta)
         if segment + 1 >= self.rr_depth:
-            q = np.minimum(new_beta.max(axis=1), 1.0)
+            q = np.minimum(peak, 1.0)
             survive = rng.random(n) < q
-            new_beta = np.where(survive[:, None], new_beta / np.where(q > 0, q, 1.0)[:, None], 0.0)
-        alive = np.any(new_beta > 0, axis=1) & np.all(np.isfinite(new_beta), axis=1)
-        nonfinite = ~np.all(np.isfinite(new_beta), axis=1)
-        if nonfinite.any():
-            stats.add("paths_nonfinite_killed", int(nonfinite.sum()))
+            new_beta = new_beta * np.where(survive, 1.0 / np.where(q > 0, q, 1.0), 0.0)[:, None]
+            peak = np.where(survive, peak, 0.0)
+        finite = np.isfinite(peak)
+        if not finite.all():
+            stats.add("paths_nonfinite_killed", int((~finite).sum()))
+        alive = (peak > 0) & finite
         origin = offset_origin(p[alive], ng[alive], new_dir[alive])
         return lane[alive], origin, new_dir[alive], new_beta[alive], new_pdf[alive], new_delta[alive]
 
-    def _nee(self, bsdf, group, wi_g, frame, p, ng, beta, rng):
-        m = group.size
+    def _nee(self, bsdf, wi_g, frame, p, ng, beta, rng):
+        """Light sample + BSDF eval for one material group (all arrays are that group's lanes)."""
+        m = wi_g.shape[0]
         u_sel = rng.random(m)
         u_light = rng.random((m, 2))
-        li_of, sel_p, _ = self.selector.sample(u_sel)
-        wi_w = np.zeros((m, 3))
-        dist = np.zeros(m)
-        value = np.zeros((m, 3))
-        lpdf = np.zeros(m)
-        is_delta = np.zeros(m, dtype=bool)
-        for li in np.unique(li_of):
-            k = li_of == li
-            light = self.lights[li]
-            ls = light.sample(p[group[k]], u_light[k])
-            wi_w[k], dist[k], value[k], lpdf[k] = ls.wi, ls.dist, ls.value, ls.pdf
-            is_delta[k] = light.is_delta
-        sub = frame.take(group)
-        wo_l = sub.to_local(wi_w)
-        live = np.any(value > 0, axis=1) & ((dot(wi_w, ng[group]) * wo_l[:, 2]) > 0)
-        contrib = np.zeros((m, 3))
-        if live.any():
-            b = bsdf.take(np.nonzero(live)[0]) if not live.all() else bsdf
-            wi_live, wo_live = wi_g[live], wo_l[live]
-            f = b.eval(wi_live, wo_live, rng)
-            w = np.ones(int(live.sum()))
-            rough = ~is_delta[live]
-            if rough.any():
-                bp = b.pdf(wi_live, wo_live, rng)
-                w = np.where(rough, power_heuristic(sel_p[live] * lpdf[live], bp), 1.0)
-            contrib[live] = beta[group[live]] * f * value[live] * (w / sel_p[live])[:, None]
-        keep = np.nonzero(np.any(contrib > 0, axis=1))[0]
-        origin = offset_origin(p[group[keep]], ng[group[keep]], wi_w[keep])
+        if len(self.lights) == 1:
+            li_of = np.zeros(m, np.int64)
+            sel_p = np.ones(m)
+            light = self.lights[0]
+            ls = light.sample(p, u_light)
+            wi_w, dist, value, lpdf = ls.wi, ls.dist, ls.value, ls.pdf
+            is_delta = np.full(m, light.is_delta)
+        else:
+            li_of, sel_p, _ = self.selector.sample(u_sel)
+            wi_w = np.zeros((m, 3))
+            dist = np.zeros(m)
+            value = np.zeros((m, 3))
+            lpdf = np.zeros(m)
+            is_delta = np.zeros(m, dtype=bool)
+            for li in np.unique(li_of):
+                k = li_of == li
+                light = self.lights[li]
+                ls = light.sample(p[k], u_light[k])
+                wi_w[k], dist[k], value[k], lpdf[k] = ls.wi, ls.dist, ls.value, ls.pdf
+                is_delta[k] = light.is_delta
+        wo_l = frame.to_local(wi_w)
+        live = (max3(value) > 0) & ((dot(wi_w, ng) * wo_l[:, 2]) > 0)
+        if not live.any():
+            return None
+        # Evaluate every lane (cheaper than gathering the live ones when most are live).
+        f = bsdf.eval(wi_g, wo_l, rng)
+        w = 1.0 / sel_p
+        if not is_delta.all():
+            bp = bsdf.pdf(wi_g, wo_l, rng)
+            w = np.where(is_delta, 1.0, power_heuristic(sel_p * lpdf, bp)) / sel_p
+        contrib = beta * f * (value * (w * live)[:, None])
+        keep = np.flatnonzero(max3(contrib) > 0)
+        if keep.size == 0:
+            return None
+        origin = offset_origin(p[keep], ng[keep], wi_w[keep])
         d_keep = dist[keep]
         tmax = np.where(np.isfinite(d_keep), d_keep * (1.0 - SHADOW_EPS), np.inf)
-        return group[keep], origin, wi_w[keep], tmax, contrib[keep]
+        return keep, origin, wi_w[keep], tmax, contrib[keep]
