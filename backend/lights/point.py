@@ -77,17 +77,19 @@ class PointLight(Light):
             out *= f[:, None]
         return out
 
-    def _mean_factor(self, z_lo: float = -1.0) -> float:
+    def _mean_factor(self, z_lo: float = -1.0, breaks=()) -> float:
         """Mean directional factor over the world sphere of directions (light selection only).
 
         Quadrature over local directions l with z' = −l_z in [z_lo, 1] (the spot cone, or the whole
-        sphere); the solid-angle Jacobian of the object's linear map is |det M| / |M l|³.
+        sphere), Gauss-Legendre in z' on each piece between ``breaks`` (kinks of the factor); the
+        solid-angle Jacobian of the object's linear map is |det M| / |M l|³.
         """
         if self.directional_factor(np.array([[0.0, 0.0, -1.0]])) is None:
             return 1.0
-        zn, zw = np.polynomial.legendre.leggauss(64)
-        z = 0.5 * (1.0 - z_lo) * zn + 0.5 * (1.0 + z_lo)
-        wz = 0.5 * (1.0 - z_lo) * zw
+        xn, xw = np.polynomial.legendre.leggauss(48)
+        edges = np.unique(np.clip([z_lo, *breaks, 1.0], z_lo, 1.0))
+        z = np.concatenate([0.5 * (b - a) * xn + 0.5 * (a + b) for a, b in zip(edges[:-1], edges[1:])])
+        wz = np.concatenate([0.5 * (b - a) * xw for a, b in zip(edges[:-1], edges[1:])])
         nphi = 128
         phi = (np.arange(nphi) + 0.5) * (2.0 * np.pi / nphi)
         Z, PHI = np.meshgrid(z, phi, indexing="ij")
@@ -144,7 +146,7 @@ class PointLight(Light):
         wi = np.where(outside[:, None], sample_cone(axis, omc, u), square_to_uniform_sphere(u))
         pdf = np.where(outside, cone_pdf(omc), INV_4PI)
         t = self._sphere_distance(oc, wi, outside, must_hit=~use_spread)
-        ok = np.isfinite(t) & (d2 > 0)
+        ok = np.isfinite(t)
         value = self._emit(self.radiance, -wi, apply=outside) * safe_div(1.0, pdf)[:, None]
         value[~ok] = 0.0
         return LightSample(wi, np.where(ok, t, 0.0), value, np.where(ok, pdf, 0.0))
@@ -217,7 +219,7 @@ class PointLight(Light):
             if use_spread.any():
                 inside_cone = (1.0 - dot(d, self._spread_axis)) <= self._spread_one_minus_cos
                 pdf = np.where(use_spread, np.where(inside_cone, cone_pdf(self._spread_one_minus_cos), 0.0), pdf)
-            return np.where(d2 > 0, pdf, 0.0)
+            return pdf
         light_n = normalize(oc)
         cos_l = dot(light_n, -d)
         return np.where(cos_l > 0, safe_div(t * t, np.pi * self.radius ** 2 * cos_l), 0.0)

@@ -69,7 +69,8 @@ class SpotLight(PointLight):
         return f
 
     def power(self) -> float:
-        return power_luminance(self.color, self.watts) * self._mean_factor(z_lo=self.cos_half)
+        kink = self.cos_half + (1.0 - self.cos_half) * self.spot_blend   # end of the smoothstep
+        return power_luminance(self.color, self.watts) * self._mean_factor(self.cos_half, (kink,))
 
 
 @register("spot")
