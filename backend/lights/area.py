@@ -32,14 +32,14 @@ from ..sampling.warp import square_to_disk_concentric
 from . import register
 from .base import Light, LightSample
 from .common import column, parse_common, power_luminance, safe_div, unit
-from .profiles import CyclesSpread, Lambertian, SmoothCone
+from .profiles import ConeTable, CyclesSpread, Lambertian, SmoothCone
 
 SHAPES = ("square", "rectangle", "disk", "ellipse")
 # Below this solid angle [sr] the spherical-rectangle map is no better than area sampling and
 # its angles lose relative precision: sample by area instead.
 MIN_SOLID_ANGLE = 1e-8
 
-MODE_NONE, MODE_SPHRECT, MODE_AREA_RECT, MODE_ELLIPSE = 0, 1, 2, 3
+MODE_NONE, MODE_SPHRECT, MODE_AREA_RECT, MODE_ELLIPSE, MODE_CONE = 0, 1, 2, 3, 4
 
 
 class _Emitter:
@@ -87,6 +87,7 @@ class AreaLight(Light):
         den = np.pi * area_term * self.profile.normalization
         self.radiance_scale = self.color * self.watts / den if den > 0 else np.zeros(3)
         self.emits = self.geo.area > 0 and self.watts > 0 and float(self.color.max()) > 0
+        self.cone = ConeTable(self.profile) if np.isfinite(self.profile.tan_max) else None
 
     def power(self) -> float:
         if not self.emits:
@@ -120,9 +121,16 @@ class AreaLight(Light):
             v1 = np.minimum(v1, pv + rc)
         valid = (h > 0) & (u1 > u0) & (v1 > v0) & self.emits
         mode = np.where(valid, MODE_SPHRECT, MODE_NONE)
+        box = (u1 - u0) * (v1 - v0)
         if g.ellipse:
-            use_box = clipped & ((u1 - u0) * (v1 - v0) < g.area)
-            mode = np.where(valid & ~use_box, MODE_ELLIPSE, mode)
+            # whole ellipse by area unless the cone's box is smaller
+            mode = np.where(valid & ~(box < g.area), MODE_ELLIPSE, mode)
+        if clipped:
+            # The cone itself (sampled ∝ the emitted power) when its footprint disk is smaller
+            # than the box the other modes would sample: no waste when it lies on the emitter.
+            footprint = np.pi * rc * rc
+            smaller = footprint < (np.minimum(box, g.area) if g.ellipse else box)
+            mode = np.where(valid & smaller, MODE_CONE, mode)
         solid = np.zeros(n)
         idx = np.nonzero(mode == MODE_SPHRECT)[0]
         sr = None
@@ -158,6 +166,14 @@ class AreaLight(Light):
         if m.any():
             dsk = square_to_disk_concentric(u[m])
             x[m] = g.center + (dsk[:, 0] * g.half_u)[:, None] * g.axis_u + (dsk[:, 1] * g.half_v)[:, None] * g.axis_v
+        m = mode == MODE_CONE
+        if m.any():
+            # emission direction e at cos μ to the normal; the ray from p goes along −e
+            mu, phi, pdf_sa[m] = self.cone.sample(u[m])
+            s = np.sqrt(np.maximum(0.0, 1.0 - mu * mu))
+            e = mu[:, None] * g.normal + (s * np.cos(phi))[:, None] * g.axis_u + (s * np.sin(phi))[:, None] * g.axis_v
+            _, _, h = g.local(p[m])
+            x[m] = p[m] - (h / mu)[:, None] * e
         v = x - p
         t = np.sqrt(dot(v, v))
         wi = v / np.where(t > 0, t, 1.0)[:, None]
@@ -167,8 +183,10 @@ class AreaLight(Light):
         pdf_sa = np.where(by_area, safe_div(area_pdf * t * t, cos_out), pdf_sa)
         lu, lv, _ = g.local(x)
         ok = (mode != MODE_NONE) & (t > 0) & (cos_out > 0) & (pdf_sa > 0)
+        # cone directions may miss the emitter; box samples of an ellipse may fall outside it
+        ok &= np.where(mode == MODE_CONE, g.inside(lu, lv), True)
         if g.ellipse:
-            ok &= g.inside(lu, lv)   # spherical-rectangle samples of an ellipse's box
+            ok &= g.inside(lu, lv)
         le = self.radiance(np.where(ok, cos_out, 0.0))
         value = np.where(ok[:, None], le * safe_div(1.0, pdf_sa)[:, None], 0.0)
         return LightSample(wi, np.where(ok, t, 0.0), value, np.where(ok, pdf_sa, 0.0))
@@ -210,6 +228,9 @@ class AreaLight(Light):
         area_pdf = self._area_pdf(mode, u0, u1, v0, v1)
         by_area = (area_pdf > 0) & ((mode == MODE_ELLIPSE) | in_region)
         pdf = np.where(by_area, safe_div(area_pdf * t * t, cos_out), pdf)
+        m = mode == MODE_CONE
+        if m.any():
+            pdf[m] = self.cone.pdf(cos_out[m])
         return np.where(cos_out > 0, pdf, 0.0)
 
 

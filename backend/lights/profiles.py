@@ -96,3 +96,35 @@ class SmoothCone:
         else:
             f = (theta <= self.cutoff).astype(np.float64)
         return np.where(c > 0, f, 0.0)
+
+
+class ConeTable:
+    """Samples emission directions inside a profile's cutoff cone with density ∝ f(θ) cos θ
+    (the shape of the emitted power), piecewise constant in μ = cos θ over ``bins`` bins.
+
+    For a point whose whole cone footprint lies on the emitter this makes the NEE estimate
+    nearly constant (radiance / pdf ≈ π L0 / cos θ); ``pdf(μ)`` is the exact solid-angle density.
+    """
+
+    def __init__(self, profile, bins: int = 256):
+        from ..sampling.discrete import Discrete1D
+        self.mu_lo = max(float(profile.cos_max), 0.0)
+        self.bins = bins
+        self.width = (1.0 - self.mu_lo) / bins
+        x, w = np.polynomial.legendre.leggauss(8)
+        left = self.mu_lo + np.arange(bins) * self.width
+        mu = left[:, None] + 0.5 * self.width * (x[None, :] + 1.0)
+        weights = (profile(mu.ravel()).reshape(mu.shape) * mu * w[None, :]).sum(axis=1)
+        self.dist = Discrete1D(np.maximum(weights, 0.0))
+        self.density = self.dist.pmf / (self.width * 2.0 * np.pi)   # per steradian
+
+    def sample(self, u: np.ndarray):
+        """u (n, 2) → (μ, φ, solid-angle pdf)."""
+        k, _, rem = self.dist.sample(u[:, 0])
+        mu = np.minimum(self.mu_lo + (k + rem) * self.width, 1.0)
+        return mu, 2.0 * np.pi * u[:, 1], self.density[k]
+
+    def pdf(self, mu: np.ndarray) -> np.ndarray:
+        k = np.floor((mu - self.mu_lo) / self.width).astype(np.int64)
+        inside = (mu >= self.mu_lo) & (mu <= 1.0)
+        return np.where(inside, self.density[np.clip(k, 0, self.bins - 1)], 0.0)
