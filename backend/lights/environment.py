@@ -139,7 +139,7 @@ class EnvironmentMap(Light):
 
     def pdf_escaped(self, d):
         x, y, loc = self._direction_to_xy(d)
-        sin_t = np.sqrt(np.maximum(0.0, 1.0 - loc[:, 2] ** 2))
+        sin_t = np.hypot(loc[:, 0], loc[:, 1])      # precise near the poles, unlike √(1 − z²)
         pdf_xy = self.dist.pdf(np.stack([x, y], axis=-1))
         return safe_div(pdf_xy, 2.0 * np.pi ** 2 * sin_t)
 
