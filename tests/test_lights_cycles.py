@@ -166,6 +166,7 @@ def test_light_units_match_cycles(cycles):
         se = float(ratio.std(ddof=1) / np.sqrt(ratio.size))
         report.append(f"{name}: {mean:.4f} ± {se:.4f}")
         assert abs(mean - 1.0) <= 4 * se + 2e-5, report
+    print("\n".join(report))
 
 
 def test_environment_orientation_matches_cycles(cycles):
