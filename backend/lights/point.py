@@ -101,7 +101,8 @@ class PointLight(Light):
         jac = abs(np.linalg.det(self._linear)) / np.maximum(length, 1e-300) ** 3
         f = self.directional_factor(world / length[:, None])
         mean = float(np.sum(f * jac * W.ravel()) * (2.0 * np.pi / nphi) / (4.0 * np.pi))
-        return min(max(mean, 0.0), 1.0)
+        # Not clamped to 1: an IES beam that concentrates flux has a mean factor of flux/177.83 lm.
+        return max(mean, 0.0)
 
     def power(self) -> float:
         return power_luminance(self.color, self.watts) * self._mean_factor()
