@@ -79,9 +79,6 @@ class PointLight(Light):
             out *= f[:, None]
         return out
 
-    #: Directional weight besides the profile (a spot cone), on local directions; None = 1.
-    _cone_weight = None
-
     def _mean_factor(self, z_lo: float = -1.0, breaks=()) -> float:
         """Mean directional factor over the world sphere of directions (light selection only).
 
@@ -91,9 +88,6 @@ class PointLight(Light):
         """
         if self.directional_factor(np.array([[0.0, 0.0, -1.0]])) is None:
             return 1.0
-        if self.profile is not None and hasattr(self.profile, "mean_factor"):
-            # Profiles (IES) integrate their own table exactly, cell by cell.
-            return self.profile.mean_factor(self._linear, weight=self._cone_weight)
         xn, xw = np.polynomial.legendre.leggauss(48)
         edges = np.unique(np.clip([z_lo, *breaks, 1.0], z_lo, 1.0))
         z = np.concatenate([0.5 * (b - a) * xn + 0.5 * (a + b) for a, b in zip(edges[:-1], edges[1:])])

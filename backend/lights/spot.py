@@ -68,9 +68,6 @@ class SpotLight(PointLight):
             f = f * np.asarray(self.profile(local), dtype=np.float64)
         return f
 
-    def _cone_weight(self, local: np.ndarray) -> np.ndarray:
-        return spot_attenuation(-local[:, 2], self.cos_half, self.spot_smooth)
-
     def power(self) -> float:
         mean = self._profile_mean(
             lambda local: spot_attenuation(-local[:, 2], self.cos_half, self.spot_smooth))
