@@ -248,6 +248,13 @@ class AreaLight(Light):
 
     def pdf_hit(self, o, d, t):
         g = self.geo
+        if self._whole_rectangle():
+            corner = g.center - g.half_u * g.axis_u - g.half_v * g.axis_v
+            solid = spherical_rect(o, corner, g.axis_u, g.axis_v, g.len_u, g.len_v).solid_angle
+            cos_out = -dot(d, g.normal)
+            pdf = np.where(solid < MIN_SOLID_ANGLE, safe_div(t * t, cos_out * g.area), safe_div(1.0, solid))
+            _, _, h = g.local(o)
+            return np.where((cos_out > 0) & (h > 0), pdf, 0.0)
         mode, u0, u1, v0, v1, _, solid = self._plan(o)
         x = o + t[:, None] * d
         lu, lv, _ = g.local(x)
