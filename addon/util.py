@@ -15,9 +15,14 @@ def degrees(radians: float) -> float:
     return round(math.degrees(radians), 6)
 
 
+def f32(value) -> float:
+    """A float32 Blender property as the shortest float that round-trips it (0.7, not 0.699999988)."""
+    return float(f"{float(value):.7g}")
+
+
 def rgb(value) -> list[float]:
     """First three channels of a colour as plain floats (drops alpha)."""
-    return [float(value[0]), float(value[1]), float(value[2])]
+    return [f32(value[0]), f32(value[1]), f32(value[2])]
 
 
 def matrix_rows(m) -> list[list[float]]:

@@ -19,6 +19,11 @@ def _distribution(node) -> str:
     return "beckmann" if getattr(node, "distribution", "") == "BECKMANN" else "ggx"
 
 
+def label(node) -> str:
+    """A node as users see it: its name, plus its type when renamed."""
+    return node.name if node.name == node.bl_label else f"{node.name} ({node.bl_label})"
+
+
 def _follow(socket):
     """The node and output socket feeding ``socket`` (through reroutes), or (None, None)."""
     while socket is not None and socket.is_linked:
@@ -75,7 +80,7 @@ class NodeTranslator:
             "ShaderNodeEmission": self.emission,
         }.get(kind)
         if handler is None:
-            self.note(f"{node.name} ({node.bl_label}) is not supported (grey diffuse used)")
+            self.note(f"{label(node)} (not supported: grey diffuse used)")
             return dict(DEFAULT_MATERIAL)
         return handler(node)
 
@@ -107,12 +112,12 @@ class NodeTranslator:
             if tex is not None:
                 return tex
         else:
-            self.note(f"{src.bl_label} → {node.name}.{name} (a texture here is not supported; value used)")
+            self.note(f"{label(src)} → {node.name}.{name} (only constants here: value used)")
         return alpha(value) if squared else value
 
     def _image_input(self, node, name: str, src, squared: bool = False):
         if src.bl_idname != "ShaderNodeTexImage":
-            self.note(f"{src.name} ({src.bl_label}) → {node.name}.{name} (not supported; value used)")
+            self.note(f"{label(src)} → {node.name}.{name} (not supported: value used)")
             return None
         if src.image is None:
             return None
@@ -129,7 +134,7 @@ class NodeTranslator:
         if sock is None:
             return
         if sock.is_linked:
-            self.note(f"{node.name}.{name} is connected (not supported)")
+            self.note(f"{node.name}.{name} input (not supported)")
         elif not ok(sock.default_value):
             self.note(f"{node.name}.{name} (not supported)")
 

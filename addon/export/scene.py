@@ -41,13 +41,25 @@ class ExportResult:
     stats: dict = field(default_factory=dict)
 
     def warning_text(self, limit: int = 12) -> str | None:
-        """All notes in one message (Blender shows one report line per export)."""
-        if not self.notes:
-            return None
-        unique = list(dict.fromkeys(self.notes))
-        shown = "; ".join(unique[:limit])
-        more = f"; and {len(unique) - limit} more" if len(unique) > limit else ""
-        return f"Lamina: not supported, approximated or ignored: {shown}{more}"
+        return warning_text(self.notes, limit)
+
+
+def warning_text(notes: list[str], limit: int = 12) -> str | None:
+    """All notes in one message, grouped by the data-block they are about:
+    ``Lamina ignored or approximated: material 'A' (x; y), world 'W' (z)``."""
+    if not notes:
+        return None
+    groups: dict[str, list[str]] = {}
+    for note in dict.fromkeys(notes):
+        subject, sep, what = note.partition(": ")
+        if not sep or "'" not in subject:
+            subject, what = "", note
+        groups.setdefault(subject, []).append(what)
+    parts = [f"{subject} ({'; '.join(items)})" if subject else "; ".join(items)
+             for subject, items in groups.items()]
+    shown = ", ".join(parts[:limit])
+    more = f", and {len(parts) - limit} more" if len(parts) > limit else ""
+    return f"Lamina ignored or approximated: {shown}{more}"
 
 
 def render_json(scene, *, samples: int | None = None, seed_offset: int = 0) -> dict:

@@ -5,9 +5,7 @@ a stack of one interface is written as that interface's own material type.
 """
 from __future__ import annotations
 
-import math
-
-from ..util import rgb
+from ..util import f32, rgb
 
 
 class StackError(Exception):
@@ -16,7 +14,7 @@ class StackError(Exception):
 
 def alpha(r: float) -> float:
     """Blender perceptual roughness → microfacet α (as Cycles: α = r²)."""
-    return round(float(r) * float(r), 8)
+    return f32(float(r) * float(r))
 
 
 def _scalar(value: float, image, images, *, squared: bool = False):
@@ -46,7 +44,7 @@ def _microfacet(layer, images) -> dict:
 def interface_json(layer, images, visiting: tuple) -> dict:
     kind = layer.kind
     if kind == "DIELECTRIC":
-        return {"type": "dielectric", "ior": round(float(layer.ior), 6), **_microfacet(layer, images)}
+        return {"type": "dielectric", "ior": f32(layer.ior), **_microfacet(layer, images)}
     if kind == "CONDUCTOR":
         out = {"type": "conductor"}
         if layer.metal == "CUSTOM":
@@ -71,21 +69,20 @@ def interface_json(layer, images, visiting: tuple) -> dict:
 
 
 def medium_json(layer, images) -> dict:
-    out = {"thickness": round(float(layer.thickness), 8),
-           "sigma_t": _scalar(round(float(layer.sigma_t), 8), layer.sigma_t_texture, images)}
+    out = {"thickness": f32(layer.thickness),
+           "sigma_t": _scalar(f32(layer.sigma_t), layer.sigma_t_texture, images)}
     clear = layer.sigma_t == 0.0 and layer.sigma_t_texture is None
     if clear:
         return out
     out["albedo"] = _colour(layer.albedo, layer.albedo_texture, images)
     if layer.phase == "HG":
-        out["phase"] = {"type": "hg", "g": round(float(layer.hg_g), 6)}
+        out["phase"] = {"type": "hg", "g": f32(layer.hg_g)}
     elif layer.phase == "MICROFLAKE":
-        axis = [float(v) for v in layer.flake_orientation]
-        n = math.sqrt(sum(v * v for v in axis)) or 1.0
-        if n == 1.0 and not any(axis):
+        # The axis is written as entered (the renderer normalises it); a zero vector means +Z.
+        axis = [f32(v) for v in layer.flake_orientation]
+        if not any(axis):
             axis = [0.0, 0.0, 1.0]
-        out["phase"] = {"type": "microflake", "stddev": round(float(layer.flake_stddev), 6),
-                        "orientation": [round(v / n, 6) for v in axis]}
+        out["phase"] = {"type": "microflake", "stddev": f32(layer.flake_stddev), "orientation": axis}
     else:
         out["phase"] = {"type": "hg", "g": 0.0}     # isotropic
     return out
@@ -110,5 +107,5 @@ def stack_json(material, images, visiting: tuple = ()) -> dict:
     if settings.emission_strength > 0 and any(settings.emission_color):
         s = float(settings.emission_strength)
         out = dict(out)
-        out["emission"] = [round(c * s, 8) for c in rgb(settings.emission_color)]
+        out["emission"] = [f32(c * s) for c in rgb(settings.emission_color)]
     return out

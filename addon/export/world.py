@@ -4,7 +4,7 @@ from __future__ import annotations
 import warnings
 
 from ..util import matrix_rows, rgb
-from .nodes import _follow
+from .nodes import _follow, label
 
 
 def _tree(world):
@@ -28,7 +28,7 @@ def world_json(world, images, notes: list[str]) -> dict:
     if node is None:
         return {"type": "none"}
     if node.bl_idname not in ("ShaderNodeBackground", "ShaderNodeEmission"):
-        notes.append(f"{where}: {node.name} ({node.bl_label}) is not supported (black world)")
+        notes.append(f"{where}: {label(node)} (not supported: black world)")
         return {"type": "none"}
     strength_sock = node.inputs["Strength"]
     if strength_sock.is_linked:
@@ -49,7 +49,7 @@ def world_json(world, images, notes: list[str]) -> dict:
         if rotation is not None:
             entry["to_world"] = rotation
         return entry
-    notes.append(f"{where}: {src.name} ({src.bl_label}) → {node.name}.Color is not supported (colour value used)")
+    notes.append(f"{where}: {label(src)} → {node.name}.Color (not supported: colour value used)")
     return {"type": "constant", "color": rgb(colour_sock.default_value), "strength": strength}
 
 
@@ -63,7 +63,7 @@ def _mapping_rotation(env_node, where: str, notes: list[str]):
     if src is None:
         return None
     if src.bl_idname != "ShaderNodeMapping":
-        notes.append(f"{where}: {src.name} ({src.bl_label}) → {env_node.name}.Vector is not supported (ignored)")
+        notes.append(f"{where}: {label(src)} → {env_node.name}.Vector (not supported: ignored)")
         return None
     if src.vector_type not in ("POINT", "TEXTURE", "VECTOR"):
         notes.append(f"{where}: {src.name} type {src.vector_type} (ignored)")

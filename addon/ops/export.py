@@ -8,7 +8,7 @@ from bpy.props import BoolProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
 from ..export import export_scene
-from ..export.scene import ExportError
+from ..export.scene import ExportError, warning_text
 
 
 class LAMINA_OT_export_scene(bpy.types.Operator, ExportHelper):
@@ -57,8 +57,7 @@ class LAMINA_OT_export_scene(bpy.types.Operator, ExportHelper):
             if self.animation:
                 scene.frame_set(original_frame)
         if notes:
-            from ..export.scene import ExportResult
-            self.report({"WARNING"}, ExportResult(path, 0, 0, None, notes).warning_text())
+            self.report({"WARNING"}, warning_text(notes))
         self.report({"INFO"}, f"Lamina: exported {len(frames)} frame(s), {triangles} triangles → {path.parent}")
         return {"FINISHED"}
 

@@ -93,7 +93,7 @@ class LaminaLayer(PropertyGroup):
     flake_orientation: FloatVectorProperty(name="Fibre Axis", size=3, subtype='XYZ',
                                            default=(0.0, 0.0, 1.0), soft_min=-1.0, soft_max=1.0,
                                            description="Mean flake/fibre axis in the shading frame "
-                                                       "(x = UV tangent, z = normal); normalised on export")
+                                                       "(x = UV tangent, z = normal); the renderer normalises it")
 
 
 CLASSES = (LaminaLayer,)
