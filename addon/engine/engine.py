@@ -81,6 +81,11 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
             except Exception:  # noqa: BLE001 - interpreter shutdown
                 pass
 
+    def cancel_requested(self) -> bool:
+        """Esc in the UI (``test_break``). A plain method so tests can simulate it: RNA functions
+        such as ``test_break`` cannot be overridden on the class once it is registered."""
+        return bool(self.test_break())
+
     # ------------------------------------------------------------------ passes
 
     def update_render_passes(self, scene=None, renderlayer=None):
@@ -139,7 +144,7 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
             print(f"Lamina: exported {exported.stats['triangles']} triangles "
                   f"({exported.stats['meshes']} meshes, {exported.stats['instances']} instances) "
                   f"in {time.perf_counter() - t0:.2f} s")
-        if self.test_break():
+        if self.cancel_requested():
             return
 
         partial = workdir / "partial.npy"
@@ -192,7 +197,7 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
                 elif kind == "start":
                     self.update_stats("", f"Lamina | Rendering {event.get('width')}×{event.get('height')}, "
                                           f"{event.get('spp')} samples, {event.get('workers')} workers")
-            if self.test_break():
+            if self.cancel_requested():
                 job.cancel()
                 if last_partial is None:
                     image = load_npy(partial)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -43,7 +44,7 @@ def backend_renders(materials=("diffuse",), lights=(), worlds=()) -> bool:
 
 
 def run_cases(module: str, cases: list[str], *, tmp: Path, env: dict | None = None,
-              timeout: float = 600, args: dict | None = None, dev_load: bool = True) -> dict:
+              timeout: float = 300, args: dict | None = None, dev_load: bool = True) -> dict:
     """Run case functions in one bpy process; returns {case: result or {"error": text}}.
 
     ``dev_load=False`` leaves loading the add-on to the cases (extension install tests)."""
@@ -58,17 +59,24 @@ def run_cases(module: str, cases: list[str], *, tmp: Path, env: dict | None = No
     child_env["PYTHONPATH"] = os.pathsep.join([str(HERE), str(ROOT), child_env.get("PYTHONPATH", "")])
     if env:
         child_env.update(env)
-    proc = subprocess.run([sys.executable, str(HERE / "bpy_runner.py"), json.dumps(payload)],
-                          capture_output=True, text=True, timeout=timeout, env=child_env, cwd=str(tmp))
+    proc = subprocess.Popen([sys.executable, str(HERE / "bpy_runner.py"), json.dumps(payload)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=child_env,
+                            cwd=str(tmp), start_new_session=True)
+    try:
+        stdout, stderr = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)          # the runner and anything it started
+        stdout, stderr = proc.communicate()
+        raise AssertionError(f"bpy cases {cases} timed out after {timeout} s:\n{stdout[-3000:]}\n{stderr[-3000:]}")
     results = None
-    for line in proc.stdout.splitlines():
+    for line in stdout.splitlines():
         if line.startswith(MARK):
             results = json.loads(line[len(MARK):])
     if results is None:
         raise AssertionError(f"bpy runner failed (status {proc.returncode}):\n"
-                             f"{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
-    results["_stdout"] = proc.stdout
-    results["_stderr"] = proc.stderr
+                             f"{stdout[-3000:]}\n{stderr[-3000:]}")
+    results["_stdout"] = stdout
+    results["_stderr"] = stderr
     return results
 
 

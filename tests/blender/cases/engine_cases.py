@@ -1,0 +1,132 @@
+"""Render-engine cases (run inside Blender by tests/blender/test_engine.py)."""
+from __future__ import annotations
+
+import json
+import os
+import stat
+import sys
+import time
+from pathlib import Path
+
+import bpy
+
+from . import build
+
+HERE = Path(__file__).resolve().parent.parent
+
+
+def _fake_backend(tmp, mode: str) -> str:
+    """An executable that runs fake_backend.py; set as the add-on's Backend Python."""
+    script = Path(tmp) / f"fake-python-{mode}"
+    script.write_text(f"#!/bin/sh\nFAKE_MODE={mode} exec {sys.executable} {HERE / 'fake_backend.py'} \"$@\"\n")
+    script.chmod(script.stat().st_mode | stat.S_IEXEC)
+    bpy.context.preferences.addons["lamina"].preferences.python_executable = str(script)
+    return str(script)
+
+
+def _reset_backend():
+    bpy.context.preferences.addons["lamina"].preferences.python_executable = ""
+
+
+def _simple_scene(w=16, h=12):
+    sc = build.scene()
+    sc.render.resolution_x, sc.render.resolution_y = w, h
+    build.camera()
+    build.plane(material=build.diffuse_material("Grey"))
+    build.light("Lamp", "POINT", (0, -1, 3), energy=200.0)
+    build.world_colour((0.2, 0.2, 0.2))
+    return sc
+
+
+def _render_to(sc, path: Path, multilayer: bool = True):
+    settings = sc.render.image_settings
+    if multilayer:
+        settings.media_type = "MULTI_LAYER_IMAGE"
+    else:
+        settings.file_format = "OPEN_EXR"
+    settings.color_depth = "32"
+    sc.render.filepath = str(path)
+    sc.render.use_file_extension = False
+    t0 = time.perf_counter()
+    try:
+        bpy.ops.render.render(write_still=True)
+        error = None
+    except RuntimeError as exc:
+        error = str(exc)
+    return error, time.perf_counter() - t0
+
+
+def fake_pixels(tmp, border=False):
+    sc = _simple_scene()
+    _fake_backend(tmp, "pixels")
+    if border:
+        sc.render.use_border = True
+        sc.render.use_crop_to_border = False
+        sc.render.border_min_x, sc.render.border_max_x = 0.25, 0.75
+        sc.render.border_min_y, sc.render.border_max_y = 0.0, 0.5
+    out = Path(tmp) / ("fake_border.exr" if border else "fake.exr")
+    error, seconds = _render_to(sc, out)
+    _reset_backend()
+    return {"error": error, "path": str(out), "exists": out.is_file(), "seconds": seconds}
+
+
+def fake_failure(tmp, mode="error"):
+    sc = _simple_scene()
+    _fake_backend(tmp, mode)
+    error, seconds = _render_to(sc, Path(tmp) / f"fail_{mode}.exr")
+    _reset_backend()
+    return {"error": error, "seconds": seconds}
+
+
+def cancel(tmp, after=1.0):
+    """Simulated Esc: test_break() turns true ``after`` seconds into the render."""
+    from lamina.addon.engine.engine import LaminaRenderEngine
+    sc = _simple_scene()
+    _fake_backend(tmp, "hang")
+    pids_file = Path(tmp) / "fake_pids.json"
+    os.environ["FAKE_PIDS"] = str(pids_file)
+    start = [None]
+    original = LaminaRenderEngine.cancel_requested
+
+    def cancel_requested(self):
+        if start[0] is None:
+            start[0] = time.perf_counter()
+        return time.perf_counter() - start[0] > after and pids_file.exists()
+
+    LaminaRenderEngine.cancel_requested = cancel_requested
+    try:
+        error, seconds = _render_to(sc, Path(tmp) / "cancel.exr")
+        returned = time.perf_counter()
+    finally:
+        LaminaRenderEngine.cancel_requested = original
+        _reset_backend()
+    pids = json.loads(pids_file.read_text()) if pids_file.exists() else []
+    return {"error": error, "seconds": seconds, "pids": pids,
+            "cancel_latency": returned - start[0] - after if start[0] else None}
+
+
+def real_render(tmp, spp=16, seed=3):
+    """The same scene through LAMINA (write_still) and exported for the CLI."""
+    from lamina.addon.export import export_scene
+    sc = _simple_scene(32, 24)
+    sc.lamina.samples = spp
+    sc.lamina.seed = seed
+    sc.lamina.workers = 2
+    out = Path(tmp) / "engine.exr"
+    error, seconds = _render_to(sc, out, multilayer=False)
+    exported = export_scene(bpy.context.evaluated_depsgraph_get(), Path(tmp) / "cli_scene")
+    return {"error": error, "path": str(out), "scene": str(exported.path), "seconds": seconds}
+
+
+def corrupt_texture(tmp):
+    sc = _simple_scene()
+    bad = Path(tmp) / "broken.png"
+    bad.write_bytes(b"\x89PNG\r\n\x1a\n this is not a png")
+    mat = bpy.data.materials["Grey"]
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(str(bad), check_existing=False)
+    bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfDiffuse")
+    tree.links.new(tex.outputs["Color"], bsdf.inputs["Color"])
+    error, seconds = _render_to(sc, Path(tmp) / "corrupt.exr")
+    return {"error": error, "seconds": seconds}
