@@ -153,15 +153,17 @@ def main(argv=None) -> int:
     parser.add_argument("--allow-missing-wheels", action="store_true",
                         help="build even if a wheel cannot be downloaded (offline)")
     parser.add_argument("--output-dir", default=str(BUILD / "dist"))
+    parser.add_argument("--build-dir", default=str(BUILD), help="staging folder (default build/)")
+    parser.add_argument("--wheel-dir", default=str(BUILD / "wheels"), help="wheel download cache")
     args = parser.parse_args(argv)
 
     platforms = args.platform or list(PIP_PLATFORMS)
     pythons = args.python or list(PYTHONS)
     ext_path = find_blender_ext()
     blender_ext = load_blender_ext(ext_path)
-    wheels = [] if args.no_wheels else download_wheels(platforms, pythons, BUILD / "wheels",
+    wheels = [] if args.no_wheels else download_wheels(platforms, pythons, Path(args.wheel_dir),
                                                        args.allow_missing_wheels)
-    stage_dir = BUILD / "stage" / "lamina"
+    stage_dir = Path(args.build_dir) / "stage" / "lamina"
     stage(blender_ext, stage_dir, wheels, platforms)
     out = Path(args.output_dir)
     out.mkdir(parents=True, exist_ok=True)

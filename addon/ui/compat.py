@@ -29,17 +29,17 @@ EXTRA = {
 _added: list = []
 
 
+def _excluded(name: str) -> bool:
+    return name in EXCLUDE or name.startswith(EXCLUDE_PREFIXES)
+
+
 def panels_to_extend():
-    out = []
-    for panel in bpy.types.Panel.__subclasses__():
-        engines = getattr(panel, "COMPAT_ENGINES", None)
-        if engines is None:
-            continue
-        name = panel.__name__
-        if name in EXTRA or ("BLENDER_RENDER" in engines and name not in EXCLUDE
-                             and not name.startswith(EXCLUDE_PREFIXES)):
-            out.append(panel)
-    return out
+    panels = [p for p in bpy.types.Panel.__subclasses__() if getattr(p, "COMPAT_ENGINES", None) is not None]
+    # Subclassed panels share their parent's set (NODE_DATA_PT_light uses DATA_PT_light's):
+    # a set that belongs to an excluded panel is never extended.
+    blocked = {id(p.COMPAT_ENGINES) for p in panels if _excluded(p.__name__)}
+    return [p for p in panels if id(p.COMPAT_ENGINES) not in blocked
+            and (p.__name__ in EXTRA or "BLENDER_RENDER" in p.COMPAT_ENGINES)]
 
 
 def register():
