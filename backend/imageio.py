@@ -16,10 +16,18 @@ from .errors import LaminaError
 from .textures import linear_to_srgb
 
 
+def _default_mode() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
 def _atomic_target(path: Path, suffix: str):
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix, dir=path.parent)
     os.close(fd)
+    # mkstemp creates 0600 files; outputs get the usual permissions once renamed into place.
+    os.chmod(tmp, _default_mode())
     return Path(tmp)
 
 

@@ -20,8 +20,8 @@ import numpy as np
 from . import stats
 from .geometry.accel import offset_origin
 from .materials.base import ShadingContext
-from .mathutil import Frame, dot, normalize
-from .sampling.discrete import Discrete1D
+from .lights.selection import build_selector
+from .mathutil import Frame, dot, max3, normalize
 
 SHADOW_EPS = 1e-4  # shorten shadow rays by this fraction so they do not hit the light's own surface
 
@@ -31,6 +31,32 @@ def power_heuristic(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a2 = a * a
     den = a2 + b * b
     return np.where(den > 0, a2 / np.where(den > 0, den, 1.0), 0.0)
+
+
+def valid_reflection_normal(wi: np.ndarray, ns: np.ndarray, ng: np.ndarray) -> np.ndarray:
+    """Bend interpolated shading normals so that the mirror direction of wi stays above the
+    geometric surface (the idea of Cycles' ensure_valid_specular_reflection, own derivation).
+
+    On coarse smooth-shaded meshes the mirror reflection about ns can point below the triangle;
+    such a ray would enter the object and the energy is lost (dark rims on mirrors). Where that
+    happens, the reflection is lifted to just above the geometric plane (cosine ``threshold``) and
+    the normal replaced by the half vector of wi and the lifted reflection, keeping ns's side.
+    """
+    side = np.where(dot(wi, ng) >= 0, 1.0, -1.0)
+    ngw = ng * side[:, None]                       # geometric normal on the viewer's side
+    cos_i = dot(wi, ngw)
+    c = dot(wi, ns)
+    r = 2.0 * c[:, None] * ns - wi
+    threshold = np.minimum(0.9 * cos_i, 0.01)
+    bad = (dot(r, ngw) < threshold) & (c * side > 0)
+    if not bad.any():
+        return ns
+    idx = np.flatnonzero(bad)
+    r_b = r[idx] + (threshold[idx] - dot(r[idx], ngw[idx]))[:, None] * ngw[idx]
+    h = normalize(wi[idx] + normalize(r_b))
+    out = ns.copy()
+    out[idx] = h * np.sign(c[idx])[:, None]
+    return out
 
 
 class PathTracer:
@@ -43,8 +69,8 @@ class PathTracer:
         self.rr_depth = s.rr_depth
         self.clamp = s.clamp
         self.lights = list(scene.lights)
-        powers = np.array([max(float(l.power()), 0.0) for l in self.lights]) if self.lights else np.zeros(0)
-        self.selector = Discrete1D(powers) if self.lights and powers.sum() > 0 else None
+        # Selection ∝ power; zero-power lights are never picked (lights/selection.py).
+        self.selector = build_selector(self.lights)
         self.hittable = [i for i, l in enumerate(self.lights) if l.is_hittable]
         self.infinite = [i for i, l in enumerate(self.lights) if l.is_infinite]
         self.mesh_light_index = None
@@ -55,6 +81,7 @@ class PathTracer:
             self.emitter_of_tri[scene.mesh_light.triangle_ids] = np.arange(scene.mesh_light.triangle_ids.size)
         self.emissive_material = np.array([getattr(m, "emission", None) is not None for m in scene.materials] or [False])
         self.any_hidden = bool(self.soup.count) and not bool(self.soup.camera_visible.all())
+        self.two_sided = np.array([m.two_sided for m in scene.materials] or [True])
 
     def select_prob(self, light_index: int) -> float:
         return float(self.selector.pmf[light_index]) if self.selector is not None else 0.0
@@ -145,20 +172,19 @@ class PathTracer:
 
     def _surface(self, prim, b1, b2, wi):
         soup = self.soup
-        b0 = 1.0 - b1 - b2
-        v = soup.vertices[prim].astype(np.float64)
-        p = v[:, 0] * b0[:, None] + v[:, 1] * b1[:, None] + v[:, 2] * b2[:, None]
+        bary = np.stack([1.0 - b1 - b2, b1, b2], axis=1)
+        # Hit points from barycentrics in float64 (not o + t·d): accurate to the vertex precision.
+        p = np.einsum("nij,ni->nj", soup.vertices64[prim], bary)
         ng = soup.geo_normal[prim]
         if soup.normals is not None:
-            nn = soup.normals[prim].astype(np.float64)
-            ns = normalize(nn[:, 0] * b0[:, None] + nn[:, 1] * b1[:, None] + nn[:, 2] * b2[:, None])
-            degenerate = ~np.any(ns != 0, axis=1)
-            ns[degenerate] = ng[degenerate]
+            ns = normalize(np.einsum("nij,ni->nj", soup.normals64[prim], bary))
+            degenerate = ns[:, 0] * ns[:, 0] + ns[:, 1] * ns[:, 1] + ns[:, 2] * ns[:, 2] == 0
+            if degenerate.any():
+                ns[degenerate] = ng[degenerate]
         else:
             ns = ng.copy()
         if soup.uvs is not None:
-            uu = soup.uvs[prim].astype(np.float64)
-            uv = uu[:, 0] * b0[:, None] + uu[:, 1] * b1[:, None] + uu[:, 2] * b2[:, None]
+            uv = np.einsum("nij,ni->nj", soup.uvs64[prim], bary)
         else:
             uv = np.zeros((prim.size, 2))
         return {"p": p, "ng": ng, "ns": ns, "uv": uv, "tangent": soup.tangent[prim],
@@ -171,7 +197,7 @@ class PathTracer:
 
     def _clamp(self, contrib: np.ndarray, segment: int) -> np.ndarray:
         if self.clamp > 0 and segment > 0:
-            m = contrib.max(axis=1)
+            m = max3(contrib)
             scale = np.where(m > self.clamp, self.clamp / np.where(m > 0, m, 1.0), 1.0)
             return contrib * scale[:, None]
         return contrib
@@ -192,6 +218,8 @@ class PathTracer:
     def _add_escaped(self, L, lane, d, beta, prev_pdf, prev_delta, segment):
         for li in self.infinite:
             light = self.lights[li]
+            if segment == 0 and not getattr(light, "visible_camera", True):
+                continue   # e.g. a sun disk hidden from the camera (Blender's default for lights)
             Le = light.eval_escaped(d)
             w = self._mis_weight_for_hit(li, light.pdf_escaped(d), prev_pdf, prev_delta)
             L[lane] += self._clamp(beta * Le * w[:, None], segment)
@@ -222,19 +250,27 @@ class PathTracer:
 
     # ------------------------------------------------------------------ scattering
     def _scatter(self, L, albedo_aov, normal_aov, lane, si, beta, rng, segment, do_continue):
-        n = lane.size
-        wi = si["wi"]
-        ng = si["ng"].copy()
-        ns = si["ns"].copy()
+        # Sort lanes by material once; every material group is then a contiguous slice, so the
+        # per-group work below uses views instead of gathered copies.
         mats = si["material"]
-        two_sided = np.array([m.two_sided for m in self.scene.materials])[mats]
+        order = np.argsort(mats, kind="stable")
+        if not np.all(order[:-1] < order[1:]):
+            lane, beta = lane[order], beta[order]
+            si = {k: v[order] for k, v in si.items()}
+            mats = si["material"]
+        n = lane.size
+        wi, ng, ns = si["wi"], si["ng"], si["ns"]
+        two_sided = self.two_sided[mats]
         # Reflection-only materials are seen from both sides: turn the normals towards the viewer,
         # and where the interpolated shading normal still faces away, fall back to the geometric one.
-        back = two_sided & (dot(wi, ng) < 0)
-        ng[back] = -ng[back]
-        ns[back] = -ns[back]
+        flip = np.where(two_sided & (dot(wi, ng) < 0), -1.0, 1.0)[:, None]
+        ng = ng * flip
+        ns = ns * flip
         bad_shading = two_sided & (dot(wi, ns) <= 0)
-        ns[bad_shading] = ng[bad_shading]
+        if bad_shading.any():
+            ns[bad_shading] = ng[bad_shading]
+        if self.soup.normals is not None:
+            ns = valid_reflection_normal(wi, ns, ng)
         frame = Frame.from_normal_tangent(ns, si["tangent"])
         wi_local = frame.to_local(wi)
         p = si["p"]
@@ -245,61 +281,76 @@ class PathTracer:
         new_beta = np.zeros((n, 3))
         new_pdf = np.zeros(n)
         new_delta = np.zeros(n, dtype=bool)
-        shadow = []  # (lane indices into this batch, origin, dir, tmax, contribution)
         can_nee = self.selector is not None and segment + 1 < self.max_segments
+        if can_nee:
+            # Light samples for every lane at once; the BSDF is evaluated per material group below.
+            wi_w, dist, value, lpdf, is_delta, sel_p = self._sample_lights(p, rng)
+            wo_nee = frame.to_local(wi_w)
+            live = (max3(value) > 0) & ((dot(wi_w, ng) * wo_nee[:, 2]) > 0)
+            f_nee = np.zeros((n, 3))
+            bsdf_pdf = np.zeros(n)
+            any_rough_light = not is_delta.all()
 
-        order = np.argsort(mats, kind="stable")
-        sorted_mats = mats[order]
-        bounds = np.flatnonzero(np.diff(sorted_mats)) + 1
-        for group in np.split(order, bounds):
-            if group.size == 0:
-                continue
-            material = self.scene.materials[mats[group[0]]]
-            bsdf = material.bind(ShadingContext(si["uv"][group]))
-            wi_g = wi_local[group]
+        bounds = np.concatenate([[0], np.flatnonzero(np.diff(mats)) + 1, [n]])
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            g = slice(int(a), int(b))
+            material = self.scene.materials[mats[a]]
+            bsdf = material.bind(ShadingContext(si["uv"][g]))
+            wi_g = wi_local[g]
             if albedo_aov is not None:
-                albedo_aov[lane[group]] = np.broadcast_to(np.asarray(bsdf.albedo(), dtype=np.float64), (group.size, 3))
-            if can_nee and not bsdf.delta_only:
-                shadow.append(self._nee(bsdf, group, wi_g, frame, p, ng, beta, rng))
+                albedo_aov[lane[g]] = np.broadcast_to(np.asarray(bsdf.albedo(), dtype=np.float64), (b - a, 3))
+            if can_nee and not bsdf.delta_only and live[g].any():
+                f_nee[g] = bsdf.eval(wi_g, wo_nee[g], rng)
+                if any_rough_light:
+                    bsdf_pdf[g] = bsdf.pdf(wi_g, wo_nee[g], rng)
             if do_continue:
-                s = bsdf.sample(wi_g, rng)
-                new_dir[group] = frame.take(group).to_world(s.wo)
-                new_beta[group] = beta[group] * s.weight
-                new_pdf[group] = s.pdf
-                new_delta[group] = s.delta
+                smp = bsdf.sample(wi_g, rng)
+                d_world = Frame(frame.s[g], frame.t[g], frame.n[g]).to_world(smp.wo)
+                new_dir[g] = d_world
                 # Leak guard: the sampled side must agree for the shading and the geometric normal.
-                bad = (dot(new_dir[group], ng[group]) * s.wo[:, 2]) <= 0
-                new_beta[group[bad]] = 0.0
+                ok = (dot(d_world, ng[g]) * smp.wo[:, 2]) > 0
+                new_beta[g] = beta[g] * smp.weight * ok[:, None]
+                new_pdf[g] = smp.pdf
+                new_delta[g] = smp.delta
 
-        if shadow:
-            idx = np.concatenate([s[0] for s in shadow])
-            if idx.size:
-                so = np.concatenate([s[1] for s in shadow])
-                sd = np.concatenate([s[2] for s in shadow])
-                st = np.concatenate([s[3] for s in shadow])
-                sc = np.concatenate([s[4] for s in shadow])
-                blocked = self.accel.occluded(so, sd, st)
-                free = ~blocked
-                np.add.at(L, lane[idx[free]], self._clamp(sc[free], segment))
+        if can_nee:
+            w = np.where(is_delta, 1.0, power_heuristic(sel_p * lpdf, bsdf_pdf)) / sel_p
+            contrib = beta * f_nee * value * (w * live)[:, None]
+            keep = np.flatnonzero(max3(contrib) > 0)
+            if keep.size:
+                origin = offset_origin(p[keep], ng[keep], wi_w[keep])
+                d_keep = dist[keep]
+                tmax = np.where(np.isfinite(d_keep), d_keep * (1.0 - SHADOW_EPS), np.inf)
+                free = ~self.accel.occluded(origin, wi_w[keep], tmax)
+                # One shadow ray per lane and bounce: lane indices are unique, plain += is exact.
+                L[lane[keep[free]]] += self._clamp(contrib[keep[free]], segment)
 
         if not do_continue:
             return lane[:0], p[:0], new_dir[:0], new_beta[:0], new_pdf[:0], new_delta[:0]
         # Russian roulette (unbiased: survivors are divided by the survival probability).
+        peak = max3(new_beta)
         if segment + 1 >= self.rr_depth:
-            q = np.minimum(new_beta.max(axis=1), 1.0)
+            q = np.minimum(peak, 1.0)
             survive = rng.random(n) < q
-            new_beta = np.where(survive[:, None], new_beta / np.where(q > 0, q, 1.0)[:, None], 0.0)
-        alive = np.any(new_beta > 0, axis=1) & np.all(np.isfinite(new_beta), axis=1)
-        nonfinite = ~np.all(np.isfinite(new_beta), axis=1)
-        if nonfinite.any():
-            stats.add("paths_nonfinite_killed", int(nonfinite.sum()))
+            new_beta = new_beta * np.where(survive, 1.0 / np.where(q > 0, q, 1.0), 0.0)[:, None]
+            peak = np.where(survive, peak, 0.0)
+        finite = np.isfinite(peak)
+        if not finite.all():
+            stats.add("paths_nonfinite_killed", int((~finite).sum()))
+        alive = (peak > 0) & finite
         origin = offset_origin(p[alive], ng[alive], new_dir[alive])
         return lane[alive], origin, new_dir[alive], new_beta[alive], new_pdf[alive], new_delta[alive]
 
-    def _nee(self, bsdf, group, wi_g, frame, p, ng, beta, rng):
-        m = group.size
+    def _sample_lights(self, p, rng):
+        """Pick a light per lane (∝ power) and sample it: world directions, distances,
+        radiance/pdf values, solid-angle pdfs, delta flags and selection probabilities."""
+        m = p.shape[0]
         u_sel = rng.random(m)
         u_light = rng.random((m, 2))
+        if len(self.lights) == 1:
+            light = self.lights[0]
+            ls = light.sample(p, u_light)
+            return ls.wi, ls.dist, ls.value, ls.pdf, np.full(m, light.is_delta), np.ones(m)
         li_of, sel_p, _ = self.selector.sample(u_sel)
         wi_w = np.zeros((m, 3))
         dist = np.zeros(m)
@@ -309,25 +360,7 @@ class PathTracer:
         for li in np.unique(li_of):
             k = li_of == li
             light = self.lights[li]
-            ls = light.sample(p[group[k]], u_light[k])
+            ls = light.sample(p[k], u_light[k])
             wi_w[k], dist[k], value[k], lpdf[k] = ls.wi, ls.dist, ls.value, ls.pdf
             is_delta[k] = light.is_delta
-        sub = frame.take(group)
-        wo_l = sub.to_local(wi_w)
-        live = np.any(value > 0, axis=1) & ((dot(wi_w, ng[group]) * wo_l[:, 2]) > 0)
-        contrib = np.zeros((m, 3))
-        if live.any():
-            b = bsdf.take(np.nonzero(live)[0]) if not live.all() else bsdf
-            wi_live, wo_live = wi_g[live], wo_l[live]
-            f = b.eval(wi_live, wo_live, rng)
-            w = np.ones(int(live.sum()))
-            rough = ~is_delta[live]
-            if rough.any():
-                bp = b.pdf(wi_live, wo_live, rng)
-                w = np.where(rough, power_heuristic(sel_p[live] * lpdf[live], bp), 1.0)
-            contrib[live] = beta[group[live]] * f * value[live] * (w / sel_p[live])[:, None]
-        keep = np.nonzero(np.any(contrib > 0, axis=1))[0]
-        origin = offset_origin(p[group[keep]], ng[group[keep]], wi_w[keep])
-        d_keep = dist[keep]
-        tmax = np.where(np.isfinite(d_keep), d_keep * (1.0 - SHADOW_EPS), np.inf)
-        return group[keep], origin, wi_w[keep], tmax, contrib[keep]
+        return wi_w, dist, value, lpdf, is_delta, sel_p

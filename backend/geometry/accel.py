@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mathutil import cross, dot, normalize
+from ..mathutil import abs_max3, cross, dot, normalize
 
 # Offset in units of the coordinate magnitude: 2^-16 ≈ 1.5e-5, i.e. ~128 float32 ulps.
 OFFSET_RELATIVE = 2.0 ** -16
@@ -36,9 +36,16 @@ class TriangleSoup:
     geo_normal: np.ndarray = None   # (T, 3) float64 unit geometric normal (CCW winding)
     tangent: np.ndarray = None      # (T, 3) float64 unit dP/du (UV tangent), zeros where undefined
     area: np.ndarray = None         # (T,) float64
+    # float64 copies for shading (gathering float32 and converting per hit is 3-4x slower)
+    vertices64: np.ndarray = None
+    normals64: np.ndarray = None
+    uvs64: np.ndarray = None
 
     def __post_init__(self):
         v = self.vertices.astype(np.float64)
+        self.vertices64 = v
+        self.normals64 = None if self.normals is None else self.normals.astype(np.float64)
+        self.uvs64 = None if self.uvs is None else self.uvs.astype(np.float64)
         e1 = v[:, 1] - v[:, 0]
         e2 = v[:, 2] - v[:, 0]
         n = cross(e1, e2)
@@ -68,7 +75,7 @@ def _uv_tangents(e1: np.ndarray, e2: np.ndarray, uvs: np.ndarray | None) -> np.n
 
 
 def offset_scale(p: np.ndarray) -> np.ndarray:
-    return OFFSET_ABSOLUTE + OFFSET_RELATIVE * np.abs(p).max(axis=1)
+    return OFFSET_ABSOLUTE + OFFSET_RELATIVE * abs_max3(p)
 
 
 def offset_origin(p: np.ndarray, ng: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -88,6 +95,8 @@ class Accelerator:
         self._scene = rtcs.EmbreeScene()
         TriangleMesh(self._scene, np.ascontiguousarray(soup.vertices, dtype=np.float32))
         self.rays_traced = 0
+        #: Set to a list to record every traced batch (benchmarks re-trace the render's own rays).
+        self.recorder: list | None = None
 
     def intersect(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray | None = None):
         """Closest hits. Returns (prim (n,) int64 with -1 = miss, t (n,), b1 (n,), b2 (n,))."""
@@ -98,6 +107,8 @@ class Accelerator:
         o32 = np.ascontiguousarray(o, dtype=np.float32)
         d32 = np.ascontiguousarray(d, dtype=np.float32)
         dists = None if tmax is None else np.ascontiguousarray(np.minimum(tmax, 3e38), dtype=np.float32)
+        if self.recorder is not None:
+            self.recorder.append(("intersect", o32, d32, dists))
         res = self._scene.run(o32, d32, dists=dists, output=True)
         self.rays_traced += n
         prim = res["primID"].astype(np.int64)
@@ -111,7 +122,21 @@ class Accelerator:
         o32 = np.ascontiguousarray(o, dtype=np.float32)
         d32 = np.ascontiguousarray(d, dtype=np.float32)
         dists = np.ascontiguousarray(np.minimum(tmax, 3e38), dtype=np.float32)
+        if self.recorder is not None:
+            self.recorder.append(("occluded", o32, d32, dists))
         # With query OCCLUDED embreex returns the hit primitive id, or -1 when the segment is free.
         res = self._scene.run(o32, d32, dists=dists, query="OCCLUDED")
         self.rays_traced += n
         return np.asarray(res) != -1
+
+
+def retrace(accel: "Accelerator", batches: list) -> float:
+    """Trace recorded batches again with embree alone; returns seconds (benchmarks)."""
+    import time
+    t0 = time.perf_counter()
+    for kind, o32, d32, dists in batches:
+        if kind == "intersect":
+            accel._scene.run(o32, d32, dists=dists, output=True)
+        else:
+            accel._scene.run(o32, d32, dists=dists, query="OCCLUDED")
+    return time.perf_counter() - t0

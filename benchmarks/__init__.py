@@ -1,0 +1,1 @@
+"""Benchmarks: scripts that print figures (time, error), never pass/fail tests."""

@@ -1,0 +1,61 @@
+"""Ray-casting vs shading time of the path tracer on a Cornell-like box (issue: backend core).
+
+Renders the scene in one process while recording every ray batch, then traces the same rays again
+with embree alone. Prints embree-only rays/s (on the render's own rays), the full renderer's
+paths/s and rays/s, and the shading overhead = (render time − embree time) / embree time.
+
+    .venv/bin/python -m benchmarks.core_throughput [--size 256] [--spp 16]
+"""
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+
+import numpy as np
+
+from backend.geometry.accel import Accelerator, retrace
+from backend.integrator import PathTracer
+from backend.render import choose_spp_block, plan_round
+from backend.scene.loader import load_scene_data
+
+from .scenes import cornell_box
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=int, default=256)
+    ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--max-bounces", type=int, default=6)
+    args = ap.parse_args(argv)
+
+    scene = load_scene_data(cornell_box(args.size, args.size, args.spp, args.max_bounces), "<cornell>")
+    accel = Accelerator(scene.soup)
+    tracer = PathTracer(scene, accel)
+    accel.recorder = []
+    W = H = args.size
+    pixels = np.arange(W * H, dtype=np.int64)
+    block = choose_spp_block(pixels.size, args.spp)
+    items = []
+    for r in range(int(np.ceil(args.spp / block))):
+        items += plan_round(pixels, min(block, args.spp - r * block), r, 1)
+    t0 = time.perf_counter()
+    for key, band, spp, seed in items:
+        rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, *key])))
+        tracer.render(band, spp, rng)
+    t_render = time.perf_counter() - t0
+    batches = accel.recorder
+    accel.recorder = None
+    rays = sum(b[1].shape[0] for b in batches)
+    t_embree = min(retrace(accel, batches) for _ in range(2))
+    paths = W * H * args.spp
+    print(f"machine: {platform.machine()} {platform.processor() or ''}, 1 process, Python {platform.python_version()}, numpy {np.__version__}")
+    print(f"scene: Cornell-like box {W}x{H}, {args.spp} spp, max_bounces {args.max_bounces}, {scene.soup.count} triangles")
+    print(f"render (1 process):   {t_render:8.3f} s  {paths / t_render / 1e3:9.1f} k paths/s  {rays / t_render / 1e6:6.2f} M rays/s  ({rays} rays, {rays / paths:.2f} per path)")
+    print(f"embree only, same rays: {t_embree:6.3f} s  {rays / t_embree / 1e6:6.2f} M rays/s")
+    print(f"shading overhead: {(t_render - t_embree) / t_embree:.2f}x the ray-casting time (target <= 1x)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,65 @@
+"""Helpers for end-to-end render tests: build scene dicts, render in-process, compare regions."""
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+
+from backend.render import Renderer, RenderOptions
+from backend.scene.loader import load_scene_data
+
+IDENTITY = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+
+
+def look_down_ortho(half_size: float, height: float = 5.0) -> dict:
+    """Orthographic camera above the origin looking down −Z, image +Y = world +Y."""
+    h = half_size
+    return {"type": "orthographic", "to_world": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, height], [0, 0, 0, 1]],
+            "frame": [[h, h, -1], [h, -h, -1], [-h, -h, -1], [-h, h, -1]]}
+
+
+def front_perspective(distance: float = 5.0, half_width: float = 0.3, aspect: float = 1.0) -> dict:
+    """Perspective camera on −Y looking towards +Y (at the origin)."""
+    hw, hh = half_width, half_width / aspect
+    return {"type": "perspective",
+            "to_world": [[1, 0, 0, 0], [0, 0, -1, -distance], [0, 1, 0, 0], [0, 0, 0, 1]],
+            "frame": [[hw, hh, -1], [hw, -hh, -1], [-hw, -hh, -1], [-hw, hh, -1]]}
+
+
+def scene(width, height, camera, materials, meshes, objects, lights=(), world=None, render=None,
+          film_filter=None) -> dict:
+    data = {"format": "lamina-scene", "version": 1,
+            "film": {"width": width, "height": height},
+            "camera": camera, "materials": materials, "meshes": meshes, "objects": list(objects),
+            "lights": list(lights), "render": render or {}}
+    if film_filter is not None:
+        data["film"]["filter"] = film_filter
+    if world is not None:
+        data["world"] = world
+    return data
+
+
+def render(data: dict, workers: int = 1, **options):
+    sc = load_scene_data(copy.deepcopy(data), "<test>")
+    opts = RenderOptions(workers=workers, **options)
+    opts.apply(sc)
+    return Renderer(sc, (copy.deepcopy(data), "<test>", None), opts).run()
+
+
+def region_means(image: np.ndarray, var_of_mean: np.ndarray, mask: np.ndarray, blocks: int):
+    """Split the image into blocks×blocks regions; per region the mean over masked pixels and its
+    standard error (pixels are independent, so variances of pixel means add)."""
+    h, w = image.shape[:2]
+    out = []
+    for by in range(blocks):
+        for bx in range(blocks):
+            ys = slice(by * h // blocks, (by + 1) * h // blocks)
+            xs = slice(bx * w // blocks, (bx + 1) * w // blocks)
+            m = mask[ys, xs]
+            k = int(m.sum())
+            if k < 4:
+                continue
+            mean = image[ys, xs][m].mean(axis=0)
+            se = np.sqrt(var_of_mean[ys, xs][m].sum(axis=0)) / k
+            out.append((by, bx, mean, se, (ys, xs)))
+    return out

@@ -1,0 +1,45 @@
+"""Adaptive sampling stops converged pixels and stays unbiased; the time limit stops a render."""
+import numpy as np
+
+from render_util import front_perspective, render, scene
+
+
+def half_sky_scene(spp, noise_target, min_spp):
+    # A diffuse sphere fills part of the frame; background pixels see only the constant world,
+    # whose estimate has zero variance, so they converge at min_spp.
+    return scene(64, 64, front_perspective(4.0, 0.3),
+                 {"m": {"type": "diffuse", "color": 0.8}},
+                 {"ball": {"shape": "sphere", "radius": 0.8, "segments": 48}},
+                 [{"mesh": "ball", "to_world": [[1, 0, 0, 0.6], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]],
+                   "materials": ["m"]}],
+                 lights=[{"type": "point", "to_world": [[1, 0, 0, -2], [0, 1, 0, -3], [0, 0, 1, 2], [0, 0, 0, 1]],
+                          "power": 300.0, "color": [1, 1, 1]}],
+                 world={"type": "constant", "color": [0.3, 0.3, 0.3], "strength": 1.0},
+                 render={"spp": spp, "max_bounces": 3, "seed": 4, "noise_target": noise_target,
+                         "min_spp": min_spp})
+
+
+def test_adaptive_sampling_stops_converged_pixels_and_stays_unbiased():
+    adaptive = render(half_sky_scene(512, 0.01, 16))
+    counts = adaptive.film.counts()
+    img = adaptive.film.combined()
+    background = np.all(np.abs(img - 0.3) < 1e-9, axis=2)
+    assert background.mean() > 0.3
+    # Background pixels stopped after the first round, object pixels went on.
+    assert counts[background].max() < 512
+    assert counts[~background].max() == 512 or counts[~background].mean() > counts[background].mean()
+    # Unbiased: object pixels agree with a uniform render within noise.
+    uniform = render(half_sky_scene(128, 0.0, 16))
+    a, b = img[~background], uniform.film.combined()[~background]
+    va = adaptive.film.variance_of_mean()[~background]
+    vb = uniform.film.variance_of_mean()[~background]
+    diff = (a - b).mean(axis=0)
+    se = np.sqrt(va.sum(axis=0) + vb.sum(axis=0)) / a.shape[0]
+    assert np.all(np.abs(diff) <= 4 * se + 1e-9), (diff, se)
+
+
+def test_time_limit_stops_early_with_a_valid_image():
+    result = render(half_sky_scene(100000, 0.0, 16), time_limit=1.0)
+    assert 0 < result.film.counts().max() < 100000
+    assert np.all(np.isfinite(result.film.combined()))
+    assert not result.interrupted

@@ -1,0 +1,81 @@
+"""Image-texture parameters: orientation, bilinear filtering, colour decoding, sanitising."""
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+from backend.errors import SceneError
+from backend.scene.reader import LoadContext
+from backend.textures import parse_param, srgb_to_linear
+
+
+def write_image(path, pixels, fmt=oiio.FLOAT):
+    h, w, c = pixels.shape
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), oiio.ImageSpec(w, h, c, fmt))
+    assert out.write_image(np.ascontiguousarray(pixels if fmt == oiio.FLOAT else pixels.astype(np.uint8)))
+    out.close()
+
+
+def param(tmp_path, value, channels=3, lo=None, hi=None, color=None):
+    ctx = LoadContext("scene.json", tmp_path)
+    p = parse_param(value, "materials.m.color", ctx, channels, lo, hi, False,
+                    color if color is not None else channels == 3)
+    return p, ctx
+
+
+def test_texture_orientation_and_bilinear_lookup(tmp_path):
+    rng = np.random.default_rng(0)
+    img = rng.random((6, 8, 3)).astype(np.float32)
+    write_image(tmp_path / "t.exr", img)
+    p, _ = param(tmp_path, {"texture": "t.exr"})
+    # Texel (row r, column c) centre is at u = (c + .5)/W, v = 1 − (r + .5)/H (v up, row 0 on top).
+    r, c = 1, 5
+    uv = np.array([[(c + 0.5) / 8, 1 - (r + 0.5) / 6]])
+    assert np.allclose(p.bind(uv), img[r, c], atol=1e-6)
+    # Halfway between two horizontally adjacent texel centres: their average.
+    uv = np.array([[(c + 1.0) / 8, 1 - (r + 0.5) / 6]])
+    assert np.allclose(p.bind(uv), 0.5 * (img[r, c] + img[r, c + 1]), atol=1e-6)
+    # Repeat wrapping: u + 1 gives the same value.
+    uv2 = np.array([[0.3, 0.7], [1.3, -0.3]])
+    v = p.bind(uv2)
+    assert np.allclose(v[0], v[1], atol=1e-6)
+
+
+def test_8bit_colour_texture_is_srgb_decoded_but_scalar_params_are_not(tmp_path):
+    img = np.full((2, 2, 3), 128, np.uint8)
+    write_image(tmp_path / "t.png", img, oiio.UINT8)
+    colour, _ = param(tmp_path, {"texture": "t.png"})
+    assert np.allclose(colour.bind(np.array([[0.5, 0.5]])), srgb_to_linear(np.array(128 / 255)), atol=1e-4)
+    rough, _ = param(tmp_path, {"texture": "t.png", "channel": 0}, channels=1, color=False)
+    assert np.allclose(rough.bind(np.array([[0.5, 0.5]])), 128 / 255, atol=1e-4)
+    forced, _ = param(tmp_path, {"texture": "t.png", "colorspace": "linear"})
+    assert np.allclose(forced.bind(np.array([[0.5, 0.5]])), 128 / 255, atol=1e-4)
+
+
+def test_nan_and_out_of_range_texels_are_sanitised_with_warnings(tmp_path):
+    img = np.array([[[np.nan], [-1.0]], [[0.5], [7.0]]], np.float32)
+    write_image(tmp_path / "r.exr", img)
+    p, ctx = param(tmp_path, {"texture": "r.exr"}, channels=1, lo=0.0, hi=1.0, color=False)
+    assert np.all(np.isfinite(p.texels)) and p.texels.min() >= 0 and p.texels.max() <= 1
+    assert any("NaN/Inf texel" in w for w in ctx.warnings)
+    assert any("below 0 clamped" in w for w in ctx.warnings)
+    assert any("above 1 clamped" in w for w in ctx.warnings)
+
+
+def test_constant_params_keep_constant_shapes(tmp_path):
+    rgb, _ = param(tmp_path, [0.1, 0.2, 0.3])
+    grey, _ = param(tmp_path, 0.4)
+    s, _ = param(tmp_path, 0.25, channels=1)
+    uv = np.zeros((10, 2))
+    assert rgb.bind(uv).shape == (1, 3) and grey.bind(uv).shape == (1, 3)
+    assert s.bind(uv).shape == ()
+
+
+def test_bad_texture_specs(tmp_path):
+    with pytest.raises(SceneError, match="materials.m.color.texture: texture file not found"):
+        param(tmp_path, {"texture": "missing.png"})
+    (tmp_path / "junk.png").write_bytes(b"not an image")
+    with pytest.raises(SceneError, match="materials.m.color.texture: cannot read image"):
+        param(tmp_path, {"texture": "junk.png"})
+    with pytest.raises(SceneError, match="materials.m.color.colorspace: expected one of"):
+        param(tmp_path, {"texture": "junk.png", "colorspace": "acescg"})
