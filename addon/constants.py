@@ -7,9 +7,10 @@ from __future__ import annotations
 
 # Named metals of the conductor interface (docs/materials.md, `conductor.metal`).
 METALS = (
-    ("Ag", "Silver"), ("Al", "Aluminium"), ("Au", "Gold"), ("Cr", "Chromium"), ("Cu", "Copper"),
-    ("Fe", "Iron"), ("Hg", "Mercury"), ("Ni", "Nickel"), ("Pt", "Platinum"), ("Ti", "Titanium"),
-    ("W", "Tungsten"),
+    ("Ag", "Silver"), ("Al", "Aluminium"), ("Au", "Gold"), ("Be", "Beryllium"), ("Co", "Cobalt"),
+    ("Cr", "Chromium"), ("Cu", "Copper"), ("Fe", "Iron"), ("Hg", "Mercury"), ("Mo", "Molybdenum"),
+    ("Ni", "Nickel"), ("Pd", "Palladium"), ("Pt", "Platinum"), ("Rh", "Rhodium"), ("Ti", "Titanium"),
+    ("V", "Vanadium"), ("W", "Tungsten"), ("Zn", "Zinc"),
 )
 
 # (identifier, label, description, icon, id)
@@ -32,6 +33,13 @@ PHASE_KINDS = (
     ("HG", "Henyey-Greenstein", "Forward (g > 0) or backward (g < 0) scattering", 1),
     ("MICROFLAKE", "Microflake (fibre)", "Oriented flakes/fibres (Guo et al. 2018): anisotropic "
      "scattering and extinction", 2),
+    ("VMF", "von Mises-Fisher", "A forward lobe of concentration κ", 3),
+    ("SGGX", "SGGX", "SGGX specular microflakes (fibres or flakes) with a roughness", 4),
+)
+
+SGGX_SHAPES = (
+    ("FIBER", "Fibres", "Fibres along the axis", 0),
+    ("FLAKE", "Flakes", "Flakes whose normal is the axis", 1),
 )
 
 DISTRIBUTIONS = (

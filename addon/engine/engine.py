@@ -136,7 +136,7 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         exported = export_scene(depsgraph, workdir / "scene",
                                 camera_object=self.camera_override or scene.camera,
                                 samples=settings.preview_samples if preview else None,
-                                seed_offset=seed_offset)
+                                seed_offset=seed_offset, preview=preview)
         warning = exported.warning_text()
         if warning and not preview:
             self.report({"WARNING"}, warning)

@@ -32,11 +32,18 @@ def _light_node_tree(light):
 
 def ies_json(light, notes: list[str]):
     """``{"file": ...}`` / ``{"data": ...}`` from Lamina's setting or a Cycles IES Texture node."""
+    found = ies_source(light, notes)
+    return found[0] if found else None
+
+
+def ies_source(light, notes: list[str]):
+    """(ies entry, strength multiplier) or None. The IES Texture node's Strength input is a
+    plain multiplier of the light's power (docs/lights.md)."""
     settings = light.lamina
     if settings.ies_mode == "FILE" and settings.ies_file:
-        return {"file": str(Path(bpy.path.abspath(settings.ies_file, library=light.library)))}
+        return {"file": str(Path(bpy.path.abspath(settings.ies_file, library=light.library)))}, 1.0
     if settings.ies_mode == "TEXT" and settings.ies_text is not None:
-        return {"data": settings.ies_text.as_string()}
+        return {"data": settings.ies_text.as_string()}, 1.0
     if settings.ies_mode != "NONE":
         notes.append(f"light '{light.name}': IES profile selected but not set (ignored)")
         return None
@@ -49,12 +56,16 @@ def ies_json(light, notes: list[str]):
     if len(nodes) > 1:
         notes.append(f"light '{light.name}': several IES Texture nodes (the first is used)")
     node = nodes[0]
+    strength_socket = node.inputs.get("Strength")
+    strength = float(strength_socket.default_value) if strength_socket is not None else 1.0
+    if strength_socket is not None and strength_socket.is_linked:
+        notes.append(f"light '{light.name}': {node.name}.Strength input (value used)")
     if node.mode == "INTERNAL":
         if node.ies is None:
             return None
-        return {"data": node.ies.as_string()}
+        return {"data": node.ies.as_string()}, strength
     if node.filepath:
-        return {"file": str(Path(bpy.path.abspath(node.filepath, library=light.library)))}
+        return {"file": str(Path(bpy.path.abspath(node.filepath, library=light.library)))}, strength
     return None
 
 
@@ -66,15 +77,17 @@ def light_json(obj, matrix_world, notes: list[str]) -> dict | None:
     if kind in ("POINT", "SPOT"):
         out["power"] = float(light.energy)
         out["radius"] = float(light.shadow_soft_size)
+        out["soft_falloff"] = bool(getattr(light, "use_soft_falloff", False))
         if kind == "SPOT":
-            out["spot_size"] = degrees(light.spot_size)
+            out["spot_size"] = min(max(degrees(light.spot_size), 1.0), 180.0)
             out["spot_blend"] = float(light.spot_blend)
-        ies = ies_json(light, notes)
-        if ies is not None:
-            out["ies"] = ies
+        found = ies_source(light, notes)
+        if found is not None:
+            out["ies"], strength = found
+            out["power"] *= strength
     elif kind == "SUN":
         out["strength"] = float(light.energy)
-        out["angle"] = degrees(light.angle)
+        out["angle"] = min(degrees(light.angle), 180.0)
     elif kind == "AREA":
         out["shape"] = light.shape.lower()
         out["size"] = float(light.size)
@@ -83,10 +96,12 @@ def light_json(obj, matrix_world, notes: list[str]) -> dict | None:
         out["normalize"] = bool(getattr(light, "normalize", True))
         settings = light.lamina
         if settings.beam_mode == "CONE":
-            out["cutoff_angle"] = degrees(settings.cutoff_angle)
-            out["beam_width"] = degrees(min(settings.beam_width, settings.cutoff_angle))
+            cutoff = min(degrees(settings.cutoff_angle), 90.0)
+            out["cutoff_angle"] = cutoff
+            out["beam_width"] = min(degrees(settings.beam_width), cutoff)
         else:
-            out["spread"] = degrees(getattr(light, "spread", 3.141592653589793))
+            # float32 π is a hair above 180°: clamp to the documented range.
+            out["spread"] = min(degrees(getattr(light, "spread", 3.141592653589793)), 180.0)
     else:
         notes.append(f"light '{light.name}': type {kind} is not supported (skipped)")
         return None

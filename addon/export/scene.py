@@ -25,6 +25,9 @@ GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 UNSUPPORTED_GEOMETRY = {"CURVES": "hair curves", "POINTCLOUD": "point clouds", "VOLUME": "volumes",
                         "GREASEPENCIL": "grease pencil"}
 DEFAULT_SLOT = "__lamina_default"
+# Blender's material-preview scene has a checker floor that is hidden from camera rays through
+# a Light Path node; Lamina shows it to reflections only, with a plain grey diffuse material.
+PREVIEW_FLOOR = "FloorHidden"
 
 
 class ExportError(Exception):
@@ -84,8 +87,9 @@ def render_json(scene, *, samples: int | None = None, seed_offset: int = 0) -> d
 
 class SceneExporter:
     def __init__(self, depsgraph, directory: Path | None, *, copy_textures: bool = False,
-                 mesh_folder: str = "meshes"):
+                 mesh_folder: str = "meshes", preview: bool = False):
         self.depsgraph = depsgraph
+        self.preview = preview
         self.mesh_folder = mesh_folder
         # The viewport depsgraph (File > Export) still includes objects hidden for rendering.
         self.viewport = getattr(depsgraph, "mode", "RENDER") == "VIEWPORT"
@@ -109,6 +113,9 @@ class SceneExporter:
             self.materials.setdefault(DEFAULT_SLOT, dict(DEFAULT_MATERIAL))
             return DEFAULT_SLOT
         name = mat.name_full
+        if self.preview and mat.name.startswith(PREVIEW_FLOOR):
+            self.materials.setdefault(name, {"type": "diffuse", "color": [0.5, 0.5, 0.5]})
+            return name
         if name not in self.materials:
             self.materials[name] = self.material_json(mat)
         return name
@@ -189,7 +196,9 @@ class SceneExporter:
             slots = [self.material_name(None)]
         entry = {"_name": obj.name, "mesh": mesh, "to_world": matrix_rows(inst.matrix_world.copy()),
                  "materials": slots}
-        if not getattr(obj, "visible_camera", True):
+        hidden_floor = self.preview and any(
+            slot.material is not None and slot.material.name.startswith(PREVIEW_FLOOR) for slot in obj.material_slots)
+        if not getattr(obj, "visible_camera", True) or hidden_floor:
             entry["visible_camera"] = False
         self.objects.append(entry)
         self.stats["instances"] += 1
@@ -231,12 +240,14 @@ def dumps(doc: dict) -> str:
 
 def export_scene(depsgraph, directory, *, camera_object=None, samples: int | None = None,
                  copy_textures: bool = False, seed_offset: int = 0,
-                 filename: str = "scene.json", mesh_folder: str = "meshes") -> ExportResult:
+                 filename: str = "scene.json", mesh_folder: str = "meshes",
+                 preview: bool = False) -> ExportResult:
     """Write the scene of ``depsgraph`` into ``directory``; raises ExportError for fatal problems."""
     t0 = time.perf_counter()
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    exporter = SceneExporter(depsgraph, directory, copy_textures=copy_textures, mesh_folder=mesh_folder)
+    exporter = SceneExporter(depsgraph, directory, copy_textures=copy_textures, mesh_folder=mesh_folder,
+                             preview=preview)
     camera_object = camera_object if camera_object is not None else depsgraph.scene.camera
     doc = exporter.build(camera_object, samples=samples, seed_offset=seed_offset)
     path = directory / filename

@@ -68,6 +68,12 @@ def interface_json(layer, images, visiting: tuple) -> dict:
     raise StackError(f"unknown interface kind {kind!r}")
 
 
+def _axis(layer) -> list[float]:
+    """The axis as entered (the renderer normalises it); a zero vector means +X (the default)."""
+    axis = [f32(v) for v in layer.flake_orientation]
+    return axis if any(axis) else [1.0, 0.0, 0.0]
+
+
 def medium_json(layer, images) -> dict:
     out = {"thickness": f32(layer.thickness),
            "sigma_t": _scalar(f32(layer.sigma_t), layer.sigma_t_texture, images)}
@@ -78,13 +84,14 @@ def medium_json(layer, images) -> dict:
     if layer.phase == "HG":
         out["phase"] = {"type": "hg", "g": f32(layer.hg_g)}
     elif layer.phase == "MICROFLAKE":
-        # The axis is written as entered (the renderer normalises it); a zero vector means +Z.
-        axis = [f32(v) for v in layer.flake_orientation]
-        if not any(axis):
-            axis = [0.0, 0.0, 1.0]
-        out["phase"] = {"type": "microflake", "stddev": f32(layer.flake_stddev), "orientation": axis}
+        out["phase"] = {"type": "microflake", "stddev": f32(layer.flake_stddev), "orientation": _axis(layer)}
+    elif layer.phase == "VMF":
+        out["phase"] = {"type": "vmf", "kappa": f32(layer.vmf_kappa)}
+    elif layer.phase == "SGGX":
+        out["phase"] = {"type": "sggx", "shape": layer.sggx_shape.lower(), "orientation": _axis(layer),
+                        "roughness": f32(layer.sggx_roughness)}
     else:
-        out["phase"] = {"type": "hg", "g": 0.0}     # isotropic
+        out["phase"] = {"type": "isotropic"}
     return out
 
 

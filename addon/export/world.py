@@ -44,7 +44,8 @@ def world_json(world, images, notes: list[str]) -> dict:
         tex = images.texture(src.image)
         if tex is None:
             return {"type": "constant", "color": rgb(colour_sock.default_value), "strength": strength}
-        entry = {"type": "environment", "file": tex["texture"], "strength": strength}
+        entry = {"type": "environment", "file": tex["texture"], "strength": strength,
+                 "colorspace": tex.get("colorspace", "auto")}
         rotation = _mapping_rotation(src, where, notes)
         if rotation is not None:
             entry["to_world"] = rotation
@@ -56,8 +57,9 @@ def world_json(world, images, notes: list[str]) -> dict:
 def _mapping_rotation(env_node, where: str, notes: list[str]):
     """The rotation of a Mapping node feeding the Environment Texture, as a 4×4 to_world.
 
-    A Mapping node (type Point) rotates the lookup direction d ↦ R·d, which turns the image by
-    R⁻¹ in the world: to_world = R⁻¹ = Rᵀ. Location and scale do not apply to directions."""
+    A Mapping node (type Point or Vector) rotates the lookup direction d ↦ R·d, which turns the
+    image by R⁻¹ in the world: to_world = R⁻¹ = Rᵀ (docs/lights.md, verified there against
+    Cycles). Type Texture applies the inverse transform. Location and scale do not apply."""
     vec = env_node.inputs["Vector"]
     src, _ = _follow(vec)
     if src is None:

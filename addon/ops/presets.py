@@ -141,9 +141,9 @@ def _fill_medium(layer, med: dict, base_dir: Path) -> None:
     layer.thickness = float(med.get("thickness", 1.0))
     layer.sigma_t, layer.sigma_t_texture = _number(med.get("sigma_t", 0.0), base_dir, "sigma_t")
     layer.albedo, layer.albedo_texture = _colour(med.get("albedo"), base_dir, (0.8, 0.8, 0.8))
-    phase = med.get("phase") or {"type": "hg", "g": 0.0}
-    kind = phase.get("type", "hg")
-    if kind in ("hg", "isotropic") and float(phase.get("g", 0.0)) == 0.0:
+    phase = med.get("phase") or {"type": "isotropic"}
+    kind = phase.get("type", "isotropic")
+    if kind == "isotropic" or (kind == "hg" and float(phase.get("g", 0.0)) == 0.0):
         layer.phase = "ISOTROPIC"
     elif kind == "hg":
         layer.phase = "HG"
@@ -151,7 +151,16 @@ def _fill_medium(layer, med: dict, base_dir: Path) -> None:
     elif kind == "microflake":
         layer.phase = "MICROFLAKE"
         layer.flake_stddev = float(phase.get("stddev", 0.05))
-        layer.flake_orientation = [float(v) for v in phase.get("orientation", [0, 0, 1])]
+        layer.flake_orientation = [float(v) for v in phase.get("orientation", [1, 0, 0])]
+    elif kind == "vmf":
+        layer.phase = "VMF"
+        layer.vmf_kappa = float(phase.get("kappa", 10.0))
+    elif kind == "sggx" and "matrix" not in phase:
+        layer.phase = "SGGX"
+        layer.sggx_shape = "FLAKE" if phase.get("shape") == "flake" else "FIBER"
+        default = [0, 0, 1] if layer.sggx_shape == "FLAKE" else [1, 0, 0]
+        layer.flake_orientation = [float(v) for v in phase.get("orientation", default)]
+        layer.sggx_roughness = float(phase.get("roughness", 0.3))
     else:
         raise PresetError(f"phase function {kind!r} cannot be edited in the stack editor")
 

@@ -12,7 +12,7 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorPro
                        PointerProperty, StringProperty)
 from bpy.types import PropertyGroup
 
-from ..constants import DISTRIBUTIONS, INTERFACE_KINDS, METALS, PHASE_KINDS
+from ..constants import DISTRIBUTIONS, INTERFACE_KINDS, METALS, PHASE_KINDS, SGGX_SHAPES
 
 METAL_ITEMS = [(sym, f"{name} ({sym})", f"Measured complex IOR of {name.lower()}", i)
                for i, (sym, name) in enumerate(METALS)]
@@ -90,10 +90,15 @@ class LaminaLayer(PropertyGroup):
                         description="Henyey-Greenstein mean cosine: > 0 forward, < 0 backward scattering")
     flake_stddev: FloatProperty(name="Flake Spread", default=0.05, min=0.001, max=1.0, precision=3,
                                 description="Standard deviation of the microflake/fibre orientation distribution")
-    flake_orientation: FloatVectorProperty(name="Fibre Axis", size=3, subtype='XYZ',
-                                           default=(0.0, 0.0, 1.0), soft_min=-1.0, soft_max=1.0,
-                                           description="Mean flake/fibre axis in the shading frame "
+    flake_orientation: FloatVectorProperty(name="Axis", size=3, subtype='XYZ',
+                                           default=(1.0, 0.0, 0.0), soft_min=-1.0, soft_max=1.0,
+                                           description="Fibre axis (or SGGX flake normal) in the shading frame "
                                                        "(x = UV tangent, z = normal); the renderer normalises it")
+    vmf_kappa: FloatProperty(name="Concentration κ", default=10.0, min=0.0, soft_max=1000.0,
+                             description="von Mises-Fisher concentration: 0 = isotropic, larger = narrower forward lobe")
+    sggx_shape: EnumProperty(name="Shape", items=SGGX_SHAPES, default="FIBER")
+    sggx_roughness: FloatProperty(name="Roughness", default=0.3, min=0.001, max=1.0, subtype='FACTOR',
+                                  description="SGGX roughness: 1 = isotropic, small = aligned fibres/flakes")
 
 
 CLASSES = (LaminaLayer,)

@@ -37,7 +37,8 @@ def medium_summary(layer) -> str:
     if layer.sigma_t == 0 and layer.sigma_t_texture is None:
         return "clear"
     tau = layer.sigma_t * layer.thickness
-    phase = {"ISOTROPIC": "iso", "HG": f"g {layer.hg_g:.2g}", "MICROFLAKE": "flakes"}[layer.phase]
+    phase = {"ISOTROPIC": "iso", "HG": f"g {layer.hg_g:.2g}", "MICROFLAKE": "fibres",
+             "VMF": f"κ {layer.vmf_kappa:.3g}", "SGGX": "sggx"}[layer.phase]
     return f"τ {tau:.3g} · {phase}"
 
 
@@ -125,6 +126,12 @@ def draw_medium(layout, layer, index: int) -> None:
         elif layer.phase == "MICROFLAKE":
             col.prop(layer, "flake_stddev")
             col.prop(layer, "flake_orientation")
+        elif layer.phase == "VMF":
+            col.prop(layer, "vmf_kappa")
+        elif layer.phase == "SGGX":
+            col.prop(layer, "sggx_shape")
+            col.prop(layer, "flake_orientation", text="Normal" if layer.sggx_shape == "FLAKE" else "Axis")
+            col.prop(layer, "sggx_roughness")
         col.label(text=f"Optical depth τ = σt·d = {layer.sigma_t * layer.thickness:.4g}")
 
 

@@ -130,3 +130,47 @@ def corrupt_texture(tmp):
     tree.links.new(tex.outputs["Color"], bsdf.inputs["Color"])
     error, seconds = _render_to(sc, Path(tmp) / "corrupt.exr")
     return {"error": error, "seconds": seconds}
+
+
+def cycles_parity(tmp, spp=512, bounces=4):
+    """A diffuse-only scene rendered by Cycles and by Lamina with the same light settings."""
+    import math
+    sc = build.scene()
+    sc.render.resolution_x, sc.render.resolution_y = 40, 30
+    build.camera(location=(0.0, -6.0, 2.5), target=(0.0, 0.0, 0.6), lens=40)
+    build.plane(size=8, material=build.diffuse_material("Floor", (0.8, 0.8, 0.8)))
+    build.uv_sphere(material=build.diffuse_material("Ball", (0.7, 0.4, 0.2)), segments=48, rings=24)
+    build.light("Point", "POINT", (2.0, -1.5, 3.0), energy=300.0, shadow_soft_size=0.1)
+    build.light("Sun", "SUN", (0, 0, 5), (0.6, 0.3, 0.0), energy=1.5, angle=math.radians(3))
+    build.light("Area", "AREA", (-2.0, 0.5, 2.5), (0.5, -0.6, 0.0), energy=200.0, shape="RECTANGLE",
+                size=1.0, size_y=0.5)
+    build.world_colour((0.15, 0.2, 0.3), 1.0)
+    out = {}
+    # Cycles: path tracing with every limit matched to Lamina (no clamping, no light threshold,
+    # no denoising, no adaptive sampling, the same bounce limit for every kind of bounce).
+    sc.render.engine = "CYCLES"
+    cy = sc.cycles
+    cy.device = "CPU"
+    cy.samples = spp
+    cy.use_adaptive_sampling = False
+    cy.use_denoising = False
+    cy.sample_clamp_direct = 0.0
+    cy.sample_clamp_indirect = 0.0
+    cy.light_sampling_threshold = 0.0
+    cy.max_bounces = cy.diffuse_bounces = cy.glossy_bounces = cy.transmission_bounces = bounces
+    cy.seed = 1
+    cy.filter_width = 1.5
+    sc.render.threads_mode = "FIXED"
+    sc.render.threads = 2
+    path = Path(tmp) / "cycles.exr"
+    out["cycles_error"], out["cycles_seconds"] = _render_to(sc, path, multilayer=False)
+    out["cycles"] = str(path)
+    sc.render.engine = "LAMINA"
+    sc.lamina.samples = spp
+    sc.lamina.max_bounces = bounces
+    sc.lamina.rr_depth = 64          # Cycles' RR is unbiased too; keep ours out of the way
+    sc.lamina.workers = 2
+    path = Path(tmp) / "lamina.exr"
+    out["lamina_error"], out["lamina_seconds"] = _render_to(sc, path, multilayer=False)
+    out["lamina"] = str(path)
+    return out
