@@ -22,7 +22,8 @@ from pathlib import Path
 
 EXTENSION_ROOT = Path(__file__).resolve().parent.parent.parent   # holds backend/
 DEPENDENCIES = ("numpy", "embreex", "OpenImageIO")
-GRACE_SECONDS = 1.0
+GRACE_SECONDS = 1.0      # after SIGTERM, before the process group is killed
+STRAY_SECONDS = 2.0      # after the child exited, before processes it left behind are killed
 
 
 def dependency_paths() -> list[str]:
@@ -82,6 +83,7 @@ class BackendJob:
         self._events: queue.Queue = queue.Queue()
         self._stderr: list[str] = []
         self.cancelled = False
+        self._exit_seen = None
         self._threads = [threading.Thread(target=self._read_stdout, daemon=True),
                          threading.Thread(target=self._read_stderr, daemon=True)]
         for t in self._threads:
@@ -119,20 +121,45 @@ class BackendJob:
             pass
         return events
 
+    def _exited(self) -> bool:
+        """Whether the child has exited, *without reaping it* where the OS allows: an unreaped
+        child keeps its PID — our process-group id — reserved, so a later killpg can never hit
+        an unrelated group that reused the number."""
+        if self.proc.returncode is not None:
+            return True
+        if hasattr(os, "waitid") and sys.platform != "win32":
+            try:
+                info = os.waitid(os.P_PID, self.proc.pid, os.WEXITED | os.WNOHANG | os.WNOWAIT)
+            except ChildProcessError:
+                return self.proc.poll() is not None
+            return info is not None
+        return self.proc.poll() is not None
+
     @property
     def running(self) -> bool:
-        return self.proc.poll() is None
+        return not self._exited()
 
     def finished(self) -> bool:
         """The process ended and everything it printed has been read."""
-        return self.proc.poll() is not None and not any(t.is_alive() for t in self._threads) \
-            and self._events.empty()
+        if not self._exited():
+            return False
+        if self._exit_seen is None:
+            self._exit_seen = time.monotonic()
+        readers_alive = any(t.is_alive() for t in self._threads)
+        if readers_alive and time.monotonic() - self._exit_seen > STRAY_SECONDS:
+            self.kill_group()        # stray workers of a crashed child hold the pipes open
+            readers_alive = any(t.is_alive() for t in self._threads)
+        return not readers_alive and self._events.empty()
 
     def wait(self, timeout: float | None = None) -> int:
-        code = self.proc.wait(timeout)
-        for t in self._threads:
-            t.join(timeout=5)
-        return code
+        """Wait for the child to exit, end whatever is left of its group, reap it."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while not self._exited():
+            if deadline is not None and time.monotonic() >= deadline:
+                raise subprocess.TimeoutExpired(self.cmd, timeout)
+            time.sleep(0.02)
+        self.kill_group()
+        return self.proc.returncode
 
     @property
     def returncode(self):
@@ -156,7 +183,7 @@ class BackendJob:
     def cancel(self, grace: float = GRACE_SECONDS) -> None:
         """Stop the render: SIGTERM (writes what is done), then kill the whole process group."""
         self.cancelled = True
-        if self.proc.poll() is None:
+        if not self._exited():
             try:
                 if sys.platform == "win32":
                     self.proc.send_signal(signal.CTRL_BREAK_EVENT)
@@ -164,18 +191,18 @@ class BackendJob:
                     self.proc.terminate()
             except OSError:
                 pass
-            try:
-                self.proc.wait(grace)
-            except subprocess.TimeoutExpired:
-                pass
+            deadline = time.monotonic() + grace
+            while not self._exited() and time.monotonic() < deadline:
+                time.sleep(0.02)
         self.kill_group()
 
     def kill_group(self) -> None:
-        """Kill every process of the child's group (the child and its workers), if any is left."""
+        """Kill every process of the child's group (the child and its workers), then reap."""
         if sys.platform == "win32":
-            subprocess.run(["taskkill", "/F", "/T", "/PID", str(self.proc.pid)],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False)
-        else:
+            if self.proc.poll() is None:       # Popen's handle keeps the PID from being reused
+                subprocess.run(["taskkill", "/F", "/T", "/PID", str(self.proc.pid)],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False)
+        elif self.proc.returncode is None:     # not reaped yet: the group id is still ours
             try:
                 os.killpg(self.pgid, signal.SIGKILL)
             except (ProcessLookupError, PermissionError):

@@ -2,7 +2,8 @@
 
 Used as the add-on's "Backend Python" preference to test the engine's plumbing independently
 of the renderer: FAKE_MODE = pixels | error | crash | hang. ``pixels`` writes a known image
-(value = x + 1000·y at the top-left origin, so orientation errors are visible) and AOVs.
+(red = x + 1000·y from the top-left, so orientation errors are visible; green = the scene's seed,
+or 0.5 for seed 0) and AOVs.
 ``hang`` starts two worker processes, ignores SIGTERM and reports progress forever: only a
 process-group kill ends it. FAKE_PIDS names a file that receives every PID started.
 """
@@ -31,7 +32,9 @@ def main(argv):
     assert argv[:3] == ["-m", "backend", "render"], argv
     scene_path = argv[3]
     partial = argv[argv.index("--partial") + 1]
-    film = json.load(open(scene_path))["film"]
+    scene = json.load(open(scene_path))
+    film = scene["film"]
+    seed = scene.get("render", {}).get("seed", 0)
     w, h = film["width"], film["height"]
     mode = os.environ.get("FAKE_MODE", "pixels")
     pids = [os.getpid()]
@@ -58,7 +61,8 @@ def main(argv):
                  eta=1e5, samples_per_second=1.0)
             time.sleep(0.05)
     y, x = np.mgrid[0:h, 0:w].astype(np.float32)
-    rgba = np.stack([x + 1000 * y, np.full_like(x, 0.5), np.full_like(x, 0.25), np.ones_like(x)], axis=2)
+    green = np.full_like(x, 0.5 if seed == 0 else float(seed))      # echoes the seed (animation test)
+    rgba = np.stack([x + 1000 * y, green, np.full_like(x, 0.25), np.ones_like(x)], axis=2)
     aovs = np.stack([np.full_like(x, 0.1), np.full_like(x, 0.2), np.full_like(x, 0.3),
                      np.zeros_like(x), np.zeros_like(x), np.ones_like(x)], axis=2)
     for spp in (1, 2, 4):

@@ -66,8 +66,8 @@ def test_result_pixels_orientation_and_passes(fake):
     combined = channels_named(parts, ["Combined.R", "Combined.G", "Combined.B"])
     np.testing.assert_array_equal(combined[:, :, 0], x + 1000 * y)   # EXR row 0 = top, like the backend
     np.testing.assert_array_equal(combined[:, :, 1], 0.5)
-    albedo = channels_named(parts, ["Albedo.R", "Albedo.G", "Albedo.B"])
-    normal = channels_named(parts, ["Normal.X", "Normal.Y", "Normal.Z"])
+    albedo = channels_named(parts, ["Denoising Albedo.R", "Denoising Albedo.G", "Denoising Albedo.B"])
+    normal = channels_named(parts, ["Denoising Normal.X", "Denoising Normal.Y", "Denoising Normal.Z"])
     np.testing.assert_allclose(albedo[0, 0], [0.1, 0.2, 0.3], rtol=1e-6)
     np.testing.assert_allclose(normal[0, 0], [0, 0, 1])
 
@@ -176,3 +176,11 @@ def test_brightness_parity_with_cycles(tmp_path):
             lines.append(f"region {i},{j}: Cycles {c.mean():.4f}  Lamina {l.mean():.4f}  ratio {ratio:.4f} ± {se:.4f}")
             assert abs(ratio - 1) <= 0.02 + 4 * se, "\n".join(lines)
     print(f"\nCycles {r['cycles_seconds']:.1f} s, Lamina {r['lamina_seconds']:.1f} s\n" + "\n".join(lines))
+
+
+def test_saved_file_animation_renders_every_frame(tmp_path):
+    r = result_of(run_cases("engine_cases", ["saved_file_animation"], tmp=tmp_path), "saved_file_animation")
+    assert r["error"] is None
+    assert [p.rsplit("/", 1)[1] for p in r["files"]] == ["f_0001.exr", "f_0002.exr"]
+    greens = [channels_named(read_exr_parts(p), ["G"])[0, 0, 0] for p in r["files"]]
+    assert greens == [11.0, 12.0]                     # animated seed: seed + frame, per frame

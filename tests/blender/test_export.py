@@ -116,6 +116,10 @@ def test_full_scene_structure_and_values(results):
         np.testing.assert_allclose(lights[name]["to_world"], info["matrices"][name], atol=1e-6)
     assert doc["world"] == {"type": "constant", "color": [0.1, 0.2, 0.3], "strength": 0.5}
     np.testing.assert_allclose(doc["camera"]["frame"], info["camera_frame"], atol=1e-6)
+    dof = doc["camera"]["dof"]
+    assert dof["focus_distance"] == pytest.approx(info["focus_distance"], rel=1e-5)
+    assert dof["aperture_radius"] == pytest.approx(0.035 / (2 * 2.8), rel=1e-6)   # f / (2 N), metres
+    assert dof["blades"] == 6
 
 
 @pytest.mark.skipif(not backend_renders(("diffuse", "layered"), ("point", "spot", "sun", "area"), ("constant",)),
@@ -188,3 +192,29 @@ def test_million_triangle_export_time(results):
           f"(runs: {', '.join(f'{s:.3f}' for s in r['seconds'])}), {r['bytes'] / 1e6:.0f} MB written")
     assert r["triangles"] == 2 * 725 * 725
     assert best < 2.0
+
+
+@pytest.fixture(scope="module")
+def more(tmp_path_factory):
+    return run_cases("export_cases", ["world_and_images", "export_operator"], tmp=tmp_path_factory.mktemp("more"))
+
+
+def test_environment_and_images(more):
+    r = result_of(more, "world_and_images")
+    world = r["world"]
+    assert world["type"] == "environment" and world["strength"] == 2.0 and r["world_file_exists"]
+    assert world["colorspace"] == "sRGB"
+    # A Mapping rotation R in front of the texture is to_world = Rᵀ (docs/scene-format.md).
+    np.testing.assert_allclose(world["to_world"], np.array(r["rotation"]).T, atol=1e-6)
+    tex = r["texture"]
+    assert tex["scale"] == [0.5, 1.0, 1.0] and r["packed_bytes_equal"]
+    assert not r["notes"]
+
+
+def test_export_operator_single_frame_and_animation(more):
+    r = result_of(more, "export_operator")
+    assert r["status"] == ["FINISHED"] and r["status_anim"] == ["FINISHED"] and r["mesh_file_exists"]
+    assert r["frames"] == ["shot_0001.json", "shot_0002.json", "shot_0003.json"]
+    assert r["heights"][0] == pytest.approx(0.0) and r["heights"][2] == pytest.approx(2.0)
+    assert 0.0 < r["heights"][1] < 2.0 and r["single_height"] == pytest.approx(r["heights"][1])
+    assert r["frame_after"] == 2                        # the current frame is restored

@@ -174,3 +174,29 @@ def cycles_parity(tmp, spp=512, bounces=4):
     out["lamina_error"], out["lamina_seconds"] = _render_to(sc, path, multilayer=False)
     out["lamina"] = str(path)
     return out
+
+
+def saved_file_animation(tmp):
+    """Like ``blender -b shot.blend -E LAMINA -a``: open a saved .blend and render its frames."""
+    sc = _simple_scene()
+    sc.lamina.seed = 10
+    sc.lamina.use_animated_seed = True
+    sc.frame_start, sc.frame_end = 1, 2
+    blend = Path(tmp) / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    sc = bpy.context.scene
+    sc.render.engine = "LAMINA"                        # what -E LAMINA does
+    _fake_backend(tmp, "pixels")
+    settings = sc.render.image_settings
+    settings.file_format = "OPEN_EXR"
+    settings.color_depth = "32"
+    sc.render.filepath = str(Path(tmp) / "frames" / "f_")
+    try:
+        bpy.ops.render.render(animation=True)
+        error = None
+    except RuntimeError as exc:
+        error = str(exc)
+    _reset_backend()
+    return {"error": error, "files": sorted(str(p) for p in (Path(tmp) / "frames").glob("f_*"))}

@@ -81,7 +81,13 @@ def full_scene(tmp):
     area2 = build.light("AreaSpread", "AREA", (0, -2, 3), energy=20.0, shape="DISK", size=0.3)
     area2.data.spread = math.radians(30)
     build.world_colour((0.1, 0.2, 0.3), 0.5)
+    cam.data.dof.use_dof = True
+    cam.data.dof.focus_object = sphere
+    cam.data.dof.aperture_fstop = 2.8
+    cam.data.dof.aperture_blades = 6
+    cam.data.lens = 35.0
     bpy.context.view_layer.update()
+    focus = -(cam.matrix_world.normalized().inverted() @ sphere.matrix_world.translation).z
 
     t0 = time.perf_counter()
     result = _export(tmp, "full")
@@ -95,6 +101,7 @@ def full_scene(tmp):
         "subdivided_triangles": len(sub_eval.data.loop_triangles),
         "area_world_area": area.data.area(matrix_world=area.matrix_world) if hasattr(area.data, "area") else None,
         "camera_frame": [list(v) for v in cam.data.view_frame(scene=sc)],
+        "focus_distance": focus,
         "ies_text": IES.read_text(errors="replace"),
     }
     return info
@@ -227,3 +234,76 @@ def million_triangles(tmp):
         times.append(time.perf_counter() - t0)
     size = sum(p.stat().st_size for p in (Path(tmp) / "big0").rglob("*") if p.is_file())
     return {"seconds": times, "triangles": result.stats["triangles"], "bytes": size}
+
+
+def world_and_images(tmp):
+    """Environment Texture with a Mapping node; packed, external and generated images."""
+    import math
+    from mathutils import Euler
+    build.scene()
+    build.camera()
+    png = Path(tmp) / "sky.png"
+    gen = bpy.data.images.new("sky", 16, 8, alpha=False)
+    gen.generated_color = (0.2, 0.4, 0.8, 1.0)
+    gen.save(filepath=str(png))
+    sky = bpy.data.images.load(str(png))
+    world = bpy.data.worlds.new("Sky")
+    world.use_nodes = True
+    tree = world.node_tree
+    bg = tree.nodes["Background"]
+    bg.inputs["Strength"].default_value = 2.0
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = sky
+    mapping = tree.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(90))
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    tree.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+    tree.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+    tree.links.new(env.outputs["Color"], bg.inputs["Color"])
+    bpy.context.scene.world = world
+    # A packed image on a diffuse colour, via the layer stack.
+    packed = bpy.data.images.load(str(png), check_existing=False)
+    packed.name = "packed"
+    packed.pack()
+    mat = bpy.data.materials.new("Packed")
+    from lamina.addon.ops.stack import add_layer
+    layer = add_layer(mat.lamina, "DIFFUSE", 0)
+    layer.color_texture = packed
+    layer.color = (0.5, 1.0, 1.0)
+    mat.lamina.use_stack = True
+    build.plane(material=mat)
+    from lamina.addon.export import export_scene
+    result = export_scene(bpy.context.evaluated_depsgraph_get(), Path(tmp) / "world", copy_textures=True)
+    doc = json.loads(result.path.read_text())
+    tex = doc["materials"]["Packed"]["color"]
+    folder = result.path.parent
+    return {"world": doc["world"], "texture": tex,
+            "packed_bytes_equal": (folder / tex["texture"]).read_bytes() == png.read_bytes(),
+            "world_file_exists": (folder / doc["world"]["file"]).is_file(),
+            "rotation": build.matrix_list(Euler((0.0, 0.0, math.radians(90))).to_matrix().to_4x4()),
+            "notes": result.notes}
+
+
+def export_operator(tmp):
+    """File > Export > Lamina Scene, one frame and an animation."""
+    sc = build.scene()
+    build.camera()
+    obj = build.plane(material=build.diffuse_material("Grey"))
+    obj.location = (0, 0, 0)
+    obj.keyframe_insert("location", frame=1)
+    obj.location = (0, 0, 2)
+    obj.keyframe_insert("location", frame=3)
+    sc.frame_start, sc.frame_end = 1, 3
+    sc.frame_set(2)
+    single = Path(tmp) / "op" / "shot.json"
+    single.parent.mkdir(parents=True, exist_ok=True)
+    status = list(bpy.ops.lamina.export_scene(filepath=str(single)))
+    anim = Path(tmp) / "op_anim" / "shot.json"
+    anim.parent.mkdir(parents=True, exist_ok=True)
+    status_anim = list(bpy.ops.lamina.export_scene(filepath=str(anim), animation=True))
+    frames = sorted(p.name for p in anim.parent.glob("shot_*.json"))
+    heights = [json.loads((anim.parent / f).read_text())["objects"][0]["to_world"][2][3] for f in frames]
+    doc = json.loads(single.read_text())
+    return {"status": status, "status_anim": status_anim, "frames": frames, "heights": heights,
+            "single_height": doc["objects"][0]["to_world"][2][3], "frame_after": sc.frame_current,
+            "mesh_file_exists": (single.parent / doc["meshes"]["Plane"]["file"]).is_file()}
