@@ -154,7 +154,8 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         if not preview:
             self.add_pass(ALBEDO_PASS, 3, "RGB")
             self.add_pass(NORMAL_PASS, 3, "XYZ")
-        result = self.begin_result(0, 0, rect[2], rect[3])
+        # One view layer per render() call: write into that layer of the result.
+        result = self.begin_result(0, 0, rect[2], rect[3], layer=depsgraph.view_layer.name)
         try:
             status = self._run(cmd, result, partial, rect, height)
         except BaseException:

@@ -43,6 +43,14 @@ def backend_renders(materials=("diffuse",), lights=(), worlds=()) -> bool:
             and all(w in caps["worlds"] for w in worlds))
 
 
+def backend_supports_ies() -> bool:
+    sys.path.insert(0, str(ROOT)) if str(ROOT) not in sys.path else None
+    try:
+        return importlib.util.find_spec("backend.ies.light") is not None
+    except ModuleNotFoundError:
+        return False
+
+
 def run_cases(module: str, cases: list[str], *, tmp: Path, env: dict | None = None,
               timeout: float = 300, args: dict | None = None, dev_load: bool = True) -> dict:
     """Run case functions in one bpy process; returns {case: result or {"error": text}}.

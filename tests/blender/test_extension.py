@@ -75,3 +75,34 @@ def test_installs_enables_and_finds_its_backend(built):
     if any(n.endswith(".whl") for n in zipfile.ZipFile(path).namelist()):
         assert r["unpacked"] and Path(r["unpacked"][0]).resolve().is_relative_to(user.resolve())
     assert r["version"].startswith("Lamina")
+
+
+def test_backend_runs_with_blenders_own_openimageio(tmp_path):
+    """Blender bundles OpenImageIO with its Python (bpy 5.0.1: 3.0.9); the backend's EXR/texture
+    I/O must work with that version, since the extension does not ship its own."""
+    import importlib.util
+    import os
+    base = Path(list(importlib.util.find_spec("bpy").submodule_search_locations)[0])
+    bundled = sorted(base.glob("*/python/lib/python3*/site-packages/OpenImageIO"))
+    if not bundled:
+        pytest.skip("this bpy build bundles no OpenImageIO")
+    site = bundled[-1].parent
+    scene = tmp_path / "s.json"
+    scene.write_text(json.dumps({
+        "format": "lamina-scene", "version": 1, "film": {"width": 8, "height": 6},
+        "camera": {"type": "perspective", "to_world": [[1, 0, 0, 0], [0, 0, -1, -4], [0, 1, 0, 0], [0, 0, 0, 1]],
+                   "frame": [[0.36, 0.27, -1], [0.36, -0.27, -1], [-0.36, -0.27, -1], [-0.36, 0.27, -1]]},
+        "render": {"spp": 2},
+        "world": {"type": "constant", "color": [0.5, 0.5, 0.5], "strength": 1}}))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), str(ROOT)]))
+    code = ("import OpenImageIO, runpy, sys; print('OIIO', OpenImageIO.VERSION_STRING, OpenImageIO.__file__);"
+            "sys.argv = ['backend', 'render', sys.argv[1], '-o', sys.argv[2], '--workers', '1'];"
+            "runpy.run_module('backend', run_name='__main__')")
+    out = subprocess.run([sys.executable, "-c", code, str(scene), str(tmp_path / "o.exr")],
+                         capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert str(site) in out.stdout
+    import OpenImageIO as oiio
+    img = oiio.ImageBuf(str(tmp_path / "o.exr"))
+    assert img.spec().width == 8 and "albedo.R" in img.spec().channelnames
+    print("\n" + out.stdout.strip().splitlines()[0])

@@ -105,10 +105,30 @@ def cancel(tmp, after=1.0):
             "cancel_latency": returned - start[0] - after if start[0] else None}
 
 
-def real_render(tmp, spp=16, seed=3):
-    """The same scene through LAMINA (write_still) and exported for the CLI."""
+def real_render(tmp, spp=16, seed=3, layered=False, ies=False):
+    """The acceptance scene through LAMINA (write_still) and exported for the CLI: a plane and a
+    sphere (the reference 3-layer stack when the backend has layered materials), a directional
+    area light, a point light (with an IES profile when supported) and a world colour."""
+    import math
     from lamina.addon.export import export_scene
-    sc = _simple_scene(32, 24)
+    sc = build.scene()
+    sc.render.resolution_x, sc.render.resolution_y = 32, 24
+    build.camera()
+    build.plane(material=build.diffuse_material("Grey"), size=6)
+    ball = build.reference_stack(bpy.data.materials.new("Stack")) if layered else \
+        build.diffuse_material("Ball", (0.6, 0.3, 0.2))
+    build.uv_sphere(material=ball)
+    area = build.light("Panel", "AREA", (-1.5, -1.0, 3.0), (0.3, -0.3, 0.0), energy=150.0, size=0.8)
+    area.data.lamina.beam_mode = "CONE"
+    area.data.lamina.cutoff_angle = math.radians(45)
+    area.data.lamina.beam_width = math.radians(20)
+    lamp = build.light("Lamp", "POINT", (1.0, -1.0, 3.0), energy=200.0)
+    if ies:
+        lamp.data.energy = 2.0      # with a profile, power scales the file's candela (docs/lights.md)
+        lamp.data.lamina.ies_mode = "FILE"
+        lamp.data.lamina.ies_file = str(Path(__file__).resolve().parents[2] / "data" / "ies" /
+                                        "erco_defined_spot_lm95.ies")
+    build.world_colour((0.2, 0.2, 0.2))
     sc.lamina.samples = spp
     sc.lamina.seed = seed
     sc.lamina.workers = 2
