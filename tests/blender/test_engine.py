@@ -22,6 +22,8 @@ def fake(tmp_path_factory):
                      args={"cancel": {"after": 1.0}}) | \
         {"border": run_cases("engine_cases", ["fake_pixels"], tmp=tmp_path_factory.mktemp("border"),
                              args={"fake_pixels": {"border": True}})["fake_pixels"],
+         "layers": run_cases("engine_cases", ["fake_pixels"], tmp=tmp_path_factory.mktemp("layers"),
+                             args={"fake_pixels": {"layers": 2}})["fake_pixels"],
          "crash": run_cases("engine_cases", ["fake_failure"], tmp=tmp_path_factory.mktemp("crash"),
                             args={"fake_failure": {"mode": "crash"}})["fake_failure"]}
 
@@ -70,6 +72,17 @@ def test_result_pixels_orientation_and_passes(fake):
     normal = channels_named(parts, ["Denoising Normal.X", "Denoising Normal.Y", "Denoising Normal.Z"])
     np.testing.assert_allclose(albedo[0, 0], [0.1, 0.2, 0.3], rtol=1e-6)
     np.testing.assert_allclose(normal[0, 0], [0, 0, 1])
+
+
+def test_every_view_layer_gets_its_pixels(fake):
+    r = fake["layers"]
+    assert r["error"] is None
+    parts = read_exr_parts(r["path"])
+    h, w = 12, 16
+    y, x = np.mgrid[0:h, 0:w]
+    for layer in ("ViewLayer", "Layer2"):
+        red = channels_named(parts, [f"{layer}.Combined.R"])[:, :, 0]
+        np.testing.assert_array_equal(red, x + 1000 * y)
 
 
 def test_border_render_places_the_region(fake):

@@ -56,9 +56,11 @@ def _render_to(sc, path: Path, multilayer: bool = True):
     return error, time.perf_counter() - t0
 
 
-def fake_pixels(tmp, border=False):
+def fake_pixels(tmp, border=False, layers=1):
     sc = _simple_scene()
     _fake_backend(tmp, "pixels")
+    for i in range(1, layers):
+        sc.view_layers.new(f"Layer{i + 1}")
     if border:
         sc.render.use_border = True
         sc.render.use_crop_to_border = False
