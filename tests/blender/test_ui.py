@@ -7,7 +7,7 @@ from bpy_harness import requires_bpy, result_of, run_cases
 
 pytestmark = [pytest.mark.blender, requires_bpy]
 
-CASES = ["registration", "operators", "stack_panel", "light_and_render_panels", "presets"]
+CASES = ["registration", "compositor_sockets", "operators", "stack_panel", "light_and_render_panels", "presets"]
 
 
 @pytest.fixture(scope="module")
@@ -29,6 +29,11 @@ def test_registration_and_builtin_panels(results):
     assert not compat["DATA_PT_light"] and not compat["RENDER_PT_freestyle"]
     assert not any(r["after_disable"].values()), "unregister must remove LAMINA from built-in panels"
     assert not r["prop_after_disable"] and r["reenabled"]
+
+
+def test_denoise_passes_reach_the_compositor(results):
+    outputs = result_of(results, "compositor_sockets")
+    assert {"Image", "Denoising Albedo", "Denoising Normal"} <= set(outputs)
 
 
 def test_stack_operators(results):

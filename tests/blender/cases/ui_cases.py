@@ -58,6 +58,17 @@ def registration(tmp):
             "prop_after_disable": still_prop, "reenabled": hasattr(bpy.types.Material, "lamina")}
 
 
+def compositor_sockets(tmp):
+    """The Render Layers node offers the passes the Denoise node needs."""
+    sc = bpy.context.scene
+    sc.render.engine = "LAMINA"
+    tree = bpy.data.node_groups.new("Comp", "CompositorNodeTree")
+    sc.compositing_node_group = tree
+    layers = tree.nodes.new("CompositorNodeRLayers")
+    bpy.context.view_layer.update_render_passes()
+    return [o.name for o in layers.outputs if o.enabled]
+
+
 def operators(tmp):
     mat = bpy.data.materials.new("Ops")
     kinds = []
