@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import bpy
-from bpy.props import BoolProperty, StringProperty
+from bpy.props import BoolProperty, IntProperty, StringProperty
 
 # The top-level package: "bl_ext.<repo>.lamina" when installed, "lamina" in development.
 ADDON_ID = __package__.rpartition(".")[0]
@@ -20,10 +20,16 @@ class LaminaPreferences(bpy.types.AddonPreferences):
         description="Keep the exported scene and the backend output in the temporary folder "
                     "(for bug reports and for rendering again with the command line)")
 
+    # Material previews render Blender's own preview scene, not the user's: a global setting.
+    preview_samples: IntProperty(
+        name="Preview Samples", default=16, min=1, soft_max=256,
+        description="Samples per pixel of material, light and world preview thumbnails")
+
     def draw(self, context):
         layout = self.layout
         layout.prop(self, "python_executable")
         layout.prop(self, "keep_files")
+        layout.prop(self, "preview_samples")
 
 
 def get(context=None):

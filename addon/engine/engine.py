@@ -36,6 +36,11 @@ def _python() -> str:
     return sys.executable
 
 
+def _preview_samples() -> int:
+    prefs = preferences.get()
+    return int(prefs.preview_samples) if prefs is not None else 16
+
+
 def _keep_files() -> bool:
     prefs = preferences.get()
     return bool(prefs and prefs.keep_files)
@@ -135,7 +140,7 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         seed_offset = scene.frame_current if settings.use_animated_seed else 0
         exported = export_scene(depsgraph, workdir / "scene",
                                 camera_object=self.camera_override or scene.camera,
-                                samples=settings.preview_samples if preview else None,
+                                samples=_preview_samples() if preview else None,
                                 seed_offset=seed_offset, preview=preview)
         warning = exported.warning_text()
         if warning and not preview:

@@ -17,8 +17,6 @@ FILTERS = (
 class LaminaRenderSettings(PropertyGroup):
     samples: IntProperty(name="Samples", default=64, min=1, soft_max=4096, max=1 << 24,
                          description="Samples per pixel (the maximum when a noise threshold is set)")
-    preview_samples: IntProperty(name="Preview Samples", default=16, min=1, soft_max=256,
-                                 description="Samples per pixel for material preview thumbnails")
     time_limit: FloatProperty(name="Time Limit", default=0.0, min=0.0, unit='TIME_ABSOLUTE',
                               description="Stop after this time (after a full sample pass); 0 = no limit")
     noise_threshold: FloatProperty(name="Noise Threshold", default=0.0, min=0.0, max=1.0, precision=4,

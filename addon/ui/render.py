@@ -21,8 +21,6 @@ def draw_sampling(layout, settings) -> None:
     sub.active = settings.noise_threshold > 0
     sub.prop(settings, "min_samples")
     col.prop(settings, "time_limit")
-    col.separator()
-    col.prop(settings, "preview_samples")
     row = col.row(align=True)
     row.prop(settings, "seed")
     row.prop(settings, "use_animated_seed", text="", icon="TIME")

@@ -27,8 +27,19 @@ class Recorder:
         self._log.append(("set:" + name, (value,), {}))
 
 
+ALL_LOGS: list = []
+
+
+def _icons_unknown() -> list[str]:
+    """Icons used in any recorded draw call that Blender does not know (they fail in the UI)."""
+    known = {i.identifier for i in bpy.types.UILayout.bl_rna.functions["prop"].parameters["icon"].enum_items}
+    used = {kw["icon"] for log in ALL_LOGS for _, _, kw in log if "icon" in kw}
+    return sorted(used - known)
+
+
 def _calls(log):
     """JSON-friendly summary: (method, [property names / texts])."""
+    ALL_LOGS.append(log)
     out = []
     for name, args, kwargs in log:
         if name == "prop" and len(args) >= 2:
@@ -175,6 +186,7 @@ def light_and_render_panels(tmp):
                render_ui.draw_performance, render_ui.draw_advanced):
         fn(Recorder(log), settings)
     out["render"] = _calls(log)
+    out["unknown_icons"] = _icons_unknown()
     return out
 
 
