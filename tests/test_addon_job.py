@@ -16,7 +16,7 @@ job_module = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(job_module)
 BackendJob = job_module.BackendJob
 
-posix_only = pytest.mark.skipif(sys.platform == "win32", reason="process groups are POSIX")
+posix_only = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="process groups + /proc (Linux)")
 
 
 def run_python(code: str, **kwargs) -> "BackendJob":
@@ -32,12 +32,30 @@ def collect(job, timeout=20.0):
     return events, job.wait(5)
 
 
-def alive(pid: int) -> bool:
+def start_time(pid: int):
+    """Kernel start time of a process (with the PID it identifies the process: PIDs get reused)."""
     try:
         with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except FileNotFoundError:
-        return False
+            return int(f.read().rsplit(")", 1)[1].split()[19])
+    except (FileNotFoundError, ProcessLookupError):
+        return None
+
+
+def alive(pid: int, started, settle: float = 2.0) -> bool:
+    """Still running ``settle`` seconds later: same PID *and* start time, and not a zombie.
+    (A SIGKILLed process closes its files first and may show as running for a moment.)"""
+    deadline = time.monotonic() + settle
+    while True:
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except FileNotFoundError:
+            return False
+        if fields[0] == "Z" or int(fields[19]) != started:
+            return False
+        if time.monotonic() > deadline:
+            return True
+        time.sleep(0.02)
 
 
 def test_events_and_plain_lines():
@@ -66,7 +84,9 @@ def test_cancel_kills_a_child_that_ignores_sigterm_and_its_children(tmp_path):
         import os, signal, subprocess, sys, time
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
         kid = subprocess.Popen([sys.executable, "-c", "import signal, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); time.sleep(60)"])
-        open({str(pids)!r}, "w").write(f"{{os.getpid()}} {{kid.pid}}")
+        def start(pid):
+            return open(f"/proc/{{pid}}/stat").read().rsplit(")", 1)[1].split()[19]
+        open({str(pids)!r}, "w").write(f"{{os.getpid()}} {{start(os.getpid())}} {{kid.pid}} {{start(kid.pid)}}")
         while True:
             print('{{"event": "progress"}}', flush=True)
             time.sleep(0.05)
@@ -78,8 +98,9 @@ def test_cancel_kills_a_child_that_ignores_sigterm_and_its_children(tmp_path):
     job.cancel(grace=0.5)
     latency = time.monotonic() - t1
     assert latency < 0.5 + 1.0
-    for pid in map(int, pids.read_text().split()):
-        assert not alive(pid)
+    values = list(map(int, pids.read_text().split()))
+    for pid, started in zip(values[::2], values[1::2]):
+        assert not alive(pid, started)
 
 
 @posix_only
@@ -88,14 +109,16 @@ def test_strays_of_a_crashed_child_are_killed(tmp_path):
     job = run_python(f"""
         import subprocess, sys
         kid = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
-        open({str(pids)!r}, "w").write(str(kid.pid))
+        start = open(f"/proc/{{kid.pid}}/stat").read().rsplit(")", 1)[1].split()[19]
+        open({str(pids)!r}, "w").write(f"{{kid.pid}} {{start}}")
         raise RuntimeError("crashed, leaving a worker behind")
     """)
     t0 = time.monotonic()
     _, code = collect(job)
     assert code == 1
     assert time.monotonic() - t0 < job_module.STRAY_SECONDS + 5
-    assert not alive(int(pids.read_text()))
+    pid, started = map(int, pids.read_text().split())
+    assert not alive(pid, started)
 
 
 def test_child_environment_finds_backend_and_dependencies():

@@ -23,6 +23,12 @@ def worker():
         time.sleep(0.05)
 
 
+def start_time(pid):
+    """Kernel start time (identifies a process together with its PID; PIDs get reused)."""
+    with open(f"/proc/{pid}/stat") as f:
+        return int(f.read().rsplit(")", 1)[1].split()[19])
+
+
 def emit(**event):
     sys.stdout.write(json.dumps(event) + "\n")
     sys.stdout.flush()
@@ -53,7 +59,7 @@ def main(argv):
             p.start()
         pids += [p.pid for p in procs]
         with open(os.environ["FAKE_PIDS"], "w") as f:
-            json.dump(pids, f)
+            json.dump([[pid, start_time(pid)] for pid in pids], f)
         i = 0
         while True:
             i += 1

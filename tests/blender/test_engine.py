@@ -10,7 +10,8 @@ import pytest
 from bpy_harness import backend_renders, backend_supports_ies, requires_bpy, result_of, run_cases
 
 pytestmark = [pytest.mark.blender, requires_bpy,
-              pytest.mark.skipif(sys.platform == "win32", reason="the fake backend is a POSIX shell script")]
+              pytest.mark.skipif(not sys.platform.startswith("linux"),
+                                 reason="the fake backend is a shell script and reads /proc")]
 
 FAKE_CASES = ["fake_pixels", "fake_pixels_border", "fake_failure", "fake_crash", "cancel"]
 
@@ -108,25 +109,28 @@ def test_backend_crash_makes_render_raise(fake):
     assert r["error"] is not None and "ZeroDivisionError: fake crash in the renderer" in r["error"]
 
 
-def _alive(pid: int) -> bool:
-    """Running (zombies, which only wait to be reaped, count as gone)."""
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except FileNotFoundError:
-        return False
-    except OSError:
+def _alive(pid: int, started: int, settle: float = 2.0) -> bool:
+    """Still running ``settle`` seconds later: same PID and start time (PIDs get reused), not a
+    zombie. (A SIGKILLed process closes its files first and may look alive for a moment.)"""
+    import time
+    deadline = time.monotonic() + settle
+    while True:
         try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
+            with open(f"/proc/{pid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except FileNotFoundError:
             return False
-        return True
+        if fields[0] == "Z" or int(fields[19]) != started:
+            return False
+        if time.monotonic() > deadline:
+            return True
+        time.sleep(0.02)
 
 
 def test_cancel_kills_child_and_workers(fake):
     r = result_of(fake, "cancel")
     assert len(r["pids"]) == 3, "the fake renderer should have started 2 workers"
-    assert not [pid for pid in r["pids"] if _alive(pid)], "orphan processes survived the cancel"
+    assert not [pid for pid, started in r["pids"] if _alive(pid, started)], "orphan processes survived the cancel"
     print(f"\ncancel latency {r['cancel_latency']:.2f} s (child ignores SIGTERM: grace period + kill)")
     assert r["cancel_latency"] < 3.0
     assert r["error"] is None                      # a cancel is not an error
