@@ -215,12 +215,22 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
         pdf_fwd = np.ones(m)
         pdf_rev = np.ones(m)
         delta = np.zeros(m, dtype=bool)
+        arrival = None
         for l, pos in groups_if:
             if pos is not None and not pos.size:
                 continue
             whole = single and (pos is None or pos.size == m)
             ker = stack.kernels[l].take(lane if whole else lane[pos])
-            wo, w, pf, pr, dl = ker.sample(w_in if whole else w_in[:, pos], rng, record)
+            wi_g = w_in if whole else w_in[:, pos]
+            if ker.framed:
+                # Arriving at a normal-mapped interface: |⟨n, d⟩| / |cos d| (kernels.FramedKernel).
+                if arrival is None:
+                    arrival = np.ones(m)
+                if whole:
+                    arrival = ker.arrival(wi_g)
+                else:
+                    arrival[pos] = ker.arrival(wi_g)
+            wo, w, pf, pr, dl = ker.sample(wi_g, rng, record)
             if whole:
                 d_out, wgt, pdf_fwd, pdf_rev, delta = wo, w, pf, pr, dl
             else:
@@ -237,7 +247,7 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
             pdf_fwd[pos] = ps.pdf
             if record:
                 pdf_rev[pos] = phase.pdf(-ps.d_out, -di.T)
-        beta = S["beta"]
+        beta = S["beta"] if arrival is None else S["beta"] * arrival
         thru1 = beta * wgt
         if record:
             rec = {"lane": lane, "k": np.full(m, i, dtype=np.int64), "kind": kind, "layer": layer,
