@@ -53,7 +53,8 @@ def eval_vertex(stack: BoundStack, rec, rows: np.ndarray, w: np.ndarray,
                    rng, need_rev)
 
 
-def eval_at(stack: BoundStack, kind, layer, lane, w_in, w, rng, need_rev: bool = True):
+def eval_at(stack: BoundStack, kind, layer, lane, w_in, w, rng, need_rev: bool = True,
+            pdf_only: bool = False):
     m = lane.size
     N = stack.N
     if np.all(kind == 1):
@@ -63,26 +64,30 @@ def eval_at(stack: BoundStack, kind, layer, lane, w_in, w, rng, need_rev: bool =
         groups += [(0, k, np.flatnonzero((kind == 0) & (layer == k))) for k in range(N - 1)]
     groups = [g for g in groups if g[2] is None or g[2].size]
     if len(groups) == 1:
-        return _eval_group(stack, groups[0][0], groups[0][1], lane, w_in, w, rng, need_rev)
-    val = np.zeros((3, m))
+        return _eval_group(stack, groups[0][0], groups[0][1], lane, w_in, w, rng, need_rev, pdf_only)
+    val = None if pdf_only else np.zeros((3, m))
     pf = np.zeros(m)
     pr = np.zeros(m) if need_rev else None
     for is_if, l, pos in groups:
-        v, f, r = _eval_group(stack, is_if, l, lane[pos], w_in[:, pos], w[:, pos], rng, need_rev)
-        val[:, pos] = v
+        v, f, r = _eval_group(stack, is_if, l, lane[pos], w_in[:, pos], w[:, pos], rng, need_rev,
+                              pdf_only)
+        if not pdf_only:
+            val[:, pos] = v
         pf[pos] = f
         if need_rev:
             pr[pos] = r
     return val, pf, pr
 
 
-def _eval_group(stack, is_if, l, lane, w_in, w, rng, need_rev):
+def _eval_group(stack, is_if, l, lane, w_in, w, rng, need_rev, pdf_only=False):
     if is_if:
         ker = stack.kernels[l]
         if ker.delta_only:
             m = lane.size
             return np.zeros((3, m)), np.zeros(m), np.zeros(m)
-        return ker.take(lane).eval(w_in, w, rng, need_rev)
+        if ker.generic:
+            return ker.take(lane).eval(w_in, w, rng, need_rev)
+        return ker.take(lane).eval(w_in, w, rng, need_rev, pdf_only)
     ph = stack.slabs[l].phase.take(lane)
     d_in, d_out = (-w_in).T, w.T
     p = ph.eval(d_in, d_out)
@@ -165,10 +170,12 @@ def _connect(stack, L, R, iL, iR, pl, slab, u, exit_top, rng, pdf_mode, approx):
     if u == 0:
         # L sampled c; evaluate R's vertex towards L (direction −c, pointing away from R_j).
         c = np.take(L.w_out, iL, axis=1)
-        v, pf, pr = eval_at(stack, kR, R.layer[iR], pl, np.take(R.w_in, iR, axis=1), -c, rng)
+        v, pf, pr = eval_at(stack, kR, R.layer[iR], pl, np.take(R.w_in, iR, axis=1), -c, rng,
+                            pdf_only=pdf_mode)
     else:
         c = -np.take(R.w_out, iR, axis=1)
-        v, pf, pr = eval_at(stack, kL, L.layer[iL], pl, np.take(L.w_in, iL, axis=1), c, rng)
+        v, pf, pr = eval_at(stack, kL, L.layer[iL], pl, np.take(L.w_in, iL, axis=1), c, rng,
+                            pdf_only=pdf_mode)
     T = np.ones(m) if pdf_mode else np.ones((3, m))
     pass_p = np.ones(m)
     dens_to_R = np.ones(m)

@@ -163,13 +163,13 @@ class NullKernel(Kernel):
             return self
         return NullKernel(self.tint[:, idx])
 
-    def sample(self, wi, rng, need_rev=True):
+    def sample(self, wi, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
         ok = (wi[2] != 0) * 1.0
         w = np.broadcast_to(ok, (3, m)) if self.tint is None else ok * self.tint
         return -wi, w, np.ones(m), np.ones(m), np.ones(m, bool)
 
-    def eval(self, wi, wo, rng, need_rev=True):
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
         return np.zeros((3, m)), np.zeros(m), np.zeros(m)
 
@@ -185,7 +185,7 @@ class DiffuseKernel(Kernel):
     def take(self, idx):
         return self if self.color.shape[1] == 1 else DiffuseKernel(self.color[:, idx])
 
-    def sample(self, wi, rng, need_rev=True):
+    def sample(self, wi, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
         u = rng.random((2, m))
         r = np.sqrt(u[0])
@@ -197,7 +197,7 @@ class DiffuseKernel(Kernel):
         weight = np.where(ok, self.color, 0.0)
         return wo, weight, np.where(ok, z * INV_PI, 0.0), np.abs(wi[2]) * INV_PI, np.zeros(m, bool)
 
-    def eval(self, wi, wo, rng, need_rev=True):
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
         same = wi[2] * wo[2] > 0
         co = np.where(same, np.abs(wo[2]), 0.0)
         ci = np.where(same, np.abs(wi[2]), 0.0)
@@ -224,7 +224,7 @@ class ConductorKernel(Kernel):
     def _fresnel(self, c):
         return fresnel_conductor(c[None, :], self.eta, self.k) * self.tint
 
-    def eval(self, wi, wo, rng, need_rev=True):
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
         if self.delta_only:
             return np.zeros((3, m)), np.zeros(m), np.zeros(m)
@@ -239,8 +239,7 @@ class ConductorKernel(Kernel):
         mf = self.mf
         D = mf.D(h)
         g2, g1i, g1o = mf.masking(wis, wos, cih > 0, cih > 0)
-        val = sdiv(D * g2, 4.0 * ci)
-        value = self._fresnel(cih) * np.where(ok, val, 0.0)
+        value = None if pdf_only else self._fresnel(cih) * np.where(ok, sdiv(D * g2, 4.0 * ci), 0.0)
         if mf.ggx:
             pf = sdiv(g1i * D, 4.0 * ci)
             pr = sdiv(g1o * D, 4.0 * co)
@@ -248,7 +247,7 @@ class ConductorKernel(Kernel):
             pf = pr = sdiv(D * h[2], 4.0 * cih)
         return value, np.where(ok, pf, 0.0), np.where(ok, pr, 0.0)
 
-    def sample(self, wi, rng, need_rev=True):
+    def sample(self, wi, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
         s = np.where(wi[2] < 0, -1.0, 1.0)
         wis = np.stack([wi[0], wi[1], wi[2] * s])
@@ -259,9 +258,9 @@ class ConductorKernel(Kernel):
             c = dot3(wis, mm)
             wo_s = 2.0 * c * mm - wis
             wo = np.stack([wo_s[0], wo_s[1], wo_s[2] * s])
-            val, pf, pr = self.eval(wi, wo, rng, need_rev)
+            val, pf, pr = self.eval(wi, wo, rng, need_rev, pdf_only)
             ok = (pf > 0) & front & (c > 0)
-            weight = np.where(ok, val / np.where(ok, pf, 1.0), 0.0)
+            weight = ok * 1.0 if pdf_only else np.where(ok, val / np.where(ok, pf, 1.0), 0.0)
             pf = np.where(ok, pf, 0.0)
             delta = np.zeros(m, bool)
         else:
@@ -299,7 +298,7 @@ class DielectricKernel(Kernel):
         return DielectricKernel(lanes(self.eta, idx), lanes_rows(self.tint, idx),
                                 None if self.mf is None else self.mf.take(idx), lanes(self.smooth, idx))
 
-    def eval(self, wi, wo, rng, need_rev=True):
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
         if self.delta_only:
             return np.zeros((3, m)), np.zeros(m), np.zeros(m)
@@ -321,11 +320,14 @@ class DielectricKernel(Kernel):
         D = mf.D(h)
         g2, g1i, g1o = mf.masking(wi, wo, cih * ci > 0, coh * co > 0)
         aci, aco = np.abs(ci), np.abs(co)
-        DG = D * g2
-        fr = sdiv(F * DG, 4.0 * aci)
         den_i = cih + e * coh
-        ft = sdiv((1.0 - F) * DG * np.abs(cih * coh), aci * den_i * den_i) * (e * e)
-        value = np.where(refl, fr, 0.0) + np.where(trans, ft, 0.0) * self.tint
+        if pdf_only:
+            value = None
+        else:
+            DG = D * g2
+            fr = sdiv(F * DG, 4.0 * aci)
+            ft = sdiv((1.0 - F) * DG * np.abs(cih * coh), aci * den_i * den_i) * (e * e)
+            value = np.where(refl, fr, 0.0) + np.where(trans, ft, 0.0) * self.tint
         # Densities of the sampler from each side (visible normals of the side's direction).
         if mf.ggx:
             ph_i = sdiv(g1i * np.abs(cih) * D, aci)
@@ -347,7 +349,7 @@ class DielectricKernel(Kernel):
         pr = np.where(refl, pr_r, 0.0) + np.where(trans, pr_t, 0.0)
         return value, pf, pr
 
-    def sample(self, wi, rng, need_rev=True):
+    def sample(self, wi, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
         u = rng.random((3, m))
         ci = wi[2]
@@ -362,14 +364,14 @@ class DielectricKernel(Kernel):
             wo_r = 2.0 * cim * mm - wi
             wo_t = -wi / e + (cim / e + cos_t) * mm
             wo = np.where(choose_r, wo_r, wo_t)
-            val, pf, pr = self.eval(wi, wo, rng, need_rev)
+            val, pf, pr = self.eval(wi, wo, rng, need_rev, pdf_only)
             if pr is None:
                 pr = pf  # not needed (a walk that records nothing); any finite placeholder
             # The chosen lobe must land on its side (a reflection below the surface, or a
             # refraction that stays above, is a failed sample), on a front-facing microfacet.
             side_ok = np.where(choose_r, wo[2] * ci > 0, (wo[2] * ci < 0) & (cos_t != 0))
             ok = live & (pf > 0) & (cim * ci > 0) & side_ok
-            weight = np.where(ok, val / np.where(ok, pf, 1.0), 0.0)
+            weight = ok * 1.0 if pdf_only else np.where(ok, val / np.where(ok, pf, 1.0), 0.0)
             pf = np.where(ok, pf, 0.0)
             delta = np.zeros(m, bool)
         else:
@@ -405,7 +407,7 @@ class GenericKernel(Kernel):
     def take(self, idx):
         return GenericKernel(self.bsdf.take(idx))
 
-    def sample(self, wi, rng, need_rev=True):
+    def sample(self, wi, rng, need_rev=True, pdf_only=False):
         a = np.ascontiguousarray(wi.T)
         s = self.bsdf.sample(a, rng, IMPORTANCE)
         delta = np.asarray(s.delta, dtype=bool)
@@ -417,7 +419,7 @@ class GenericKernel(Kernel):
             pr[nd] = b.pdf(s.wo[nd], a[nd], rng, IMPORTANCE)
         return np.ascontiguousarray(s.wo.T), np.ascontiguousarray(s.weight.T), pf, pr, delta
 
-    def eval(self, wi, wo, rng, need_rev=True):
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
         a, b = np.ascontiguousarray(wi.T), np.ascontiguousarray(wo.T)
         val = self.bsdf.eval(a, b, rng, IMPORTANCE)
         pf = self.bsdf.pdf(a, b, rng, IMPORTANCE)
@@ -482,15 +484,16 @@ class FramedKernel(Kernel):
         c = dot3(w, self.n)
         return np.where(c * w[2] > 0, sdiv(np.abs(c), np.abs(w[2])), 0.0)
 
-    def sample(self, wi, rng, need_rev=True):
+    def sample(self, wi, rng, need_rev=True, pdf_only=False):
         li = self._local(wi)
-        lo, w, pf, pr, dl = self.inner.sample(li, rng, need_rev)
+        lo, w, pf, pr, dl = self.inner.sample(li, rng, need_rev, pdf_only)
         wo = self._world(lo)
         ok = (li[2] * wi[2] > 0) & (lo[2] * wo[2] > 0)
         return wo, np.where(ok, w, 0.0), np.where(ok, pf, 0.0), np.where(ok, pr, 0.0), dl
 
-    def eval(self, wi, wo, rng, need_rev=True):
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
         li, lo = self._local(wi), self._local(wo)
-        v, pf, pr = self.inner.eval(li, lo, rng, need_rev)
+        v, pf, pr = self.inner.eval(li, lo, rng, need_rev, pdf_only)
         ok = (li[2] * wi[2] > 0) & (lo[2] * wo[2] > 0)
-        return np.where(ok, v, 0.0), np.where(ok, pf, 0.0), None if pr is None else np.where(ok, pr, 0.0)
+        return (None if v is None else np.where(ok, v, 0.0), np.where(ok, pf, 0.0),
+                None if pr is None else np.where(ok, pr, 0.0))

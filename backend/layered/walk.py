@@ -230,7 +230,8 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
                     arrival = ker.arrival(wi_g)
                 else:
                     arrival[pos] = ker.arrival(wi_g)
-            wo, w, pf, pr, dl = ker.sample(wi_g, rng, record)
+            wo, w, pf, pr, dl = (ker.sample(wi_g, rng, record) if ker.generic else
+                                 ker.sample(wi_g, rng, record, approx))
             if whole:
                 d_out, wgt, pdf_fwd, pdf_rev, delta = wo, w, pf, pr, dl
             else:
@@ -277,7 +278,7 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
         S["d_in"] = d_out
         bmax = beta.max(axis=0)
         alive = (~exits) & (np.abs(d_out[2]) >= GRAZING) & (bmax > 0)
-        if i >= rr[0]:
+        if i >= rr[0] and not approx:  # approximate-pdf walks are short and carry no values
             q = np.minimum(1.0, bmax / rr[1])
             # q below 1e-300 would overflow 1/q; such lanes are (almost surely) killed anyway.
             alive &= (rng.random(m) < q) & (q > 1e-300)
