@@ -229,3 +229,28 @@ def test_approximate_pdf_positive_where_eval_positive(name):
     assert np.all(np.isfinite(p)) and np.all(np.isfinite(f))
     assert np.all(p[np.any(f > 0, axis=1)] > 0)
     assert (np.any(f > 0, axis=1)).mean() > 0.3
+
+
+def test_nested_transmissive_middle_interface_equals_explicit():
+    """A transmissive nested stack as a middle interface (entered from above and below by the
+    outer walks) gives the same BSDF as the explicit stack."""
+    D = lambda ior, a: {"type": "dielectric", "ior": ior, "roughness": a}  # noqa: E731
+    M0 = {"sigma_t": 0.6, "albedo": 0.9, "phase": {"type": "hg", "g": 0.3}}
+    M1 = {"sigma_t": 0.4, "albedo": [0.8, 0.6, 0.4], "phase": {"type": "hg", "g": -0.2}}
+    M2 = {"sigma_t": 0.5, "albedo": 0.7}
+    base = {"type": "conductor", "metal": "Au", "roughness": 0.25}
+    explicit = load({"type": "layered", "interfaces": [D(1.5, 0.2), D(1.3, 0.25), D(1.45, 0.3), base],
+                     "media": [M0, M1, M2]})
+    nested = load({"type": "layered",
+                   "interfaces": [D(1.5, 0.2), {"type": "layered", "interfaces": [D(1.3, 0.25), D(1.45, 0.3)],
+                                                "media": [M1]}, base],
+                   "media": [M0, M2]})
+    assert nested.eta_slab == [1.5, 1.45] and nested.interfaces[1].transmissive
+    wi = np.array([direction(20.0, 0.0), direction(55.0, 100.0)])
+    wo = np.array([direction(35.0, 180.0), direction(15.0, 300.0)])
+    rng = np.random.default_rng(21)
+    mu_e, se_e = eval_stats(explicit, wi, wo, 3000, rng, estimator="bi")
+    mu_n, se_n = eval_stats(nested, wi, wo, 3000, rng, estimator="bi")
+    se = np.hypot(se_e, se_n)
+    assert np.all(np.abs(mu_e - mu_n) <= K * se), ((mu_n - mu_e) / se)
+    assert np.median(se / mu_e) < 0.08
