@@ -299,10 +299,22 @@ class PathTracer:
             wi_g = wi_local[g]
             if albedo_aov is not None:
                 albedo_aov[lane[g]] = np.broadcast_to(np.asarray(bsdf.albedo(), dtype=np.float64), (b - a, 3))
-            if can_nee and not bsdf.delta_only and live[g].any():
-                f_nee[g] = bsdf.eval(wi_g, wo_nee[g], rng)
-                if any_rough_light:
-                    bsdf_pdf[g] = bsdf.pdf(wi_g, wo_nee[g], rng)
+            if can_nee and not bsdf.delta_only:
+                live_g = live[g]
+                n_live = int(np.count_nonzero(live_g))
+                if n_live == live_g.size:
+                    f_nee[g] = bsdf.eval(wi_g, wo_nee[g], rng)
+                    if any_rough_light:
+                        bsdf_pdf[g] = bsdf.pdf(wi_g, wo_nee[g], rng)
+                elif n_live:
+                    # Only lanes whose light sample carries light: dead ones (occluded side,
+                    # outside a light's cone, zero value) would cost a full (stochastic) BSDF eval.
+                    k = np.flatnonzero(live_g)
+                    sub = bsdf.take(k)
+                    rows = a + k
+                    f_nee[rows] = sub.eval(wi_g[k], wo_nee[rows], rng)
+                    if any_rough_light:
+                        bsdf_pdf[rows] = sub.pdf(wi_g[k], wo_nee[rows], rng)
             if do_continue:
                 smp = bsdf.sample(wi_g, rng)
                 d_world = Frame(frame.s[g], frame.t[g], frame.n[g]).to_world(smp.wo)
