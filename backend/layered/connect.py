@@ -27,15 +27,33 @@ product of the forward sampler's direction pdfs and depth densities. L *is* the 
 weight is 1 (times ``gamma``: roulette compensation and, in the approximate mode, slab pass
 probabilities); with the balance heuristic a connection contributes UP/Σ where UP is the product
 of forward/reverse ratios from the strategy to the all-L one — Q (walk.py) times local ratios.
+
+Engine. A connection needs the evaluated vertex's function and densities and, for the MIS
+weight, a handful of coefficients of both vertices. Everything that depends on one vertex only
+is computed once per vertex (:class:`Side`): the MIS recurrences folded into five coefficients,
+and for a vertex whose sampled direction c is the connecting direction ("source") the slab it
+enters, the extinction rate along c and, towards an interface, the whole transmittance and both
+depth densities (the depth difference to an interface is known per source). Sources are grouped
+by (slab, up/down); the vertices they can be joined to ("targets": the other walk's vertices on
+the interface ahead, or in the same slab's medium, on the right side) are grouped by interface /
+medium and stored lane-major, so the candidates of a source are one contiguous range and every
+batch evaluates a single kernel or phase function without masks. Connections are processed in
+blocks of ``BLOCK`` so that the temporaries stay in the L2 cache (measured on the project VM:
+~0.5 ns per element operation at 16–32 K elements, 3 ns at 512 K, 13 ns at 2.4 M). Per-source
+factors (throughput, |cos|, η², transmittance to an interface) multiply the per-source sums.
+
+Per-vertex MIS coefficients are clamped to 1e300 so that 0 · ∞ cannot occur in a weight.
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-from .stack import GRAZING, BoundStack
+from .stack import ABSORBING, EMPTY, GRAZING, SCATTERING, BoundStack
 from .walk import Records
 
-MAX_PAIRS = 1 << 19  # connections processed at once (memory bound)
+BLOCK = 16384   # connections per block (cache-sized temporaries, see the module docstring)
+BIG = 1e300     # clamp of the per-vertex MIS coefficients (no 0·∞ in the weights)
 
 
 def safe_div(a, b):
@@ -95,31 +113,137 @@ def _eval_group(stack, is_if, l, lane, w_in, w, rng, need_rev, pdf_only=False):
     return np.broadcast_to(p, (3, p.size)), p, pr
 
 
-def _pairs(L, R, lanes: np.ndarray):
-    """All (L, R) pairs of the given lanes, as positions in the lane-major views."""
-    cL, cR = L.count[lanes], R.count[lanes]
-    npair = cL * cR
-    total = int(npair.sum())
-    if total == 0:
-        e = np.zeros(0, dtype=np.int64)
-        return e, e, e
-    pl = np.repeat(lanes, npair)
-    start = np.repeat(np.cumsum(npair) - npair, npair)
-    q = np.arange(total) - start
-    cRp = R.count[pl]
-    iL = L.offset[pl] + q // cRp
-    iR = R.offset[pl] + q % cRp
-    return pl, iL, iR
+def _t(x, idx):
+    """x[..., idx]: np.take along the last axis is ~3× faster than fancy indexing of (3, m)."""
+    return np.take(x, idx, axis=-1)
 
 
-def _lane_batches(L, R):
-    npair = L.count * R.count
-    csum = np.cumsum(npair)
-    lanes = np.arange(L.n)
-    if csum.size == 0 or csum[-1] <= MAX_PAIRS:
-        return [lanes]
-    cut = np.searchsorted(csum, np.arange(MAX_PAIRS, csum[-1], MAX_PAIRS), side="right")
-    return [b for b in np.split(lanes, cut) if b.size]
+def _inv(x):
+    ok = x > 0
+    return np.where(ok, 1.0 / np.where(ok, x, 1.0), 0.0)
+
+
+class _Group:
+    """Targets of one kind (vertices on interface l, or medium vertices of slab k), lane-major."""
+
+
+class _Bucket:
+    """Sources whose sampled direction enters slab s going up or down."""
+
+
+def _slices(code, nbins):
+    """Stable order of ``code`` (small non-negative ints; radix sort) and the slice of each bin."""
+    order = np.argsort(code.astype(np.int16), kind="stable")
+    edges = np.searchsorted(code[order], np.arange(nbins + 1), side="left")
+    return order, edges
+
+
+class Side:
+    """One walk's vertices of the lanes [l0, l1), prepared for connections (see the module
+    docstring). Lanes are numbered from 0 inside the block.
+
+    MIS coefficients, for vertex X with dens = dens_fwd, pf = pdf_fwd, pr = pdf_rev:
+        inv_dens = 1/dens (0 for the first vertex: no earlier strategies move through it)
+        a = (¬δ_prev + P)/pdf_fwd_prev,  own = ¬δ,  b1 = inv_dens·(own + pr·a)
+    as the evaluated vertex ("target", density dens_in of reaching it along the connection,
+    reverse density pr of its own incoming direction):  S = dens_in·(c1 + pr·c2),
+        c1 = inv_dens, c2 = inv_dens·a;
+    as the sampling vertex ("source", the target's density pf of the connecting direction):
+        S = pf·(A + dens_out·B),  A = own/pf_fwd,  B = b1/pf_fwd.
+    For the pdf estimator: qb = inv_dens·Q/pdf_fwd_prev (1 for the first vertex)."""
+
+    def __init__(self, stack: BoundStack, rec: Records, l0: int, l1: int, pdf_mode: bool):
+        N = stack.N
+        n = l1 - l0
+        self.n = n
+        idx = rec.perm[rec.bounds[l0]:rec.bounds[l1]]   # the block's vertices, lane-major
+        lane = rec.lane[idx] - l0
+        kind, layer, t, k = rec.kind[idx], rec.layer[idx], rec.t[idx], rec.k[idx]
+        first = k == 1
+        inv_dens = np.where(first, 0.0, _inv(rec.dens_fwd[idx]))
+        inv_prev = _inv(rec.pdf_fwd_prev[idx])
+        a = ((~rec.delta_prev[idx]) + rec.P[idx]) * inv_prev
+        own = (~rec.delta[idx]) * 1.0
+        pf = rec.pdf_fwd[idx]
+        pr = rec.pdf_rev[idx]
+        inv_pf = _inv(pf)
+        b1 = inv_dens * (own + pr * a)
+        is_if = kind == 1
+        w_in, w_out = _t(rec.w_in, idx), _t(rec.w_out, idx)
+        if pdf_mode:
+            gamma = rec.gamma[idx]
+            qb = np.where(first, 1.0, inv_dens * rec.Q[idx] * inv_prev)
+        else:
+            thru0, thru1 = _t(rec.thru0, idx), _t(rec.thru1, idx)
+        # ------------------------------------------------------------ targets
+        group = np.where(is_if, layer, N + layer)
+        order, edges = _slices(group, 2 * N - 1)
+        self.targets = {}
+        tl, tt, tk, tw = lane[order], t[order], k[order], _t(w_in, order)
+        c1 = np.minimum(inv_dens[order], BIG)
+        c2 = np.minimum(inv_dens[order] * a[order], BIG)
+        if pdf_mode:
+            tg = gamma[order]
+            tq = qb[order] * tg
+        else:
+            t0 = _t(thru0, order)
+        for g in range(2 * N - 1):
+            e0, e1 = int(edges[g]), int(edges[g + 1])
+            if e1 <= e0:
+                continue
+            if g < N and stack.kernels[g].delta_only:
+                continue  # a delta lobe cannot be evaluated: no strategy connects there
+            G = _Group()
+            G.lane, G.t, G.k, G.w_in = tl[e0:e1], tt[e0:e1], tk[e0:e1], tw[:, e0:e1]
+            G.c1, G.c2 = c1[e0:e1], c2[e0:e1]
+            if pdf_mode:
+                G.gamma, G.qbg = tg[e0:e1], tq[e0:e1]
+            else:
+                G.thru0 = t0[:, e0:e1]
+            G.count = np.bincount(G.lane, minlength=n)
+            G.start = np.cumsum(G.count) - G.count
+            G.sig = G.mt = None
+            if g < N and not stack.kernels[g].generic:
+                G.mt = stack.kernels[g].take(G.lane + l0).mask_terms(G.w_in)
+            if g >= N and stack.slabs[g - N].directional:
+                ph = stack.slabs[g - N].phase.take(G.lane + l0)
+                G.sig = ph.sigma_scale(np.ascontiguousarray(G.w_in.T))
+            self.targets[g] = G
+        # ------------------------------------------------------------ sources
+        up = w_out[2] > 0
+        slab = np.where(is_if, np.where(up, layer - 1, layer), layer)
+        live = (pf > 0) if pdf_mode else (np.maximum(np.maximum(thru1[0], thru1[1]), thru1[2]) > 0)
+        ok = live & (np.abs(w_out[2]) >= GRAZING) & (slab >= 0) & (slab <= N - 2)
+        nb = 2 * (N - 1)
+        code = np.where(ok, 2 * slab + up, nb)
+        order, edges = _slices(code, nb)
+        e_end = int(edges[nb])
+        order = order[:e_end]
+        sl, st, sk, sc = lane[order], t[order], k[order], _t(w_out, order)
+        smed = ~is_if[order]
+        sA = np.minimum(inv_pf[order] * own[order], BIG)
+        sB = np.minimum(inv_pf[order] * b1[order], BIG)
+        if pdf_mode:
+            sg = gamma[order]
+            srev = inv_pf[order] * pr[order] * qb[order] * sg
+        else:
+            s1 = _t(thru1, order)
+        self.sources = {}
+        for b in range(nb):
+            e0, e1 = int(edges[b]), int(edges[b + 1])
+            if e1 <= e0:
+                continue
+            B = _Bucket()
+            B.lane, B.t, B.k, B.c, B.medium = sl[e0:e1], st[e0:e1], sk[e0:e1], sc[:, e0:e1], smed[e0:e1]
+            B.A, B.B = sA[e0:e1], sB[e0:e1]
+            if pdf_mode:
+                B.gamma, B.rev = sg[e0:e1], srev[e0:e1]
+            else:
+                B.thru1 = s1[:, e0:e1]
+            self.sources[(b // 2, bool(b % 2))] = B
+
+
+LANE_BLOCK = 4096  # lanes prepared and connected together (per-vertex arrays stay cache-sized)
 
 
 def bidirectional(stack: BoundStack, wo: np.ndarray, L: Records, R: Records, rng,
@@ -129,104 +253,165 @@ def bidirectional(stack: BoundStack, wo: np.ndarray, L: Records, R: Records, rng
     ``pdf_mode``, (n,) the pdf estimate. ``wo`` is (3, n). ``nmax`` (per lane) keeps only paths
     of at most that many vertices (approximate pdf)."""
     n = L.n
-    Lv, Rv = L.view(), R.view()
     out = np.zeros(n) if pdf_mode else np.zeros((3, n))
-    N = stack.N
     exit_top = wo[2] > 0
-    for lanes in _lane_batches(Lv, Rv):
-        pl, iL, iR = _pairs(Lv, Rv, lanes)
-        if not pl.size:
-            continue
-        loL, loR, hiL, hiR = Lv.lo[iL], Rv.lo[iR], Lv.hi[iL], Rv.hi[iR]
-        slab = np.maximum(loL, loR)
-        # Same slab (or the slab between two adjacent interfaces), not the same interface.
-        ok = (slab <= np.minimum(hiL, hiR)) & (slab >= 0) & (slab <= N - 2)
-        ok &= ~((loL == loR) & (hiL == hiR) & (hiL > loL))
-        if nmax is not None:
-            ok &= (Lv.k[iL] + Rv.k[iR]) <= nmax[pl]
-        dt = Rv.t[iR] - Lv.t[iL]
-        for u in (0, 1):
-            if u == 0:
-                cz, src = Lv.w_out[2, iL], Lv.live_out[iL]
-            else:
-                cz, src = -Rv.w_out[2, iR], Rv.live_out[iR]
-            sel = np.flatnonzero(ok & src & (-cz * dt > 0) & (np.abs(cz) >= GRAZING))
-            if not sel.size:
-                continue
-            contrib = _connect(stack, Lv, Rv, iL[sel], iR[sel], pl[sel], slab[sel], u,
-                               exit_top, rng, pdf_mode, approx)
-            if pdf_mode:
-                out += np.bincount(pl[sel], contrib, minlength=n)
-            else:
-                for ch in range(3):
-                    out[ch] += np.bincount(pl[sel], contrib[ch], minlength=n)
+    for l0 in range(0, n, LANE_BLOCK):
+        l1 = min(n, l0 + LANE_BLOCK)
+        Ls, Rs = Side(stack, L, l0, l1, pdf_mode), Side(stack, R, l0, l1, pdf_mode)
+        o = out[..., l0:l1]
+        nm = None if nmax is None else nmax[l0:l1]
+        for u, src, tgt in ((0, Ls, Rs), (1, Rs, Ls)):
+            _directed(stack, src, tgt, u, exit_top[l0:l1], l0, rng, pdf_mode, approx, nm, o)
     return out
 
 
-def _connect(stack, L, R, iL, iR, pl, slab, u, exit_top, rng, pdf_mode, approx):
-    m = iL.size
-    tL, tR = L.t[iL], R.t[iR]
-    kL, kR = L.kind[iL], R.kind[iR]
-    if u == 0:
-        # L sampled c; evaluate R's vertex towards L (direction −c, pointing away from R_j).
-        c = np.take(L.w_out, iL, axis=1)
-        v, pf, pr = eval_at(stack, kR, R.layer[iR], pl, np.take(R.w_in, iR, axis=1), -c, rng,
-                            pdf_only=pdf_mode)
-    else:
-        c = -np.take(R.w_out, iR, axis=1)
-        v, pf, pr = eval_at(stack, kL, L.layer[iL], pl, np.take(L.w_in, iL, axis=1), c, rng,
-                            pdf_only=pdf_mode)
-    T = np.ones(m) if pdf_mode else np.ones((3, m))
-    pass_p = np.ones(m)
-    dens_to_R = np.ones(m)
-    dens_to_L = np.ones(m)
-    for k in range(stack.N - 1):
-        if stack.kinds[k] == 0 and not approx:
-            continue  # empty slab: transmittance and densities 1
-        whole = stack.N == 2
-        pos = None if whole else np.flatnonzero(slab == k)
-        if pos is not None and not pos.size:
-            continue
-        sl = (lambda a: a) if whole else (lambda a: a[..., pos])
-        lanes, ck, t0, t1 = sl(pl), sl(c), sl(tL), sl(tR)
-        if not pdf_mode:
-            Tk = stack.transmittance(k, lanes, ck, t0, t1)
-            if whole:
-                T = T * Tk
+def _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx):
+    """Per source of bucket B in slab s: the extinction rate along its direction c (None for an
+    empty slab; (m,) grey or (3, m)), sigma_scale(c) for a directional phase, and towards the
+    interface ahead (depth distance ``ad_if``): transmittance (per-source factor), the depth
+    densities of reaching the interface (dens_t) and of reaching the source back (dens_s)."""
+    m = B.lane.size
+    kind = stack.kinds[s]
+    az = np.abs(B.c[2])
+    one = np.ones(m)
+    if kind == EMPTY:
+        return None, None, 1.0, one, one
+    ops = stack.slabs[s].take(B.lane + l0)
+    sig = None
+    inv = 1.0 / az
+    if ops.directional:
+        sig = ops.phase.sigma_scale(np.ascontiguousarray(B.c.T))
+        inv = inv * sig
+    rate = ops.tau[0] * inv if ops.grey else ops.tau * inv
+    e = np.exp(-rate * ad_if)
+    if approx:
+        return rate, sig, (e.mean(axis=0) if e.ndim == 2 else e), one, one
+    if kind == ABSORBING:
+        return rate, sig, e, one, one
+    fac = np.where(B.medium, rate, 1.0)
+    if e.ndim == 2:
+        return rate, sig, e, e.mean(axis=0), (e * fac).mean(axis=0)
+    return rate, sig, e, e, e * fac
+
+
+def _directed(stack, src: Side, tgt: Side, u, exit_top, l0, rng, pdf_mode, approx, nmax, out):
+    """Connections with the source's sampled direction (strategy u: 0 = L samples, 1 = R)."""
+    N = stack.N
+    n = src.n
+    for (s, going_up), B in src.sources.items():
+        l_if = s if going_up else s + 1   # the interface the direction reaches
+        ad_if = np.abs(l_if - B.t)
+        rate, sig, Tr_if, dens_t_if, dens_s_if = _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx)
+        negc = -B.c
+        ker = stack.kernels[l_if]
+        mo = None if ker.generic or ker.delta_only else ker.take(B.lane + l0).mask_terms(negc)
+        for g, is_medium in ((l_if, False), (N + s, True)):
+            G = tgt.targets.get(g)
+            if G is None or (is_medium and approx):
+                continue
+            cnt = G.count[B.lane]
+            sidx = np.flatnonzero(cnt)
+            if not sidx.size:
+                continue
+            cnt = cnt[sidx]
+            lo = G.start[B.lane[sidx]]
+            acc = np.zeros(sidx.size) if pdf_mode else np.zeros((3, sidx.size))
+            cum = np.cumsum(cnt)
+            total = int(cum[-1])
+            cuts = [0]
+            if total > BLOCK:
+                cuts += list(np.searchsorted(cum, np.arange(BLOCK, total, BLOCK), side="left") + 1)
+            cuts.append(sidx.size)
+            for a0, a1 in zip(cuts[:-1], cuts[1:]):
+                if a1 <= a0:
+                    continue
+                cb = cnt[a0:a1]
+                csum = np.cumsum(cb)
+                tot = int(csum[-1])
+                loc = np.repeat(np.arange(a1 - a0), cb)
+                ti = np.repeat(lo[a0:a1] - (csum - cb), cb) + np.arange(tot)
+                si = sidx[a0 + loc]
+                if is_medium:
+                    dt = G.t[ti] - B.t[si]
+                    keep = (dt < 0) if going_up else (dt > 0)
+                    if nmax is not None:
+                        keep &= (B.k[si] + G.k[ti]) <= nmax[B.lane[si]]
+                    if not keep.all():
+                        sel = np.flatnonzero(keep)
+                        loc, ti, si, dt = loc[sel], ti[sel], si[sel], dt[sel]
+                        if not sel.size:
+                            continue
+                elif nmax is not None:
+                    keep = (B.k[si] + G.k[ti]) <= nmax[B.lane[si]]
+                    if not keep.all():
+                        sel = np.flatnonzero(keep)
+                        loc, ti, si = loc[sel], ti[sel], si[sel]
+                        if not sel.size:
+                            continue
+                x = _block(stack, s, l_if, is_medium, B, G, si, ti, negc, rate, sig, dens_t_if,
+                           dens_s_if, mo, u, l0, rng, pdf_mode)
+                nb = a1 - a0
+                if pdf_mode:
+                    acc[a0:a1] += np.bincount(loc, x, minlength=nb)
+                else:
+                    for ch in range(3):
+                        acc[ch, a0:a1] += np.bincount(loc, x[ch], minlength=nb)
+            # per-source factors
+            lanes_s = B.lane[sidx]
+            if pdf_mode:
+                f = B.gamma[sidx] if u == 0 else B.rev[sidx]
+                if approx and not np.isscalar(Tr_if):
+                    f = f * Tr_if[sidx]     # the pass probability of the slab (per source)
+                out += np.bincount(lanes_s, acc * f, minlength=n)
             else:
-                T[:, pos] = Tk
-        elif approx:
-            pp = stack.pass_probability(k, lanes, ck, t0, t1)
-            if whole:
-                pass_p = pp
-            else:
-                pass_p[pos] = pp
-        if not approx and stack.kinds[k] == 2:
-            ops = stack.slabs[k].take(lanes)
-            a = ops.depth_pdf(ck, t0 - k, t1 - k, sl(kR) == 0)
-            b = ops.depth_pdf(-ck, t1 - k, t0 - k, sl(kL) == 0)
-            if whole:
-                dens_to_R, dens_to_L = a, b
-            else:
-                dens_to_R[pos], dens_to_L[pos] = a, b
-    if u == 0:
-        # L sampled; R_j evaluated: pf = R_j's density towards L_i, pr = of R's own incoming.
-        S_L = pf * L.inv_pf[iL] * (L.own[iL] + dens_to_L * L.b1[iL])
-        S_R = dens_to_R * R.inv_dens[iR] * (1.0 + pr * R.a[iR])
-    else:
-        S_L = dens_to_L * L.inv_dens[iL] * (1.0 + pr * L.a[iL])
-        S_R = pf * R.inv_pf[iR] * (R.own[iR] + dens_to_R * R.b1[iR])
-    w_mis = 1.0 / (1.0 + S_L + S_R)
-    if pdf_mode:
-        qb = R.qb[iR]
-        if u == 0:
-            up = dens_to_R * pr * qb
+                f = _t(B.thru1, sidx) * (stack.eta_corr(np.full(sidx.size, s), exit_top[lanes_s])
+                                         / np.abs(B.c[2, sidx]))
+                if not is_medium and not np.isscalar(Tr_if):
+                    f = f * _t(Tr_if, sidx)
+                acc = acc * f
+                for ch in range(3):
+                    out[ch] += np.bincount(lanes_s, acc[ch], minlength=n)
+
+
+def _block(stack, s, l_if, is_medium, B, G, si, ti, negc, rate, sig, dens_t_if, dens_s_if, mo, u,
+           l0, rng, pdf_mode):
+    """Contributions of one block of connections (sources ``si`` of B, targets ``ti`` of G):
+    value (3, m) without the per-source factors, or the pdf integrand ratio (m,)."""
+    w = _t(negc, si)                  # from the target towards the source
+    w_in = _t(G.w_in, ti)
+    lane = B.lane[si] + l0
+    if is_medium:
+        ad = np.abs(G.t[ti] - B.t[si])
+        r = _t(rate, si)
+        e = np.exp(-r * ad)
+        if e.ndim == 2:
+            dens_t = (r * e).mean(axis=0)
+            dens_s = np.where(B.medium[si], dens_t, e.mean(axis=0))
         else:
-            up = pf * R.inv_pf[iR] * dens_to_R * R.pdf_rev[iR] * qb
-        return up * L.gamma[iL] * R.gamma[iR] * w_mis * pass_p
-    scale = w_mis * stack.eta_corr(slab, exit_top[pl]) / np.abs(c[2])
-    if u == 0:
-        val = np.take(L.thru1, iL, axis=1) * np.take(R.thru0, iR, axis=1)
+            dens_t = r * e
+            dens_s = np.where(B.medium[si], dens_t, e)
+        ph = stack.slabs[s].phase.take(lane)
+        v, pr = ph.connect(w_in, w, None if G.sig is None else G.sig[ti],
+                           None if sig is None else sig[si])
+        pf = v
     else:
-        val = np.take(L.thru0, iL, axis=1) * np.take(R.thru1, iR, axis=1)
-    return val * v * T * scale
+        dens_t = dens_t_if[si]
+        dens_s = dens_s_if[si]
+        ker = stack.kernels[l_if].take(lane)
+        if ker.generic:
+            v, pf, pr = ker.eval(w_in, w, rng, True)
+        elif G.mt is None or mo is None:
+            v, pf, pr = ker.eval(w_in, w, rng, True, pdf_mode)
+        else:
+            v, pf, pr = ker.eval(w_in, w, rng, True, pdf_mode, ti=_t(G.mt, ti), to=_t(mo, si))
+    S_src = pf * (B.A[si] + dens_s * B.B[si])
+    S_tgt = dens_t * (G.c1[ti] + pr * G.c2[ti])
+    wmis = 1.0 / (1.0 + S_src + S_tgt)
+    if pdf_mode:
+        if u == 0:
+            return dens_t * pr * wmis * G.qbg[ti]
+        return pf * dens_s * wmis * G.gamma[ti]
+    x = wmis * v
+    if is_medium:
+        x = x * e
+    return x * _t(G.thru0, ti)

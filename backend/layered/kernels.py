@@ -48,6 +48,22 @@ def dot3(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
+def fresnel_F(c, eta):
+    """Unpolarised dielectric reflectance for the signed cosine c (materials/fresnel.py, the
+    same formula without its refraction outputs); 1 under total internal reflection."""
+    eta_ti = np.where(c >= 0, eta, 1.0 / eta)
+    ci = np.minimum(np.abs(c), 1.0)
+    sin2_t = (1.0 - ci * ci) / (eta_ti * eta_ti)
+    ct = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
+    a, b = eta_ti * ct, eta_ti * ci
+    ds, dp = ci + a, b + ct
+    # Both denominators vanish only when ci = ct = 0, where the reflectance is 1 in the limit.
+    ok = (ds > 0) & (dp > 0)
+    ds, dp = np.where(ok, ds, 1.0), np.where(ok, dp, 1.0)
+    rs, rp = (ci - a) / ds, (b - ct) / dp
+    return np.where((sin2_t < 1.0) & ok, 0.5 * (rs * rs + rp * rp), 1.0)
+
+
 def rgb_rows(v) -> np.ndarray:
     """(1, 3) / (n, 3) RGB parameter → (3, 1) / (3, n)."""
     return np.ascontiguousarray(np.asarray(v, dtype=np.float64).reshape(-1, 3).T)
@@ -59,29 +75,39 @@ def lanes_rows(v, idx):
 
 
 class Microfacet3:
-    """GGX / Beckmann NDF, Smith Λ and sampling on (3, m) vectors (see materials/microfacet.py)."""
+    """GGX / Beckmann NDF, Smith Λ and sampling on (3, m) vectors (see materials/microfacet.py).
+
+    Masking is split into a per-direction term (``terms``: Λ, or the rational G1 for separable
+    Beckmann) and its combination (``g2``), so that callers evaluating many direction pairs
+    (the layered connections) compute each direction's term once."""
 
     def __init__(self, distribution, masking, au, av):
         self.ggx = distribution == GGX
         self.separable = masking == SEPARABLE
         self.au = np.maximum(np.asarray(au, dtype=np.float64), ALPHA_MIN)
         self.av = np.maximum(np.asarray(av, dtype=np.float64), ALPHA_MIN)
+        self._iau2 = 1.0 / (self.au * self.au)
+        self._iav2 = 1.0 / (self.av * self.av)
+        self._norm = INV_PI / (self.au * self.av)
 
     def take(self, idx):
+        if self.au.ndim == 0 and self.av.ndim == 0:
+            return self
         return Microfacet3(GGX if self.ggx else BECKMANN, SEPARABLE if self.separable else "",
                            lanes(self.au, idx), lanes(self.av, idx))
 
     def D(self, m):
         x, y, z = m
-        au, av = self.au, self.av
         z2 = z * z
-        if self.ggx:
-            k = x * x / (au * au) + y * y / (av * av) + z2
-            d = sdiv(INV_PI / (au * av), k * k)
-        else:
-            e = sdiv(x * x / (au * au) + y * y / (av * av), z2)
-            d = sdiv(np.exp(-e) * (INV_PI / (au * av)), z2 * z2)
-        return np.where(z > 0, d, 0.0)
+        q = x * x * self._iau2 + y * y * self._iav2
+        ok = z > 0
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            if self.ggx:
+                k = q + z2
+                d = self._norm / (k * k)
+            else:
+                d = np.exp(-q / z2) * self._norm / (z2 * z2)
+        return np.where(ok, d, 0.0)
 
     def _s(self, w):
         x, y, z = w
@@ -104,6 +130,28 @@ class Microfacet3:
             return 1.0 / (1.0 + self.lam(w))
         a = 1.0 / np.sqrt(np.maximum(self._s(w), 1e-200))
         return np.where(a < 1.6, (3.535 * a + 2.181 * a * a) / (1.0 + 2.276 * a + 2.577 * a * a), 1.0)
+
+    @property
+    def _rational(self) -> bool:
+        return self.separable and not self.ggx
+
+    def terms(self, w):
+        """The per-direction masking term: the rational G1 for separable Beckmann, else Λ."""
+        return self.g1_separable(w) if self._rational else self.lam(w)
+
+    def g2(self, ti, to, chi):
+        """G2 from two directions' ``terms``, 0 where ``chi`` (the visible-side tests) fails."""
+        if self._rational:
+            g = ti * to
+        elif self.separable:
+            g = 1.0 / ((1.0 + ti) * (1.0 + to))
+        else:
+            g = 1.0 / (1.0 + ti + to)
+        return np.where(chi, g, 0.0)
+
+    def g1(self, t):
+        """1/(1 + Λ) from a (non-rational) term; used by the GGX visible-normal densities."""
+        return 1.0 / (1.0 + t)
 
     def masking(self, wi, wo, chi_i, chi_o):
         """(G2(wi, wo), 1/(1 + Λ(wi)), 1/(1 + Λ(wo))) with the visible-side indicators."""
@@ -147,6 +195,10 @@ class Kernel:
 
     def arrival(self, w):
         return 1.0
+
+    def mask_terms(self, w):
+        """Per-direction masking terms for ``eval(..., ti=, to=)`` (None: nothing to share)."""
+        return None
 
 
 class NullKernel(Kernel):
@@ -224,7 +276,11 @@ class ConductorKernel(Kernel):
     def _fresnel(self, c):
         return fresnel_conductor(c[None, :], self.eta, self.k) * self.tint
 
-    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
+    def mask_terms(self, w):
+        return None if self.mf is None else self.mf.terms(w)
+
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False, ti=None, to=None):
+        """``ti``/``to``: ``mask_terms`` of wi and wo if the caller has them."""
         m = wi.shape[1]
         if self.delta_only:
             return np.zeros((3, m)), np.zeros(m), np.zeros(m)
@@ -232,20 +288,29 @@ class ConductorKernel(Kernel):
         s = np.where(wi[2] < 0, -1.0, 1.0)
         ci, co = wi[2] * s, wo[2] * s
         ok = (ci > 0) & (co > 0) & ~self.smooth
-        wis = np.stack([wi[0], wi[1], ci])
-        wos = np.stack([wo[0], wo[1], co])
-        h = normalize3(wis + wos)
-        cih = dot3(wis, h)
+        hx, hy, hz = wi[0] + wo[0], wi[1] + wo[1], ci + co
+        l2 = hx * hx + hy * hy + hz * hz
+        inv = 1.0 / np.sqrt(np.where(l2 > 0, l2, 1.0))
+        h = (hx * inv, hy * inv, hz * inv)
+        cih = wi[0] * h[0] + wi[1] * h[1] + ci * h[2]
         mf = self.mf
         D = mf.D(h)
-        g2, g1i, g1o = mf.masking(wis, wos, cih > 0, cih > 0)
-        value = None if pdf_only else self._fresnel(cih) * np.where(ok, sdiv(D * g2, 4.0 * ci), 0.0)
-        if mf.ggx:
-            pf = sdiv(g1i * D, 4.0 * ci)
-            pr = sdiv(g1o * D, 4.0 * co)
-        else:
-            pf = pr = sdiv(D * h[2], 4.0 * cih)
-        return value, np.where(ok, pf, 0.0), np.where(ok, pr, 0.0)
+        chi = cih > 0
+        if ti is None:
+            ti = mf.terms(wi)
+        if to is None:
+            to = mf.terms(wo)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv4ci = 0.25 / ci
+            value = None
+            if not pdf_only:
+                value = self._fresnel(cih) * np.where(ok, D * mf.g2(ti, to, chi) * inv4ci, 0.0)
+            if mf.ggx:
+                pf = np.where(ok & chi, mf.g1(ti) * D * inv4ci, 0.0)
+                pr = np.where(ok & chi, mf.g1(to) * D * (0.25 / co), 0.0)
+            else:
+                pf = pr = np.where(ok & chi, D * h[2] * (0.25 / cih), 0.0)
+        return value, pf, pr
 
     def sample(self, wi, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
@@ -298,55 +363,80 @@ class DielectricKernel(Kernel):
         return DielectricKernel(lanes(self.eta, idx), lanes_rows(self.tint, idx),
                                 None if self.mf is None else self.mf.take(idx), lanes(self.smooth, idx))
 
-    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
+    def mask_terms(self, w):
+        return None if self.mf is None else self.mf.terms(w)
+
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False, ti=None, to=None):
+        """Walter et al. 2007 rough dielectric (importance transport), with the densities of the
+        sampler from each side. ``ti``/``to``: ``mask_terms`` of wi and wo if known.
+
+        With e = n(wo side)/n(wi side), h ∝ wi + e'·wo (e' = 1 for a reflection) and
+        den = wi·h + e·wo·h, the reflection and transmission lobes share one form:
+            value = F'·D·G2/|cos i| · j_v,   pf = F'·p_h(wi)·j_f,   pr = F'·p_h(wo)·j_r,
+        with F' = F or 1 − F and the Jacobians j_v = 1/4 | |wi·h|·e²|wo·h|/den²,
+        j_f = 1/(4|wo·h|) | e²|wo·h|/den², j_r = 1/(4|wi·h|) | |wi·h|/den² (reflection |
+        transmission; for the reverse density e²/den² of the other side equals 1/den²)."""
         m = wi.shape[1]
         if self.delta_only:
             return np.zeros((3, m)), np.zeros(m), np.zeros(m)
         mf = self.mf
         eta = self.eta
         ci, co = wi[2], wo[2]
-        refl = ci * co > 0
-        trans = ci * co < 0
+        cc = ci * co
+        refl = cc > 0
         e = np.where(ci > 0, eta, 1.0 / eta)          # n(wo side)/n(wi side) for transmission
-        h = np.where(refl, wi + wo, wi + e * wo)
-        h = normalize3(h)
-        h = h * np.where(h[2] < 0, -1.0, 1.0)
+        ew = np.where(refl, 1.0, e)
+        hx, hy, hz = wi[0] + ew * wo[0], wi[1] + ew * wo[1], ci + ew * co
+        l2 = hx * hx + hy * hy + hz * hz
+        inv = np.where(hz < 0, -1.0, 1.0) / np.sqrt(np.where(l2 > 0, l2, 1.0))
+        h = (hx * inv, hy * inv, hz * inv)
         okh = h[2] > 0
-        cih, coh = dot3(wi, h), dot3(wo, h)
-        F = fresnel_dielectric(cih, eta)[0]
-        rough = ~self.smooth
-        refl = refl & okh & (cih * coh > 0) & rough
-        trans = trans & okh & (cih * coh < 0) & rough
+        cih = wi[0] * h[0] + wi[1] * h[1] + ci * h[2]
+        coh = wo[0] * h[0] + wo[1] * h[1] + co * h[2]
+        F = fresnel_F(cih, eta)
+        ch = cih * coh
+        r_ok = refl & (ch > 0)
+        t_ok = (cc < 0) & (ch < 0)
+        valid = (r_ok | t_ok) & okh & ~self.smooth
         D = mf.D(h)
-        g2, g1i, g1o = mf.masking(wi, wo, cih * ci > 0, coh * co > 0)
-        aci, aco = np.abs(ci), np.abs(co)
-        den_i = cih + e * coh
-        if pdf_only:
-            value = None
-        else:
-            DG = D * g2
-            fr = sdiv(F * DG, 4.0 * aci)
-            ft = sdiv((1.0 - F) * DG * np.abs(cih * coh), aci * den_i * den_i) * (e * e)
-            value = np.where(refl, fr, 0.0) + np.where(trans, ft, 0.0) * self.tint
-        # Densities of the sampler from each side (visible normals of the side's direction).
-        if mf.ggx:
-            ph_i = sdiv(g1i * np.abs(cih) * D, aci)
-            ph_o = sdiv(g1o * np.abs(coh) * D, aco)
-        else:
-            # D·cos sampling; samples on microfacets facing away from the direction are rejected.
-            ph = D * h[2]
-            ph_i = np.where(cih * ci > 0, ph, 0.0)
-            ph_o = np.where(coh * co > 0, ph, 0.0)
-        pf_r = sdiv(F * ph_i, 4.0 * np.abs(coh))
-        pf_t = sdiv((1.0 - F) * ph_i * e * e * np.abs(coh), den_i * den_i)
-        pf = np.where(refl, pf_r, 0.0) + np.where(trans, pf_t, 0.0)
-        if not need_rev:
-            return value, pf, None
-        e_r = 1.0 / e
-        den_o = coh + e_r * cih
-        pr_r = sdiv(F * ph_o, 4.0 * np.abs(cih))
-        pr_t = sdiv((1.0 - F) * ph_o * e_r * e_r * np.abs(cih), den_o * den_o)
-        pr = np.where(refl, pr_r, 0.0) + np.where(trans, pr_t, 0.0)
+        chi_i, chi_o = cih * ci > 0, coh * co > 0
+        acih, acoh = np.abs(cih), np.abs(coh)
+        den = cih + e * coh
+        Fs = np.where(r_ok, F, 1.0 - F)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            inv_d2 = 1.0 / (den * den)
+            e2 = e * e
+            if pdf_only:
+                value = None
+            else:
+                if ti is None:
+                    ti = mf.terms(wi)
+                if to is None:
+                    to = mf.terms(wo)
+                jv = np.where(r_ok, 0.25, acih * e2 * acoh * inv_d2)
+                v = np.where(valid, Fs * D * mf.g2(ti, to, chi_i & chi_o) * jv / np.abs(ci), 0.0)
+                value = v * np.where(t_ok, self.tint, 1.0)
+            # Densities of the sampler from each side (visible normals of the side's direction).
+            if mf.ggx:
+                if ti is None:
+                    ti = mf.terms(wi)
+                ph_i = np.where(chi_i, mf.g1(ti) * acih * D / np.abs(ci), 0.0)
+            else:
+                # D·cos sampling; samples on microfacets facing away from the direction are rejected.
+                ph = D * h[2]
+                ph_i = np.where(chi_i, ph, 0.0)
+            jf = np.where(r_ok, 0.25 / acoh, e2 * acoh * inv_d2)
+            pf = np.where(valid, Fs * ph_i * jf, 0.0)
+            if not need_rev:
+                return value, pf, None
+            if mf.ggx:
+                if to is None:
+                    to = mf.terms(wo)
+                ph_o = np.where(chi_o, mf.g1(to) * acoh * D / np.abs(co), 0.0)
+            else:
+                ph_o = np.where(chi_o, ph, 0.0)
+            jr = np.where(r_ok, 0.25 / acih, acih * inv_d2)
+            pr = np.where(valid, Fs * ph_o * jr, 0.0)
         return value, pf, pr
 
     def sample(self, wi, rng, need_rev=True, pdf_only=False):
@@ -491,9 +581,15 @@ class FramedKernel(Kernel):
         ok = (li[2] * wi[2] > 0) & (lo[2] * wo[2] > 0)
         return wo, np.where(ok, w, 0.0), np.where(ok, pf, 0.0), np.where(ok, pr, 0.0), dl
 
-    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
+    def mask_terms(self, w):
+        return self.inner.mask_terms(self._local(w))
+
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False, ti=None, to=None):
         li, lo = self._local(wi), self._local(wo)
-        v, pf, pr = self.inner.eval(li, lo, rng, need_rev, pdf_only)
+        if ti is None and to is None:
+            v, pf, pr = self.inner.eval(li, lo, rng, need_rev, pdf_only)
+        else:
+            v, pf, pr = self.inner.eval(li, lo, rng, need_rev, pdf_only, ti=ti, to=to)
         ok = (li[2] * wi[2] > 0) & (lo[2] * wo[2] > 0)
         return (None if v is None else np.where(ok, v, 0.0), np.where(ok, pf, 0.0),
                 None if pr is None else np.where(ok, pr, 0.0))

@@ -48,7 +48,8 @@ RR_SAMPLE = (4, 0.25)
 class Records:
     """Struct of arrays, one entry (column for vectors) per vertex, in the order the walk made
     them (iteration-major). ``perm`` lists the entries lane by lane: lane l's vertices, in walk
-    order, are ``perm[offset[l] : offset[l] + count[l]]`` (no re-sorting of every field)."""
+    order, are ``perm[offset[l] : offset[l] + count[l]]`` (no re-sorting of every field); ``bounds`` =
+    offset with the total appended."""
 
     def __init__(self, n: int, chunks: list[dict]):
         self.n = n
@@ -58,7 +59,8 @@ class Records:
             setattr(self, f, np.concatenate(v, axis=-1) if v else np.zeros(0, dtype=np.int64))
         lane = self.lane
         self.count = np.bincount(lane, minlength=n).astype(np.int64)
-        self.offset = np.concatenate([[0], np.cumsum(self.count)[:-1]]).astype(np.int64)
+        self.bounds = np.concatenate([[0], np.cumsum(self.count)]).astype(np.int64)
+        self.offset = self.bounds[:-1]
         self.perm = np.empty(lane.size, dtype=np.int64)
         self.perm[self.offset[lane] + self.k - 1] = np.arange(lane.size)
         self.size = lane.size

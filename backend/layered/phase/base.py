@@ -109,6 +109,16 @@ class Phase:
     def sigma_scale(self, d: np.ndarray) -> np.ndarray:
         return np.ones(d.shape[0])
 
+    def connect(self, a: np.ndarray, b: np.ndarray, s_a=None, s_b=None):
+        """For the layered connections: ``a``, ``b`` (3, m) unit directions both pointing *away*
+        from the scattering point (a = towards the previous vertex, b = towards the next one).
+        Returns (p(−a → b), p(−b → a)): the value (= the sampling density) of scattering light
+        arriving along −a into b, and the density of the reverse choice. ``s_a``, ``s_b``: the
+        callers' ``sigma_scale`` of a and b when the phase is directional (saves recomputing
+        them), else ignored. This generic version goes through ``eval``/``pdf``."""
+        at, bt = np.ascontiguousarray(a.T), np.ascontiguousarray(b.T)
+        return self.eval(-at, bt), self.pdf(-bt, at)
+
     def take(self, idx) -> "Phase":
         raise NotImplementedError
 

@@ -246,6 +246,20 @@ class MicroflakeFiber(Phase):
         value = self.distribution(h) / (2.0 * np.maximum(sigma, 1e-300))
         return np.where(ok, value, 0.0)
 
+    def connect(self, a, b, s_a=None, s_b=None):
+        # h = normalise(d_out − d_in) = normalise(a + b); p(−a → b) = D(h)/(2σ(a)) = D(h)/s(a).
+        s_a = self.sigma_scale(np.ascontiguousarray(a.T)) if s_a is None else s_a
+        s_b = self.sigma_scale(np.ascontiguousarray(b.T)) if s_b is None else s_b
+        hx, hy, hz = a[0] + b[0], a[1] + b[1], a[2] + b[2]
+        l2 = hx * hx + hy * hy + hz * hz
+        ok = l2 > 1e-24  # exact forward scattering: h undefined, a set of measure zero
+        ax = self.axis.T  # (3, 1|m)
+        x = hx * ax[0] + hy * ax[1] + hz * ax[2]
+        s = self.stddev
+        d = np.exp(-(x * x) / (np.where(ok, l2, 1.0) * (2.0 * s * s)) - self._ln_norm) * (0.5 / np.pi)
+        d = np.where(ok, d, 0.0)
+        return d / np.maximum(s_a, 1e-300), d / np.maximum(s_b, 1e-300)
+
     def sample(self, d_in, rng):
         n = d_in.shape[0]
         wi = -d_in

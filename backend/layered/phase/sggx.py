@@ -137,6 +137,22 @@ class SGGX(Phase):
         value = self.distribution(h) / (4.0 * np.maximum(sigma, 1e-300))
         return np.where(ok, value, 0.0)
 
+    def connect(self, a, b, s_a=None, s_b=None):
+        # h = a + b (unnormalised): D(ĥ) = |h|⁴ / (π √det S (hᵀ S⁻¹ h)²); p(−a → b) = D(ĥ)/(4 s(a)).
+        s_a = self.sigma_scale(np.ascontiguousarray(a.T)) if s_a is None else s_a
+        s_b = self.sigma_scale(np.ascontiguousarray(b.T)) if s_b is None else s_b
+        h0, h1, h2 = a[0] + b[0], a[1] + b[1], a[2] + b[2]
+        l2 = h0 * h0 + h1 * h1 + h2 * h2
+        ok = l2 > 1e-24  # exact forward scattering: h undefined (measure zero)
+        bb = self.b.T  # (6, 1|m)
+        y0 = h0 / bb[0]
+        y1 = (h1 - bb[1] * y0) / bb[2]
+        y2 = (h2 - bb[3] * y0 - bb[4] * y1) / bb[5]
+        q = y0 * y0 + y1 * y1 + y2 * y2
+        det_sqrt = bb[0] * bb[2] * bb[5]
+        d = np.where(ok, (l2 * l2) / np.where(ok, np.pi * det_sqrt * q * q, 1.0), 0.0) * 0.25
+        return d / np.maximum(s_a, 1e-300), d / np.maximum(s_b, 1e-300)
+
     def sample(self, d_in, rng):
         n = d_in.shape[0]
         wi = -d_in

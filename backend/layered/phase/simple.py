@@ -34,6 +34,10 @@ class Isotropic(Phase):
     def eval(self, d_in, d_out):
         return np.full(d_in.shape[0], INV_4PI)
 
+    def connect(self, a, b, s_a=None, s_b=None):
+        v = np.full(a.shape[1], INV_4PI)
+        return v, v
+
     def sample(self, d_in, rng):
         n = d_in.shape[0]
         u = rng.random((n, 2))
@@ -74,6 +78,20 @@ class HenyeyGreenstein(Phase):
                          (1.0 + g) ** 2 - 2.0 * g * one_plus_cos(d_in, d_out))
         # denom ≥ (1 − |g|)² ≥ 1e-6 by the clamp: no division guard needed.
         return (1.0 - g * g) * INV_4PI / (denom * np.sqrt(denom))
+
+    def connect(self, a, b, s_a=None, s_b=None):
+        # Reciprocal: both densities are the value. With a, b pointing away from the scattering
+        # point, 1 − cos θ = 1 + a·b = |a + b|²/2 and 1 + cos θ = |a − b|²/2 (precise forms).
+        g = self.g
+        if g.ndim == 0 and g >= 0:
+            x, y, z = a[0] + b[0], a[1] + b[1], a[2] + b[2]
+            denom = (1.0 - g) ** 2 + g * (x * x + y * y + z * z)
+        else:
+            s = 0.5 * ((a[0] + b[0]) ** 2 + (a[1] + b[1]) ** 2 + (a[2] + b[2]) ** 2)
+            d = 0.5 * ((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
+            denom = np.where(g >= 0, (1.0 - g) ** 2 + 2.0 * g * s, (1.0 + g) ** 2 - 2.0 * g * d)
+        v = (1.0 - g * g) * INV_4PI / (denom * np.sqrt(denom))
+        return v, v
 
     def sample(self, d_in, rng):
         n = d_in.shape[0]
@@ -124,6 +142,12 @@ class VonMisesFisher(Phase):
 
     def eval(self, d_in, d_out):
         return self._norm() * np.exp(-self.kappa * one_minus_cos(d_in, d_out))
+
+    def connect(self, a, b, s_a=None, s_b=None):
+        # 1 − cos θ = |a + b|²/2 for directions pointing away from the scattering point.
+        omc = 0.5 * ((a[0] + b[0]) ** 2 + (a[1] + b[1]) ** 2 + (a[2] + b[2]) ** 2)
+        v = self._norm() * np.exp(-self.kappa * omc)
+        return v, v
 
     def sample(self, d_in, rng):
         n = d_in.shape[0]
