@@ -1,0 +1,78 @@
+"""The blocked connection engine (backend/layered/connect.py) against the straightforward
+pair-list implementation it replaced (tests/layered_bidir_reference.py): on the same walks both
+must give the same per-lane sums — values, approximate and stochastic pdfs — up to rounding.
+
+This is an implementation cross-check (two independent codings of the same estimator); the
+estimator itself is validated statistically in test_layered_estimators.py / _physics.py."""
+import copy
+
+import numpy as np
+import pytest
+
+import layered_bidir_reference as reference
+from backend.layered import connect
+from backend.layered.walk import walk
+from layered_util import FIG2_TOP, LOSSLESS_SAMPLER, REFERENCE, TRANSMISSIVE, bind, load
+
+ABSORBING = {"type": "layered",
+             "interfaces": [{"type": "dielectric", "ior": 1.4, "roughness": 0.1},
+                            {"type": "dielectric", "ior": 1.3, "roughness": 0.2, "distribution": "beckmann",
+                             "masking": "separable"},
+                            {"type": "diffuse", "color": 0.7}],
+             "media": [{"sigma_t": [0.3, 0.6, 1.2], "albedo": 0.0},
+                       {"sigma_t": 0.7, "albedo": [0.8, 0.9, 0.6], "phase": {"type": "vmf", "kappa": 5.0}}]}
+EMPTY_SGGX = {"type": "layered",
+              "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.0},
+                             {"type": "null"},
+                             {"type": "conductor", "metal": "Au", "roughness": 0.2}],
+              "media": [{"sigma_t": 0.0},
+                        {"sigma_t": 1.0, "albedo": 0.9,
+                         "phase": {"type": "sggx", "shape": "flake", "roughness": 0.4,
+                                   "orientation": [0.2, 0.1, 1.0]}}]}
+NORMALS = copy.deepcopy(FIG2_TOP)
+NORMALS["interfaces"][0]["normal"] = [0.2, -0.1, 0.97]
+NORMALS["interfaces"][1]["normal"] = [-0.15, 0.05, 0.98]
+
+CASES = {"reference": REFERENCE, "fig2-top": FIG2_TOP, "transmissive": TRANSMISSIVE,
+         "lossless": LOSSLESS_SAMPLER, "absorbing": ABSORBING, "empty-sggx": EMPTY_SGGX,
+         "normals": NORMALS}
+# (A nested stack is left out: its interface is itself stochastic, so the two codings, which
+# draw random numbers in different orders, give different — equally valid — estimates.)
+
+
+def _directions(rng, n, transmissive):
+    u = rng.random((2, n))
+    r, phi = np.sqrt(u[0]), 2 * np.pi * u[1]
+    d = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u[0])])
+    if transmissive:
+        d[2] *= np.where(rng.random(n) < 0.4, -1.0, 1.0)
+    return d
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_blocked_connections_equal_pair_list(name, monkeypatch):
+    # Small blocks, so that lane blocks and connection blocks are split many times.
+    monkeypatch.setattr(connect, "LANE_BLOCK", 97)
+    monkeypatch.setattr(connect, "BLOCK", 300)
+    n = 1500
+    mat = load(CASES[name])
+    stack = bind(mat, n).stack
+    rng = np.random.default_rng(5)
+    wi = _directions(rng, n, mat.transmissive)
+    wo = _directions(rng, n, mat.transmissive)
+    L, R = walk(stack, wi, rng).records, walk(stack, wo, rng).records
+    ref = reference.bidirectional(stack, wo, L, R, rng)
+    new = connect.bidirectional(stack, wo, L, R, rng)
+    scale = np.maximum(np.abs(ref).max(axis=0), 1e-300)
+    assert np.abs(ref).max() > 0
+    assert np.all(np.abs(new - ref) <= 1e-9 * scale)
+    for approx in (True, False):
+        slabs = stack.N - 1
+        cap = 2 * slabs if approx else 1024
+        Lp = walk(stack, wi, rng, approx=approx, max_vertices=cap, purpose="pdf").records
+        Rp = walk(stack, wo, rng, approx=approx, max_vertices=cap, purpose="pdf").records
+        nmax = np.where(wi[2] * wo[2] > 0, 2 * slabs + 1, slabs + 1) if approx else None
+        p_ref = reference.bidirectional(stack, wo, Lp, Rp, rng, pdf_mode=True, approx=approx, nmax=nmax)
+        p_new = connect.bidirectional(stack, wo, Lp, Rp, rng, pdf_mode=True, approx=approx, nmax=nmax)
+        assert np.all(np.isfinite(p_new))
+        assert np.all(np.abs(p_new - p_ref) <= 1e-9 * np.maximum(np.abs(p_ref), 1e-300)), approx
