@@ -11,6 +11,7 @@ import pytest
 
 import layered_bidir_reference as reference
 from backend.layered import connect
+from backend.layered import walk as walk_mod
 from backend.layered.walk import walk
 from layered_util import FIG2_TOP, LOSSLESS_SAMPLER, REFERENCE, TRANSMISSIVE, bind, load
 
@@ -54,6 +55,7 @@ def test_blocked_connections_equal_pair_list(name, monkeypatch):
     # Small blocks, so that lane blocks and connection blocks are split many times.
     monkeypatch.setattr(connect, "LANE_BLOCK", 97)
     monkeypatch.setattr(connect, "BLOCK", 300)
+    monkeypatch.setattr(walk_mod, "LEGACY_FIELDS", True)  # what the reference reads
     n = 1500
     mat = load(CASES[name])
     stack = bind(mat, n).stack

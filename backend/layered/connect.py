@@ -142,15 +142,11 @@ class Side:
     """One walk's vertices of the lanes [l0, l1), prepared for connections (see the module
     docstring). Lanes are numbered from 0 inside the block.
 
-    MIS coefficients, for vertex X with dens = dens_fwd, pf = pdf_fwd, pr = pdf_rev:
-        inv_dens = 1/dens (0 for the first vertex: no earlier strategies move through it)
-        a = (¬δ_prev + P)/pdf_fwd_prev,  own = ¬δ,  b1 = inv_dens·(own + pr·a)
-    as the evaluated vertex ("target", density dens_in of reaching it along the connection,
-    reverse density pr of its own incoming direction):  S = dens_in·(c1 + pr·c2),
-        c1 = inv_dens, c2 = inv_dens·a;
-    as the sampling vertex ("source", the target's density pf of the connecting direction):
-        S = pf·(A + dens_out·B),  A = own/pf_fwd,  B = b1/pf_fwd.
-    For the pdf estimator: qb = inv_dens·Q/pdf_fwd_prev (1 for the first vertex)."""
+    MIS coefficients (recorded by the walk, walk.py): as the evaluated vertex ("target", with
+    density dens_in of reaching it along the connection and reverse density pr of its own
+    incoming direction) a vertex adds S = dens_in·(c1 + pr·c2) to the weight's denominator; as
+    the sampling vertex ("source", the target's density pf of the connecting direction, dens_out
+    the density of reaching the source back) S = pf·(A + dens_out·B)."""
 
     def __init__(self, stack: BoundStack, rec: Records, l0: int, l1: int, pdf_mode: bool):
         N = stack.N
@@ -159,20 +155,11 @@ class Side:
         idx = rec.perm[rec.bounds[l0]:rec.bounds[l1]]   # the block's vertices, lane-major
         lane = rec.lane[idx] - l0
         kind, layer, t, k = rec.kind[idx], rec.layer[idx], rec.t[idx], rec.k[idx]
-        first = k == 1
-        inv_dens = np.where(first, 0.0, _inv(rec.dens_fwd[idx]))
-        inv_prev = _inv(rec.pdf_fwd_prev[idx])
-        a = ((~rec.delta_prev[idx]) + rec.P[idx]) * inv_prev
-        own = (~rec.delta[idx]) * 1.0
         pf = rec.pdf_fwd[idx]
-        pr = rec.pdf_rev[idx]
-        inv_pf = _inv(pf)
-        b1 = inv_dens * (own + pr * a)
         is_if = kind == 1
         w_in, w_out = _t(rec.w_in, idx), _t(rec.w_out, idx)
         if pdf_mode:
-            gamma = rec.gamma[idx]
-            qb = np.where(first, 1.0, inv_dens * rec.Q[idx] * inv_prev)
+            gamma, qbg, rev = rec.gamma[idx], rec.qbg[idx], rec.rev[idx]
         else:
             thru0, thru1 = _t(rec.thru0, idx), _t(rec.thru1, idx)
         # ------------------------------------------------------------ targets
@@ -180,11 +167,9 @@ class Side:
         order, edges = _slices(group, 2 * N - 1)
         self.targets = {}
         tl, tt, tk, tw = lane[order], t[order], k[order], _t(w_in, order)
-        c1 = np.minimum(inv_dens[order], BIG)
-        c2 = np.minimum(inv_dens[order] * a[order], BIG)
+        c1, c2 = rec.c1[idx][order], rec.c2[idx][order]
         if pdf_mode:
-            tg = gamma[order]
-            tq = qb[order] * tg
+            tg, tq = gamma[order], qbg[order]
         else:
             t0 = _t(thru0, order)
         for g in range(2 * N - 1):
@@ -207,7 +192,7 @@ class Side:
                 G.mt = stack.kernels[g].take(G.lane + l0).mask_terms(G.w_in)
             if g >= N and stack.slabs[g - N].directional:
                 ph = stack.slabs[g - N].phase.take(G.lane + l0)
-                G.sig = ph.sigma_scale(np.ascontiguousarray(G.w_in.T))
+                G.sig = ph.sigma3(G.w_in)
             self.targets[g] = G
         # ------------------------------------------------------------ sources
         up = w_out[2] > 0
@@ -221,11 +206,9 @@ class Side:
         order = order[:e_end]
         sl, st, sk, sc = lane[order], t[order], k[order], _t(w_out, order)
         smed = ~is_if[order]
-        sA = np.minimum(inv_pf[order] * own[order], BIG)
-        sB = np.minimum(inv_pf[order] * b1[order], BIG)
+        sA, sB = rec.A[idx][order], rec.B[idx][order]
         if pdf_mode:
-            sg = gamma[order]
-            srev = inv_pf[order] * pr[order] * qb[order] * sg
+            sg, srev = gamma[order], rev[order]
         else:
             s1 = _t(thru1, order)
         self.sources = {}

@@ -96,6 +96,34 @@ class SlabOps:
         r_new = np.where(ok, r_new * inv, 1.0)
         return new_s, scattered, factor, r_new, np.where(alive, p_c.mean(axis=0), 0.0), alive
 
+    def spectral_flight(self, s0, d, rng, hero, r, rate, alive, dmax, prev_medium=None):
+        """``spectral_step`` for the walk, with the rate (3, m), alive mask and depth to the
+        boundary precomputed. Returns (step, scattered, throughput factor (3, m), new r,
+        channel-mean density of the event (m,), channel-mean reverse density of the previous
+        vertex's depth (m,) if ``prev_medium`` is given, else None)."""
+        m = d.shape[1]
+        rh = np.take_along_axis(rate, hero[None, :], axis=0)[0]
+        with np.errstate(divide="ignore"):
+            step = -np.log1p(-rng.random(m)) / rh
+        scattered = (step < dmax) & alive
+        step = np.where(scattered, step, dmax)
+        e = np.exp(-rate * step)
+        re = rate * e
+        p_c = np.where(scattered, re, e)                         # per-channel event densities
+        f_c = np.where(scattered, self.albedo * re, e)           # per-channel event values
+        r_new = r * p_c                                          # ∝ p_c(path), common scale dropped
+        mean_r = r_new.mean(axis=0)
+        ok = alive & (mean_r > 0)
+        inv = 1.0 / np.where(ok, mean_r, 1.0)
+        # throughput_c ← throughput_c · f_c · mean(r_old) / mean(r_new), with mean(r_old) = 1
+        factor = np.where(ok, f_c * inv, 0.0)
+        r_new = np.where(ok, r_new * inv, 1.0)
+        dens = np.where(alive, p_c.mean(axis=0), 0.0)
+        drev = None
+        if prev_medium is not None:
+            drev = np.where(alive, np.where(prev_medium, re, e).mean(axis=0), 0.0)
+        return step, scattered, factor, r_new, dens, drev
+
     def free_flight(self, s0, d, rng):
         """(new depth, scattered, weight (3, m) or broadcastable, pdf (m,), alive)."""
         m = d.shape[1]

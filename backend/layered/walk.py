@@ -14,16 +14,24 @@ the estimators need (directions point away from the vertex, as for BSDFs):
 
   kind          1 interface, 0 medium;  layer: interface index or slab index;  t: global depth
   w_in, w_out   towards the previous vertex / the sampled next one (w_in of vertex 1 = start)
-  thru0, thru1  throughput arriving at the vertex / after its sampled direction (RGB)
-  gamma         product of 1/(survival probability) and, for the approximate pdf, slab pass
-                probabilities: the walk's weight in the pdf integrand (a scalar)
+  thru0, thru1  throughput arriving at the vertex / after its sampled direction (RGB; "value")
   pdf_fwd       density of w_out given w_in (1 for delta samples: a placeholder, see connect.py)
-  pdf_rev       density of w_in given w_out (the reverse walk's choice), 1 for delta samples
-  dens_fwd      density of this vertex's depth along the incoming edge (per unit depth for a
-                medium vertex, a pass probability for an interface), 1 for the first vertex
-  pdf_fwd_prev, delta_prev   the previous vertex's pdf_fwd and delta
   delta         the sampled direction came from a delta lobe
-  P, Q          running MIS sums/products of the bidirectional estimator (connect.py)
+  c1, c2, A, B  the vertex's MIS coefficients for the bidirectional connections (connect.Side)
+  gamma, qbg, rev   for the pdf estimator ("pdf"): the walk's weight in the pdf integrand
+                (1/survival probabilities and, for the approximate pdf, slab pass probabilities),
+                and its products with the running pdf ratios (connect.Side)
+
+MIS recurrences (the paper's appendix B, folded): with inv_dens = 1/dens_fwd (0 for the first
+vertex), own = ¬δ, ipf = 1/pdf_fwd and dens_rev the reverse density of the previous vertex's
+depth along the edge into this one, vertex i has
+    a_i  = (own_{i−1} + dens_rev_i·b1_{i−1})·ipf_{i−1},   b1_i = inv_dens_i·(own_i + pdf_rev_i·a_i),
+    qb_i = inv_dens_i·dens_rev_i·pdf_rev_{i−1}·qb_{i−1}·ipf_{i−1}   (qb_1 = 1),
+so the walk carries only the previous vertex's own, b1, ipf (and pdf_rev, qb).
+
+Directional media (microflake phases): the extinction scale s(d) of the current direction is
+computed once (by the phase sampler, or on entering a slab) and reused for the free flight, its
+reverse density and the next phase sample.
 
 Termination: unbiased Russian roulette on the throughput (``rr``), and a hard cap
 ``max_vertices`` whose hits are counted (``WalkResult.capped``) — never silent.
@@ -34,7 +42,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..materials.base import IMPORTANCE
 from .stack import ABSORBING, EMPTY, GRAZING, SCATTERING, BoundStack
 
 # Russian roulette: after vertex ``start`` a walk survives with probability
@@ -44,6 +51,13 @@ from .stack import ABSORBING, EMPTY, GRAZING, SCATTERING, BoundStack
 # *are* the sample (``sample``) keep a mild one: their weight goes straight into the image.
 RR_EVAL = (2, 1.0)
 RR_SAMPLE = (4, 0.25)
+RR_OFF = (1 << 62, 1.0)
+BIG = 1e300      # clamp of the MIS coefficients: no 0·∞ in the connection weights
+
+# Tests set this to also record the unfolded MIS quantities (P, Q, densities) that the
+# pair-list reference implementation (tests/layered_bidir_reference.py) reads.
+LEGACY_FIELDS = False
+
 
 class Records:
     """Struct of arrays, one entry (column for vectors) per vertex, in the order the walk made
@@ -64,63 +78,11 @@ class Records:
         self.perm = np.empty(lane.size, dtype=np.int64)
         self.perm[self.offset[lane] + self.k - 1] = np.arange(lane.size)
         self.size = lane.size
-        self._view = None
-
-    def view(self) -> "ConnView":
-        """Lane-major arrays for the bidirectional connections (computed once)."""
-        if self._view is None:
-            self._view = ConnView(self)
-        return self._view
 
 
 def _inv(x):
     ok = x > 0
     return np.where(ok, 1.0 / np.where(ok, x, 1.0), 0.0)
-
-
-class ConnView:
-    """The records in lane-major order, with the MIS recurrences folded into a few coefficients
-    per vertex (connect.py): for vertex X_i with dens = dens_fwd, pf = pdf_fwd, pr = pdf_rev,
-
-        inv_dens = 1/dens (0 for the first vertex: no earlier strategies move through it)
-        a   = (¬δ_prev + P) / pdf_fwd_prev
-        own = ¬δ,  inv_pf = 1/pf,  b1 = inv_dens·(own + pr·a)
-        S_evaluated(dens_in, pdfrev) = dens_in·inv_dens·(1 + pdfrev·a)
-        S_sampled(dens_in, pdf_other) = pdf_other·inv_pf·(own + dens_in·b1)
-
-    and for the pdf estimator (Q): qb = inv_dens·Q/pdf_fwd_prev (1 for the first vertex)."""
-
-    def __init__(self, rec: "Records"):
-        p = rec.perm
-        self.count, self.offset, self.n = rec.count, rec.offset, rec.n
-        take = lambda x: x[..., p]  # noqa: E731
-        self.lane = take(rec.lane)
-        self.k = take(rec.k)
-        self.t = take(rec.t)
-        self.kind = take(rec.kind)
-        self.layer = take(rec.layer)
-        iface = self.kind == 1
-        self.lo = np.where(iface, self.layer - 1, self.layer)   # slabs the vertex can connect in
-        self.hi = self.layer
-        self.w_in = take(rec.w_in)
-        self.w_out = take(rec.w_out)
-        pf, pr = take(rec.pdf_fwd), take(rec.pdf_rev)
-        first = self.k == 1
-        self.inv_dens = np.where(first, 0.0, _inv(take(rec.dens_fwd)))
-        self.a = ((~take(rec.delta_prev)) + take(rec.P)) * _inv(take(rec.pdf_fwd_prev))
-        delta = take(rec.delta)
-        self.own = (~delta) * 1.0
-        self.inv_pf = _inv(pf)
-        self.pdf_rev = pr
-        self.b1 = self.inv_dens * (self.own + pr * self.a)
-        if hasattr(rec, "thru0"):
-            self.thru0 = take(rec.thru0)
-            self.thru1 = take(rec.thru1)
-            self.live_out = self.thru1.max(axis=0) > 0
-        else:
-            self.gamma = take(rec.gamma)
-            self.qb = np.where(first, 1.0, self.inv_dens * take(rec.Q) * _inv(take(rec.pdf_fwd_prev)))
-            self.live_out = pf > 0
 
 
 @dataclass
@@ -137,12 +99,26 @@ def _compact(S: dict, keep: np.ndarray) -> dict:
     if keep.all():
         return S
     sel = np.flatnonzero(keep)
-    return {k: v[..., sel] for k, v in S.items()}
+    return {k: (v if v is None else np.take(v, sel, axis=-1)) for k, v in S.items()}
 
 
-def _safe_ratio(a, b):
-    ok = b > 0
-    return np.where(ok, a / np.where(ok, b, 1.0), 0.0)
+def _groups(kind, layer, N):
+    """[(is_interface, index, positions or None for all)] of the lanes' vertex kinds."""
+    is_if = kind == 1
+    if N == 1:
+        return [(True, 0, None)]
+    out = []
+    n_if = int(np.count_nonzero(is_if))
+    if n_if:
+        for l in range(N):
+            out.append((True, l, np.flatnonzero(is_if & (layer == l))))
+    if n_if < kind.size:
+        for k in range(N - 1):
+            out.append((False, k, np.flatnonzero(~is_if & (layer == k))))
+    out = [g for g in out if g[2].size]
+    if len(out) == 1:
+        out = [(out[0][0], out[0][1], None)]
+    return out
 
 
 def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bool = True,
@@ -151,7 +127,7 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
     """Walk from direction ``w0`` ((3, n), pointing away from the surface): enter at the top if
     w0_z > 0, else at the bottom. ``approx``: media do not scatter (crossing a slab multiplies
     ``gamma`` by its pass probability), for the approximate pdf. ``purpose`` selects the recorded
-    fields: "value" (throughputs, for eval) or "pdf" (``Q`` and ``gamma``, for the pdf)."""
+    fields: "value" (throughputs, for eval) or "pdf" (for the pdf)."""
     want_value = purpose == "value"
     n = w0.shape[1]
     N = stack.N
@@ -160,125 +136,131 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
     exit_delta = np.zeros(n, dtype=bool)
     chunks: list[dict] = []
 
-    layer0 = np.where(w0[2] > 0, 0, N - 1).astype(np.int64)
-    S = {
-        "lane": np.arange(n), "kind": np.ones(n, dtype=np.int8), "layer": layer0,
-        "t": layer0.astype(np.float64), "d_in": -w0, "beta": np.ones((3, n)), "gamma": np.ones(n),
-        "all_delta": np.ones(n, dtype=bool),
-    }
+    start = np.flatnonzero(w0[2] != 0)   # a start direction in the surface plane cannot enter
+    m = start.size
+    layer0 = np.where(w0[2, start] > 0, 0, N - 1).astype(np.int64)
+    S = {"lane": start, "kind": np.ones(m, dtype=np.int8), "layer": layer0,
+         "t": layer0.astype(np.float64), "d": -np.take(w0, start, axis=1), "beta": np.ones((3, m)),
+         "gamma": np.ones(m), "all_delta": np.ones(m, dtype=bool), "sig": None}
     if record:
-        S.update({"dens_fwd": np.ones(n), "dens_rev": np.ones(n), "c_dens_fwd": np.ones(n),
-                  "c_pdf_rev": np.ones(n), "c_pdf_fwd": np.ones(n), "c_pdf_fwd_prev": np.ones(n),
-                  "c_delta": np.zeros(n, dtype=bool), "c_delta_prev": np.zeros(n, dtype=bool),
-                  "c_P": np.zeros(n), "c_Q": np.zeros(n)})
+        S.update({"dens_f": np.ones(m), "dens_r": np.ones(m), "own_p": np.zeros(m),
+                  "b1_p": np.zeros(m), "ipf_p": np.zeros(m)})
+        if not want_value or LEGACY_FIELDS:
+            S.update({"qb_p": np.ones(m), "pr_p": np.zeros(m)})
+        if LEGACY_FIELDS:
+            S.update({"pf_p": np.ones(m), "dl_p": np.zeros(m, dtype=bool), "P_p": np.zeros(m)})
+    directional = [sl is not None and sl.directional for sl in stack.slabs]
+    if any(directional):
+        S["sig"] = np.ones(m)
     chromatic = any(sl is not None and not sl.grey and k == SCATTERING
                     for sl, k in zip(stack.slabs, stack.kinds)) and not approx
     if chromatic:
         # Path-level spectral MIS (slab.py): one hero channel per walk, density ratios r.
-        S["hero"] = np.minimum((rng.random(n) * 3.0).astype(np.int64), 2)
-        S["r"] = np.ones((3, n))
-    # A start direction in the surface plane cannot enter the stack.
-    S = _compact(S, w0[2] != 0)
+        S["hero"] = np.minimum((rng.random(m) * 3.0).astype(np.int64), 2)
+        S["r"] = np.ones((3, m))
 
     vertices = 0
     capped = 0
     i = 1
     while S["lane"].size:
-        lane, kind, layer, t, d_in = S["lane"], S["kind"], S["layer"], S["t"], S["d_in"]
+        lane, kind, layer, d = S["lane"], S["kind"], S["layer"], S["d"]
         m = lane.size
         vertices += m
-        # ---------------------------------------------------------------- MIS recurrences
-        if record:
-            if i >= 3:
-                r_z = _safe_ratio(S["dens_rev"], S["c_dens_fwd"])
-                r_d = _safe_ratio(S["c_pdf_rev"], S["c_pdf_fwd_prev"])
-                P = r_z * ((~S["c_delta"]) + r_d * ((~S["c_delta_prev"]) + S["c_P"]))
-                Q = r_z * r_d * S["c_Q"]
-            elif i == 2:
-                P = np.zeros(m)
-                Q = S["c_pdf_rev"] * S["dens_rev"]
-            else:
-                P = Q = np.zeros(m)
-        # ---------------------------------------------------------------- sample the vertex
-        w_in = -d_in
+        w_in = -d
         is_if = kind == 1
-        all_if = bool(is_if.all())
-        if all_if and N == 1:
-            groups_if = [(0, None)]
-        else:
-            groups_if = [(l, np.flatnonzero(is_if & (layer == l))) for l in range(N)]
-        if all_if:
-            groups_m = []
-        else:
-            groups_m = [(k, np.flatnonzero((~is_if) & (layer == k))) for k in range(N - 1)]
-        single = sum(1 for _, p in groups_if + groups_m if p is None or p.size) == 1
-        d_out = np.zeros((3, m))
-        wgt = np.zeros((3, m))
-        pdf_fwd = np.ones(m)
-        pdf_rev = np.ones(m)
-        delta = np.zeros(m, dtype=bool)
+        # ---------------------------------------------------------------- sample the vertex
+        groups = _groups(kind, layer, N)
+        whole = groups[0][2] is None
+        if not whole:
+            d_out = np.zeros((3, m))
+            wgt = np.zeros((3, m))
+            pdf_fwd = np.ones(m)
+            pdf_rev = np.ones(m)
+            delta = np.zeros(m, dtype=bool)
+            sig_new = None if S["sig"] is None else S["sig"].copy()
         arrival = None
-        for l, pos in groups_if:
-            if pos is not None and not pos.size:
-                continue
-            whole = single and (pos is None or pos.size == m)
-            ker = stack.kernels[l].take(lane if whole else lane[pos])
-            wi_g = w_in if whole else w_in[:, pos]
-            if ker.framed:
-                # Arriving at a normal-mapped interface: |⟨n, d⟩| / |cos d| (kernels.FramedKernel).
-                if arrival is None:
-                    arrival = np.ones(m)
-                if whole:
-                    arrival = ker.arrival(wi_g)
-                else:
-                    arrival[pos] = ker.arrival(wi_g)
-            wo, w, pf, pr, dl = (ker.sample(wi_g, rng, record) if ker.generic else
-                                 ker.sample(wi_g, rng, record, approx))
-            if whole:
-                d_out, wgt, pdf_fwd, pdf_rev, delta = wo, w, pf, pr, dl
+        for g_if, l, pos in groups:
+            lk = lane if pos is None else lane[pos]
+            wi_g = w_in if pos is None else np.take(w_in, pos, axis=1)
+            if g_if:
+                ker = stack.kernels[l].take(lk)
+                if ker.framed:
+                    # Arriving at a normal-mapped interface: |⟨n, d⟩| / |cos d| (kernels.FramedKernel).
+                    arr = ker.arrival(wi_g)
+                    if pos is None:
+                        arrival = arr
+                    else:
+                        if arrival is None:
+                            arrival = np.ones(m)
+                        arrival[pos] = arr
+                out = (ker.sample(wi_g, rng, record) if ker.generic else
+                       ker.sample(wi_g, rng, record, approx))
+                sg = None
             else:
-                d_out[:, pos], wgt[:, pos], pdf_fwd[pos], pdf_rev[pos], delta[pos] = wo, w, pf, pr, dl
-        for k, pos in groups_m:
-            if not pos.size:
-                continue
-            phase = stack.slabs[k].phase.take(lane[pos])
-            di = d_in[:, pos]
-            ps = phase.sample(di.T, rng)
-            do = np.ascontiguousarray(ps.d_out.T)
-            d_out[:, pos] = do
-            wgt[:, pos] = ps.weight
-            pdf_fwd[pos] = ps.pdf
-            if record:
-                pdf_rev[pos] = phase.pdf(-ps.d_out, -di.T)
+                phase = stack.slabs[l].phase.take(lk)
+                s_in = None
+                if directional[l]:
+                    s_in = S["sig"] if pos is None else S["sig"][pos]
+                do, w1, pf, pr, sg = phase.sample3(-wi_g, rng, s_in)
+                out = (do, w1, pf, pr, np.zeros(do.shape[1], dtype=bool))
+            if pos is None:
+                d_out, wgt, pdf_fwd, pdf_rev, delta = out
+                if wgt.ndim == 1:
+                    wgt = wgt[None, :]
+                sig_new = sg if sg is not None else S["sig"]
+            else:
+                d_out[:, pos], wgt[:, pos] = out[0], out[1]
+                pdf_fwd[pos], pdf_rev[pos], delta[pos] = out[2], out[3], out[4]
+                if sg is not None:
+                    sig_new[pos] = sg
         beta = S["beta"] if arrival is None else S["beta"] * arrival
         thru1 = beta * wgt
         if record:
+            first = i == 1
+            inv_dens = np.zeros(m) if first else _inv(S["dens_f"])
+            P = S["dens_r"] * S["b1_p"]
+            a = (S["own_p"] + P) * S["ipf_p"]
+            own = (~delta) * 1.0
+            ipf = _inv(pdf_fwd)
+            b1 = inv_dens * (own + pdf_rev * a)
             rec = {"lane": lane, "k": np.full(m, i, dtype=np.int64), "kind": kind, "layer": layer,
-                   "t": t, "w_in": w_in, "w_out": d_out, "pdf_fwd": pdf_fwd, "pdf_rev": pdf_rev,
-                   "dens_fwd": S["dens_fwd"], "pdf_fwd_prev": S["c_pdf_fwd"], "delta": delta,
-                   "delta_prev": S["c_delta"], "P": P}
+                   "t": S["t"], "w_in": w_in, "w_out": d_out, "pdf_fwd": pdf_fwd, "delta": delta,
+                   "c1": np.minimum(inv_dens, BIG), "c2": np.minimum(inv_dens * a, BIG),
+                   "A": np.minimum(ipf * own, BIG), "B": np.minimum(ipf * b1, BIG)}
             if want_value:
                 rec["thru0"], rec["thru1"] = beta, thru1
-            else:
-                rec["gamma"], rec["Q"] = S["gamma"], Q
+            if not want_value or LEGACY_FIELDS:
+                qb = np.ones(m) if first else inv_dens * S["dens_r"] * S["pr_p"] * S["qb_p"] * S["ipf_p"]
+                gamma = S["gamma"]
+                if not want_value:
+                    rec["gamma"], rec["qbg"] = gamma, qb * gamma
+                    rec["rev"] = ipf * pdf_rev * qb * gamma
+            if LEGACY_FIELDS:
+                rec.update({"pdf_rev": pdf_rev, "dens_fwd": S["dens_f"], "pdf_fwd_prev": S["pf_p"],
+                            "delta_prev": S["dl_p"], "P": P, "gamma": S["gamma"],
+                            "Q": np.zeros(m) if first else S["dens_r"] * S["pr_p"] * S["qb_p"]})
+                S["pf_p"], S["dl_p"] = pdf_fwd, delta
             chunks.append(rec)
-            S["c_dens_fwd"], S["c_pdf_rev"] = S["dens_fwd"], pdf_rev
-            S["c_pdf_fwd_prev"], S["c_delta_prev"] = S["c_pdf_fwd"], S["c_delta"]
-            S["c_pdf_fwd"], S["c_delta"], S["c_P"], S["c_Q"] = pdf_fwd, delta, P, Q
+            S["own_p"], S["b1_p"], S["ipf_p"] = own, b1, ipf
+            if not want_value or LEGACY_FIELDS:
+                S["qb_p"], S["pr_p"] = qb, pdf_rev
         S["beta"] = beta = thru1
         S["all_delta"] = S["all_delta"] & delta & is_if
+        S["sig"] = sig_new
         # ---------------------------------------------------------------- move
         up = d_out[2] > 0
         exits = is_if & ((up & (layer == 0)) | (~up & (layer == N - 1)))
         if exits.any():
             e = np.flatnonzero(exits)
-            exit_dir[:, lane[e]] = d_out[:, e]
-            exit_weight[:, lane[e]] = beta[:, e]
-            exit_delta[lane[e]] = S["all_delta"][e]
+            le = lane[e]
+            exit_dir[:, le] = np.take(d_out, e, axis=1)
+            exit_weight[:, le] = np.take(beta, e, axis=1)
+            exit_delta[le] = S["all_delta"][e]
+        S["prev_medium"] = ~is_if
         S["slab"] = np.where(is_if, np.where(up, layer - 1, layer), layer)
         S["up"] = up
-        S["d_in"] = d_out
-        bmax = beta.max(axis=0)
+        S["d"] = d_out
+        bmax = np.maximum(np.maximum(beta[0], beta[1]), beta[2])
         alive = (~exits) & (np.abs(d_out[2]) >= GRAZING) & (bmax > 0)
         if i >= rr[0] and not approx:  # approximate-pdf walks are short and carry no values
             q = np.minimum(1.0, bmax / rr[1])
@@ -294,79 +276,114 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
         if not S["lane"].size:
             break
         # ---------------------------------------------------------------- free flights
-        lane, t, d, slab, up = S["lane"], S["t"], S["d_in"], S["slab"], S["up"]
-        m = lane.size
-        prev_medium = S["kind"] == 0
-        new_kind = np.ones(m, dtype=np.int8)
-        new_layer = np.where(up, slab, slab + 1)
-        new_t = new_layer.astype(np.float64)
-        dens_fwd = np.ones(m)
-        dens_rev = np.ones(m)
-        # Copies: the record chunks share these arrays.
-        beta, gamma = S["beta"].copy(), S["gamma"].copy()
-        dead = None
-        for k in range(N - 1):
-            kd = stack.kinds[k]
-            if kd == EMPTY:
-                continue
-            pos = np.flatnonzero(slab == k) if N > 2 else None
-            if pos is not None and not pos.size:
-                continue
-            whole = pos is None
-            lk = lane if whole else lane[pos]
-            dk = d if whole else d[:, pos]
-            tk = t if whole else t[pos]
-            if approx or kd == ABSORBING:
-                tr = stack.transmittance(k, lk, dk, tk, new_t if whole else new_t[pos])
-                if approx:
-                    g = tr.mean(axis=0) if tr.ndim == 2 else tr
-                    if whole:
-                        gamma = gamma * g
-                    else:
-                        gamma[pos] = gamma[pos] * g
-                else:
-                    if whole:
-                        beta = beta * tr
-                    else:
-                        beta[:, pos] = beta[:, pos] * tr
-                continue
-            ops = stack.slabs[k].take(lk)
-            s0 = tk - k
-            if ops.grey:
-                new_s, sc, w, pdf, alive_k = ops.free_flight(s0, dk, rng)
-            else:
-                r_in = S["r"] if whole else S["r"][:, pos]
-                new_s, sc, w, r_out, pdf, alive_k = ops.spectral_step(
-                    s0, dk, rng, S["hero"] if whole else S["hero"][pos], r_in)
-                if whole:
-                    S["r"] = r_out
-                else:
-                    S["r"] = S["r"].copy()
-                    S["r"][:, pos] = r_out
-            lay = np.where(sc, k, new_layer if whole else new_layer[pos])
-            if whole:
-                beta = beta * w
-                new_t = k + new_s
-                new_kind = np.where(sc, 0, 1).astype(np.int8)
-                new_layer = lay
-                dens_fwd = pdf
-            else:
-                beta[:, pos] = beta[:, pos] * w
-                new_t[pos] = k + new_s
-                new_kind[pos] = np.where(sc, 0, 1)
-                new_layer[pos] = lay
-                dens_fwd[pos] = pdf
-            if record:
-                dr = ops.depth_pdf(-dk, new_s, s0, prev_medium if whole else prev_medium[pos])
-                if whole:
-                    dens_rev = dr
-                else:
-                    dens_rev[pos] = dr
-        S["kind"], S["layer"], S["t"] = new_kind, new_layer, new_t
-        if record:
-            S["dens_fwd"], S["dens_rev"] = dens_fwd, dens_rev
-        S["beta"], S["gamma"] = beta, gamma
-        S = _compact(S, beta.max(axis=0) > 0)
+        _flights(stack, S, rng, record, approx, directional)
+        S = _compact(S, np.maximum(np.maximum(S["beta"][0], S["beta"][1]), S["beta"][2]) > 0)
         i += 1
     return WalkResult(exit_dir, exit_weight, exit_delta, Records(n, chunks) if record else None,
                       vertices, capped)
+
+
+def _flights(stack, S, rng, record, approx, directional):
+    """Move every lane through the slab its direction enters: to the interface ahead, or to a
+    scattering vertex inside a scattering medium. Updates S in place (kind, layer, t, beta,
+    gamma, densities of the new edge, the direction's extinction scale)."""
+    N = stack.N
+    lane, t, d, slab, up = S["lane"], S["t"], S["d"], S["slab"], S["up"]
+    m = lane.size
+    new_layer = np.where(up, slab, slab + 1)
+    new_kind = np.ones(m, dtype=np.int8)
+    new_t = new_layer.astype(np.float64)
+    dens_f = np.ones(m)
+    dens_r = np.ones(m)
+    beta, gamma = S["beta"], S["gamma"]
+    copied = False
+    for k in range(N - 1):
+        kd = stack.kinds[k]
+        if kd == EMPTY:
+            continue
+        pos = np.flatnonzero(slab == k) if N > 2 else None
+        if pos is not None and not pos.size:
+            continue
+        whole = pos is None
+        if not whole and not copied:
+            # Copies: the record chunks share these arrays.
+            beta, gamma = beta.copy(), gamma.copy()
+            copied = True
+        lk = lane if whole else lane[pos]
+        dk = d if whole else np.take(d, pos, axis=1)
+        s0 = (t if whole else t[pos]) - k
+        ops = stack.slabs[k].take(lk)
+        az = np.abs(dk[2])
+        alive = az >= GRAZING
+        inv = 1.0 / np.where(alive, az, 1.0)
+        if directional[k]:
+            # Extinction scale of the direction: reuse the phase sampler's value after a medium
+            # vertex of this slab; compute it on entering the slab from an interface.
+            sig = S["sig"] if whole else S["sig"][pos]
+            pm = S["prev_medium"] if whole else S["prev_medium"][pos]
+            if not pm.all():
+                fresh = np.flatnonzero(~pm)
+                sig = sig.copy()
+                sig[fresh] = ops.phase.take(fresh).sigma3(np.take(dk, fresh, axis=1))
+            inv = inv * sig
+            if whole:
+                S["sig"] = sig
+            else:
+                S["sig"][pos] = sig
+        rate = ops.tau[0] * inv if ops.grey else ops.tau * inv
+        dmax = np.maximum(np.where(dk[2] > 0, s0, 1.0 - s0), 0.0)
+        if approx or kd == ABSORBING:
+            e = np.where(alive, np.exp(-rate * dmax), 0.0)
+            if approx:
+                g = e.mean(axis=0) if e.ndim == 2 else e
+                if whole:
+                    gamma = gamma * g
+                else:
+                    gamma[pos] = gamma[pos] * g
+            elif whole:
+                beta = beta * e
+            else:
+                beta[:, pos] = beta[:, pos] * e
+            continue
+        pm = S["prev_medium"] if whole else S["prev_medium"][pos]
+        if ops.grey:
+            u = rng.random(lk.size)
+            with np.errstate(divide="ignore"):
+                step = -np.log1p(-u) / rate
+            sc = (step < dmax) & alive
+            step = np.where(sc, step, dmax)
+            ex = np.exp(-rate * step)
+            dens = np.where(alive, np.where(sc, rate * ex, ex), 0.0)
+            w = np.where(alive, np.where(sc, ops.albedo, 1.0), 0.0)
+            drev = np.where(alive, np.where(pm, rate * ex, ex), 0.0) if record else None
+        else:
+            hero = S["hero"] if whole else S["hero"][pos]
+            r_in = S["r"] if whole else np.take(S["r"], pos, axis=1)
+            step, sc, w, r_out, dens, drev = ops.spectral_flight(s0, dk, rng, hero, r_in, rate, alive,
+                                                                 dmax, pm if record else None)
+            if whole:
+                S["r"] = r_out
+            else:
+                S["r"] = S["r"].copy()
+                S["r"][:, pos] = r_out
+        new_s = np.where(sc, np.where(dk[2] > 0, s0 - step, s0 + step), np.where(dk[2] > 0, 0.0, 1.0))
+        if whole:
+            beta = beta * w
+            new_t = np.where(sc, k + new_s, new_t)
+            new_kind = np.where(sc, 0, 1).astype(np.int8)
+            new_layer = np.where(sc, k, new_layer)
+            dens_f = dens
+            if record:
+                dens_r = drev
+        else:
+            beta[:, pos] = beta[:, pos] * w
+            new_t[pos] = np.where(sc, k + new_s, new_t[pos])
+            new_kind[pos] = np.where(sc, 0, 1)
+            new_layer[pos] = np.where(sc, k, new_layer[pos])
+            dens_f[pos] = dens
+            if record:
+                dens_r[pos] = drev
+    S["kind"], S["layer"], S["t"] = new_kind, new_layer, new_t
+    if record:
+        S["dens_f"], S["dens_r"] = dens_f, dens_r
+    S["beta"], S["gamma"] = beta, gamma

@@ -77,6 +77,19 @@ def around(axis: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray, phi: np.ndarr
     return (sin_t * np.cos(phi))[:, None] * s + (sin_t * np.sin(phi))[:, None] * t + cos_t[:, None] * axis
 
 
+def around3(axis: np.ndarray, cos_t, sin_t, phi) -> np.ndarray:
+    """``around`` for (3, m) unit axes (columns): directions at (cos_t, sin_t, phi) about them
+    (the frame of Duff et al. 2017, as ``coordinate_system``)."""
+    x, y, z = axis
+    sign = np.where(z >= 0, 1.0, -1.0)
+    a = -1.0 / (sign + z)
+    b = x * y * a
+    sc, ss = sin_t * np.cos(phi), sin_t * np.sin(phi)
+    return np.stack([sc * (1.0 + sign * x * x * a) + ss * b + cos_t * x,
+                     sc * (sign * b) + ss * (sign + y * y * a) + cos_t * y,
+                     -sc * (sign * x) - ss * y + cos_t * z])
+
+
 class Phase:
     """A phase function bound to lanes (or constant). Subclasses implement the five methods.
 
@@ -108,6 +121,19 @@ class Phase:
 
     def sigma_scale(self, d: np.ndarray) -> np.ndarray:
         return np.ones(d.shape[0])
+
+    def sample3(self, d_in: np.ndarray, rng: np.random.Generator, s_in=None):
+        """The layered walk's form of ``sample``: ``d_in`` (3, m). Returns (d_out (3, m),
+        weight (m,), pdf (m,), reverse pdf p(−d_out → −d_in) (m,), sigma_scale(d_out) (m,) or
+        None for a non-directional phase). ``s_in``: sigma_scale(d_in) if the caller has it."""
+        ps = self.sample(np.ascontiguousarray(d_in.T), rng)
+        rev = self.pdf(-ps.d_out, np.ascontiguousarray(-d_in.T))
+        s_out = self.sigma_scale(ps.d_out) if self.directional else None
+        return np.ascontiguousarray(ps.d_out.T), ps.weight, ps.pdf, rev, s_out
+
+    def sigma3(self, d: np.ndarray) -> np.ndarray:
+        """``sigma_scale`` for (3, m) directions."""
+        return self.sigma_scale(np.ascontiguousarray(d.T))
 
     def connect(self, a: np.ndarray, b: np.ndarray, s_a=None, s_b=None):
         """For the layered connections: ``a``, ``b`` (3, m) unit directions both pointing *away*

@@ -53,6 +53,7 @@ from .base import (Phase, PhaseSample, lane_count, lanes, scalar_lanes, unit_or,
 S_MIN, S_MAX = 1e-3, 4.0   # stddev range (clamped); Mitsuba's fiber table spans 4e-8 … 4
 MAX_ROUNDS = 128           # rejection cap per sample
 UNIFORM_ABOVE = 0.7        # stddev above which x is proposed uniformly (better acceptance)
+EXTRA = 4                  # candidates per lane in the rounds after the first (acceptance ≳ 0.2)
 
 # Table layout: rows uniform in ln s, columns uniform in q; one ghost row/column on each side
 # so the 4-point stencil never leaves the table (σ is even in θ and in θ − π/2, so ghost
@@ -260,57 +261,104 @@ class MicroflakeFiber(Phase):
         d = np.where(ok, d, 0.0)
         return d / np.maximum(s_a, 1e-300), d / np.maximum(s_b, 1e-300)
 
+    def sigma3(self, d):
+        """sigma_scale for (3, m) directions."""
+        ax = self.axis.T
+        c = d[0] * ax[0] + d[1] * ax[1] + d[2] * ax[2]
+        x = d[1] * ax[2] - d[2] * ax[1]
+        y = d[2] * ax[0] - d[0] * ax[2]
+        z = d[0] * ax[1] - d[1] * ax[0]
+        return 2.0 * fiber_sigma(self.stddev, c, np.sqrt(x * x + y * y + z * z), self._row)
+
+    def _frame(self):
+        """Unit fiber axes t and two unit vectors e1, e2 completing a frame, each (3, 1|n)."""
+        t = self.axis.T
+        e1, e2 = coordinate_system(np.ascontiguousarray(self.axis))
+        return t, np.ascontiguousarray(e1.T), np.ascontiguousarray(e2.T)
+
     def sample(self, d_in, rng):
-        n = d_in.shape[0]
+        d_out, weight, pdf, _, _ = self.sample3(np.ascontiguousarray(d_in.T), rng)
+        return PhaseSample(np.ascontiguousarray(d_out.T), weight, pdf)
+
+    def sample3(self, d_in, rng, s_in=None):
+        """Rejection sampling of the visible flake normal (module docstring), on (3, m). Round 1
+        proposes one candidate per lane; later rounds, on the few rejected lanes, propose
+        ``EXTRA`` candidates each and keep the first accepted (fewer rounds of overhead). The
+        density is D(m)/s(d_in) from the accepted normal (h = ±m for a mirror reflection)."""
+        m = d_in.shape[1]
         wi = -d_in
-        t = np.broadcast_to(self.axis, (n, 3))
-        s = np.broadcast_to(self.stddev, (n,))
-        e1, e2 = coordinate_system(np.ascontiguousarray(t))
-        c = dot(wi, t)
-        sn = sin_between(wi, t)
-        m = np.zeros((n, 3))
-        done = np.zeros(n, dtype=bool)
-        todo = np.arange(n)
+        t, e1, e2 = self._frame()
+        s_all = np.broadcast_to(self.stddev, (m,))
+        # ωi in the fiber frame: c = ωi·t, (p1, p2) = (ωi·e1, ωi·e2), sθ = |ωi × t| = |(p1, p2)|.
+        c_all = wi[0] * t[0] + wi[1] * t[1] + wi[2] * t[2]
+        p1_all = wi[0] * e1[0] + wi[1] * e1[1] + wi[2] * e1[2]
+        p2_all = wi[0] * e2[0] + wi[1] * e2[1] + wi[2] * e2[2]
+        sn_all = np.sqrt(p1_all * p1_all + p2_all * p2_all)
+        x_acc = np.zeros(m)
+        cphi_acc = np.zeros(m)
+        sphi_acc = np.zeros(m)
+        done = np.zeros(m, dtype=bool)
+        todo = np.arange(m)
         rounds = 0
         while todo.size and rounds < MAX_ROUNDS:
+            reps = 1 if rounds == 0 else EXTRA
             rounds += 1
-            k = todo.size
-            sk, ck, snk = s[todo], np.abs(c[todo]), sn[todo]
-            tk, wik = t[todo], wi[todo]
-            u = rng.random((k, 5))
+            lanes_k = np.tile(todo, reps) if reps > 1 else todo
+            k = lanes_k.size
+            sk, ck, snk = s_all[lanes_k], c_all[lanes_k], sn_all[lanes_k]
+            ack = np.abs(ck)
+            u = rng.random((5, k))
             uniform = sk > UNIFORM_ABOVE
-            # Gaussian branch: x ∝ e^{−x²/2s²}(|c||x| + sθ) on the real line = a mixture with weights
-            # |c|·2s² (Rayleigh part, |x| e^{−x²/2s²}) and sθ·s√(2π) (normal part).
-            wa = ck * 2.0 * sk * sk
+            # Gaussian branch: x ∝ e^{−x²/2s²}(|c||x| + sθ) = a mixture with weights |c|·2s²
+            # (Rayleigh part, |x| e^{−x²/2s²}) and sθ·s√(2π) (normal part); both drawn as
+            # s·√(−2 ln(1 − u)) times a random sign or cos 2πu' (Box–Muller).
+            wa = ack * 2.0 * sk * sk
             wb = snk * sk * math.sqrt(2.0 * math.pi)
-            pick_a = u[:, 0] * (wa + wb) < wa
-            ray = sk * np.sqrt(-2.0 * np.log1p(-u[:, 1]))
-            ray = np.where(u[:, 4] < 0.5, ray, -ray)
-            x = np.where(pick_a, ray, sk * rng.standard_normal(k))
-            # Uniform branch for wide distributions.
-            x = np.where(uniform, 2.0 * u[:, 1] - 1.0, x)
+            pick_a = u[0] * (wa + wb) < wa
+            rho = sk * np.sqrt(-2.0 * np.log1p(-u[1]))
+            x = rho * np.where(pick_a, np.where(u[4] < 0.5, 1.0, -1.0), np.cos(2.0 * np.pi * u[4]))
+            x = np.where(uniform, 2.0 * u[1] - 1.0, x)
             inside = np.abs(x) <= 1.0
             x = np.clip(x, -1.0, 1.0)
             r = np.sqrt(np.maximum(0.0, (1.0 - x) * (1.0 + x)))
-            phi = 2.0 * np.pi * u[:, 2]
-            mk = x[:, None] * tk + (r * np.cos(phi))[:, None] * e1[todo] + (r * np.sin(phi))[:, None] * e2[todo]
-            vis = np.abs(dot(wik, mk))
-            bound = np.where(uniform, ck + snk, ck * np.abs(x) + snk)  # ≥ |ωi·m|
-            accept = vis / np.where(bound > 0, bound, 1.0)
-            accept = np.where(uniform, accept * np.exp(-x * x / (2.0 * sk * sk)), accept)
-            ok = inside & (u[:, 3] < accept)
-            idx = todo[ok]
-            m[idx] = mk[ok]
+            phi = 2.0 * np.pi * u[2]
+            cph, sph = np.cos(phi), np.sin(phi)
+            vis = np.abs(x * ck + r * (cph * p1_all[lanes_k] + sph * p2_all[lanes_k]))
+            bound = np.where(uniform, ack + snk, ack * np.abs(x) + snk)  # ≥ |ωi·m|
+            lim = u[3] * bound
+            lim = lim * np.exp(np.where(uniform, x * x / (2.0 * sk * sk), 0.0))
+            ok = inside & (vis > lim)
+            if reps > 1:
+                okr = ok.reshape(reps, -1)
+                first = np.argmax(okr, axis=0)
+                any_ok = okr[first, np.arange(todo.size)]
+                pick = first * todo.size + np.arange(todo.size)
+                sel = pick[any_ok]
+                idx = todo[any_ok]
+                todo = todo[~any_ok]
+            else:
+                sel = np.flatnonzero(ok)
+                idx = todo[sel]
+                todo = todo[~ok]
+            x_acc[idx], cphi_acc[idx], sphi_acc[idx] = x[sel], cph[sel], sph[sel]
             done[idx] = True
-            todo = todo[~ok]
-        self.stats.samples += n
+        self.stats.samples += m
         self.stats.failures += int(todo.size)
         self.stats.iterations += rounds
-        d_out = 2.0 * dot(wi, m)[:, None] * m - wi
-        d_out = np.where(done[:, None], d_out, d_in)
-        pdf = np.where(done, self.eval(d_in, d_out), 0.0)
-        weight = done.astype(np.float64)
-        return PhaseSample(d_out, weight, pdf)
+        r = np.sqrt(np.maximum(0.0, (1.0 - x_acc) * (1.0 + x_acc)))
+        mx = x_acc * t[0] + r * (cphi_acc * e1[0] + sphi_acc * e2[0])
+        my = x_acc * t[1] + r * (cphi_acc * e1[1] + sphi_acc * e2[1])
+        mz = x_acc * t[2] + r * (cphi_acc * e1[2] + sphi_acc * e2[2])
+        wm2 = 2.0 * (wi[0] * mx + wi[1] * my + wi[2] * mz)
+        d_out = np.stack([wm2 * mx - wi[0], wm2 * my - wi[1], wm2 * mz - wi[2]])
+        d_out = np.where(done, d_out, d_in)
+        s = self.stddev
+        D = np.exp(-x_acc * x_acc / (2.0 * s * s) - self._ln_norm) * (0.5 / np.pi)
+        s_in = self.sigma3(d_in) if s_in is None else s_in
+        s_out = self.sigma3(d_out)
+        pdf = np.where(done, D / np.maximum(s_in, 1e-300), 0.0)
+        rev = np.where(done, D / np.maximum(s_out, 1e-300), 0.0)
+        return d_out, done * 1.0, pdf, rev, s_out
 
     def take(self, idx):
         other = MicroflakeFiber.__new__(MicroflakeFiber)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...mathutil import dot
-from .base import Phase, PhaseSample, around, lane_count, lanes, scalar_lanes
+from .base import Phase, PhaseSample, around, around3, lane_count, lanes, scalar_lanes
 
 INV_4PI = 0.25 / np.pi
 G_MAX = 0.999  # |g| clamp: pbrt-v4 issue #333 shows NaNs at g = ±1
@@ -46,6 +46,15 @@ class Isotropic(Phase):
         phi = 2.0 * np.pi * u[:, 1]
         d = np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
         return PhaseSample(d, np.ones(n), np.full(n, INV_4PI))
+
+    def sample3(self, d_in, rng, s_in=None):
+        m = d_in.shape[1]
+        u = rng.random((2, m))
+        z = 1.0 - 2.0 * u[0]
+        r = np.sqrt(np.maximum(0.0, (1.0 - z) * (1.0 + z)))
+        phi = 2.0 * np.pi * u[1]
+        p = np.full(m, INV_4PI)
+        return np.stack([r * np.cos(phi), r * np.sin(phi), z]), np.ones(m), p, p, None
 
     def mean_cosine(self):
         return np.zeros(())
@@ -109,6 +118,24 @@ class HenyeyGreenstein(Phase):
         sin_t = np.sqrt(np.maximum(omc * opc, 0.0))
         d = around(d_in, cos_t, sin_t, 2.0 * np.pi * u[:, 1])
         return PhaseSample(d, np.ones(n), self.eval(d_in, d))
+
+    def sample3(self, d_in, rng, s_in=None):
+        # ``sample`` on (3, m), with the density from the sampled angle: 1 + g² − 2g cos θ = a⁻²(1 − g²)²
+        # by the inverse CDF (a = 1 + g b), so p = (1 − g²)/(4π) · a³/(1 − g²)³ = a³/(4π (1 − g²)²).
+        m = d_in.shape[1]
+        g = self.g
+        u = rng.random((2, m))
+        b = 1.0 - 2.0 * u[0]
+        a = 1.0 + g * b
+        inv = 0.5 / (a * a)
+        omc = (1.0 - g) ** 2 * (1.0 - b) * (1.0 + g + a) * inv
+        opc = (1.0 + g) ** 2 * (1.0 + b) * (1.0 - g + a) * inv
+        cos_t = np.clip(0.5 * (opc - omc), -1.0, 1.0)
+        sin_t = np.sqrt(np.maximum(omc * opc, 0.0))
+        d = around3(d_in, cos_t, sin_t, 2.0 * np.pi * u[1])
+        one_g2 = 1.0 - g * g
+        p = a * a * a * (INV_4PI / (one_g2 * one_g2))
+        return d, np.ones(m), p, p, None
 
     def mean_cosine(self):
         return self.g
