@@ -114,3 +114,22 @@ def test_extreme_alpha_and_cosines_are_finite(dist, masking):
             for v in vals:
                 assert np.all(np.isfinite(v)), (alpha, cz)
             assert np.all(m[:, 2] > 0) and np.allclose(np.linalg.norm(m, axis=1), 1.0)
+
+
+@pytest.mark.parametrize("dist", ["ggx", "beckmann"])
+def test_anisotropic_ndf_matches_textbook_form(dist):
+    """D in spherical form (Walter et al. 2007 / Heitz 2014, anisotropic), written out here."""
+    au, av = 0.35, 0.08
+    mf = Microfacet(dist, au, av)
+    rng = np.random.default_rng(2)
+    th = rng.uniform(0, 0.49 * np.pi, 500)
+    ph = rng.uniform(0, 2 * np.pi, 500)
+    m = spherical_directions(np.cos(th), ph)
+    t2 = np.tan(th) ** 2 * (np.cos(ph) ** 2 / au ** 2 + np.sin(ph) ** 2 / av ** 2)
+    c4 = np.cos(th) ** 4
+    if dist == "ggx":
+        ref = 1.0 / (np.pi * au * av * c4 * (1.0 + t2) ** 2)
+    else:
+        ref = np.exp(-t2) / (np.pi * au * av * c4)
+    np.testing.assert_allclose(mf.D(m), ref, rtol=1e-10, atol=1e-300)
+    assert np.all(mf.D(-m) == 0)

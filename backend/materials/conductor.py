@@ -16,7 +16,7 @@ import numpy as np
 
 from . import register
 from .base import BSDF, BSDFSample, Material, ShadingContext, lanes
-from .common import (any_textured, as_param, col, delta_lanes, dot, mirror_z, normalize,
+from .common import (any_textured, as_param, delta_lanes, dot, mirror_z, normalize,
                      parse_microfacet_kind, parse_roughness, upper_side)
 from .emission import parse_emission
 from .fresnel import conductor as fresnel_conductor
@@ -79,7 +79,8 @@ class ConductorBSDF(BSDF):
             wo_r = 2.0 * cos_im[:, None] * m - wi_u
             ok = front & (wo_r[:, 2] > 0) & ~self.smooth
             g1 = self.mf.G1(wi_u, m)
-            ratio = np.where(ok & (g1 > 0), self.mf.G(wi_u, wo_r, m) / np.where(g1 > 0, g1, 1.0), 0.0)
+            g1_safe = np.where(g1 > 0, g1, 1.0)
+            ratio = np.where(ok & (g1 > 0), self.mf.G(wi_u, wo_r, m) / g1_safe, 0.0)
             weight = self._fresnel(cos_im) * ratio[:, None]
             pdf = np.where(ok, g1 * self.mf.D(m) / np.where(front, 4.0 * wi_u[:, 2], 1.0), 0.0)
             wo_u = wo_r
@@ -156,7 +157,7 @@ def parse_conductor(node) -> ConductorMaterial:
         node.ignore("eta", "k")
     ru, rv = parse_roughness(node, 0.1)
     dist, masking = parse_microfacet_kind(node)
-    tint = node.param("tint", [1.0, 1.0, 1.0], channels=3, lo=0.0, hi=1.0, color=True)
+    tint = node.param("tint", [1.0, 1.0, 1.0], channels=3, lo=0.0, color=True)
     eta_above = node.number("eta_above", 1.0, lo=0.0, lo_open=True)
     return ConductorMaterial(eta, k, ru, rv, dist, masking, tint, eta_above,
                              emission=parse_emission(node))

@@ -41,7 +41,9 @@ class DielectricBSDF(BSDF):
     def __init__(self, n, eta, tint, alpha_u, alpha_v, distribution=GGX,
                  masking=HEIGHT_CORRELATED):
         self.n = n
-        self.eta = eta                    # ior / ior_above; () or (n,)
+        # ior / ior_above; () or (n,). A texture may hold 0 (texels are clamped to the range's
+        # closed end): keep the index positive so 1/eta stays finite.
+        self.eta = np.maximum(np.asarray(eta, dtype=np.float64), 1e-4)
         self.tint = tint                  # (1, 3) or (n, 3) transmission colour
         self.alpha_u, self.alpha_v = alpha_u, alpha_v
         self.distribution, self.masking = distribution, masking
@@ -192,7 +194,6 @@ def parse_dielectric(node) -> DielectricMaterial:
     ior_above = node.number("ior_above", 1.0, lo=0.0, lo_open=True)
     ru, rv = parse_roughness(node, 0.0)
     dist, masking = parse_microfacet_kind(node)
-    tint = node.param("transmission_color", [1.0, 1.0, 1.0], channels=3, lo=0.0, hi=1.0,
-                      color=True)
+    tint = node.param("transmission_color", [1.0, 1.0, 1.0], channels=3, lo=0.0, color=True)
     return DielectricMaterial(ior, ior_above, ru, rv, dist, masking, tint,
                               emission=parse_emission(node))

@@ -65,5 +65,5 @@ class DiffuseMaterial(Material):
 
 @register("diffuse")
 def parse_diffuse(node) -> DiffuseMaterial:
-    color = node.param("color", [0.8, 0.8, 0.8], channels=3, lo=0.0, hi=1.0, color=True)
+    color = node.param("color", [0.8, 0.8, 0.8], channels=3, lo=0.0, color=True)
     return DiffuseMaterial(color, emission=parse_emission(node))

@@ -20,8 +20,8 @@ import numpy as np
 
 
 def _safe_div(num: np.ndarray, den: np.ndarray, fallback: float) -> np.ndarray:
-    ok = den > 0
-    return np.where(ok, num / np.where(ok, den, 1.0), fallback)
+    num, den = np.broadcast_arrays(num, den)
+    return np.divide(num, den, out=np.full(num.shape, fallback), where=den > 0)
 
 
 def dielectric_polarized(cos_i, eta):
@@ -40,8 +40,8 @@ def dielectric_polarized(cos_i, eta):
     sin2_t = (1.0 - ci * ci) / (eta_ti * eta_ti)
     tir = sin2_t >= 1.0
     ct = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
-    # rs = (ci - η ct)/(ci + η ct), rp = (η ci - ct)/(η ci + ct) (Born & Wolf, Principles of Optics, ch. 1). Both
-    # denominators vanish only when ci = ct = 0 (grazing at exactly eta = 1, or the TIR edge),
+    # rs = (ci - η ct)/(ci + η ct), rp = (η ci - ct)/(η ci + ct) (Born & Wolf, Principles of
+    # Optics, ch. 1). Both denominators vanish only when ci = ct = 0 (grazing at exactly eta = 1, or the TIR edge),
     # where the reflectance is 1 in the limit.
     rs = _safe_div(ci - eta_ti * ct, ci + eta_ti * ct, 1.0)
     rp = _safe_div(eta_ti * ci - ct, eta_ti * ci + ct, 1.0)

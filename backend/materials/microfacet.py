@@ -78,12 +78,12 @@ class Microfacet:
         up = z > 0
         z2 = z * z
         if self.distribution == GGX:
-            # 1 / (π αu αv (x²/αu² + y²/αv² + z²)²): the bracket is >= min(1, 1/α²) > 0 for unit m.
+            # 1 / (π αu αv (x²/αu² + y²/αv² + z²)²); the bracket is > 0 for unit m.
             k = x * x / (au * au) + y * y / (av * av) + z2
             d = _div(INV_PI / (au * av), k * k)
         else:
-            # exp(-tan²θ (cos²φ/αu² + sin²φ/αv²)) / (π αu αv cos⁴θ); exp underflows to 0 before
-            # cos⁴θ does, so guarding the division is enough.
+            # exp(-tan²θ (cos²φ/αu² + sin²φ/αv²)) / (π αu αv cos⁴θ); exp underflows to 0
+            # before cos⁴θ does, so guarding the division is enough.
             e = _div(x * x / (au * au) + y * y / (av * av), z2)
             d = _div(np.exp(-e) * (INV_PI / (au * av)), z2 * z2)
             d = np.where(z2 > 0, d, 0.0)
@@ -197,26 +197,30 @@ class Microfacet:
         hi = np.minimum(mu, 8.0)           # density beyond 8 is < e^-64 relative
         lo = np.full_like(hi, -8.0)
 
-        def cdf(x):
-            return 0.5 * (mu * erfc(-x) + np.exp(-x * x) / SQRT_PI)
-
         u1 = np.clip(u[:, 0], 1e-16, 1.0 - 1e-16)
-        target = u1 * cdf(hi)
-        x = np.clip(np.zeros_like(hi), lo, hi)
-        x = np.where(x >= hi, 0.5 * (lo + hi), x)
-        for _ in range(40):  # Newton with bisection fallback; converges in ~5-10 steps
-            g = cdf(x) - target
-            hi = np.where(g > 0, x, hi)
-            lo = np.where(g > 0, lo, x)
-            dg = (mu - x) * np.exp(-x * x) / SQRT_PI
+        target = u1 * 0.5 * (mu * erfc(-hi) + np.exp(-hi * hi) / SQRT_PI)
+        x = np.where(hi > 0.0, 0.0, 0.5 * (lo + hi))
+        # Newton with bisection fallback, iterating only on lanes not yet converged.
+        act = np.arange(x.size)
+        m_, t_, lo_, hi_, x_ = mu, target, lo, hi, x
+        for _ in range(50):
+            g = 0.5 * (m_ * erfc(-x_) + np.exp(-x_ * x_) / SQRT_PI) - t_
+            above = g > 0
+            hi_ = np.where(above, x_, hi_)
+            lo_ = np.where(above, lo_, x_)
+            dg = (m_ - x_) * np.exp(-x_ * x_) / SQRT_PI
             ok = dg > 0
-            xn = x - g / np.where(ok, dg, 1.0)
-            inside = ok & (xn > lo) & (xn < hi)
-            x_new = np.where(inside, xn, 0.5 * (lo + hi))
-            if np.all(np.abs(x_new - x) <= 1e-13 * (1.0 + np.abs(x))):
-                x = x_new
+            xn = x_ - g / np.where(ok, dg, 1.0)
+            inside = ok & (xn >= lo_) & (xn <= hi_)   # x itself is a bracket end
+            xn = np.where(inside, xn, 0.5 * (lo_ + hi_))
+            # erfc is accurate to ~1e-7 relative, so x cannot be resolved much below that.
+            done = np.abs(xn - x_) <= 1e-10 * (1.0 + np.abs(x_))
+            x[act] = xn
+            keep = ~done
+            if not keep.any():
                 break
-            x = x_new
+            act = act[keep]
+            m_, t_, lo_, hi_, x_ = m_[keep], t_[keep], lo_[keep], hi_[keep], xn[keep]
         y = erfinv_from_uniform(u[:, 1])  # orthogonal slope: N(0, 1/2), independent
         # Rotate from the incident plane to the shading frame.
         r = np.hypot(ws[:, 0], ws[:, 1])
