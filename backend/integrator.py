@@ -20,8 +20,8 @@ import numpy as np
 from . import stats
 from .geometry.accel import offset_origin
 from .materials.base import ShadingContext
-from .mathutil import Frame, dot, max3, normalize
 from .lights.selection import build_selector
+from .mathutil import Frame, dot, max3, normalize
 
 SHADOW_EPS = 1e-4  # shorten shadow rays by this fraction so they do not hit the light's own surface
 
@@ -31,6 +31,32 @@ def power_heuristic(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a2 = a * a
     den = a2 + b * b
     return np.where(den > 0, a2 / np.where(den > 0, den, 1.0), 0.0)
+
+
+def valid_reflection_normal(wi: np.ndarray, ns: np.ndarray, ng: np.ndarray) -> np.ndarray:
+    """Bend interpolated shading normals so that the mirror direction of wi stays above the
+    geometric surface (the idea of Cycles' ensure_valid_specular_reflection, own derivation).
+
+    On coarse smooth-shaded meshes the mirror reflection about ns can point below the triangle;
+    such a ray would enter the object and the energy is lost (dark rims on mirrors). Where that
+    happens, the reflection is lifted to just above the geometric plane (cosine ``threshold``) and
+    the normal replaced by the half vector of wi and the lifted reflection, keeping ns's side.
+    """
+    side = np.where(dot(wi, ng) >= 0, 1.0, -1.0)
+    ngw = ng * side[:, None]                       # geometric normal on the viewer's side
+    cos_i = dot(wi, ngw)
+    c = dot(wi, ns)
+    r = 2.0 * c[:, None] * ns - wi
+    threshold = np.minimum(0.9 * cos_i, 0.01)
+    bad = (dot(r, ngw) < threshold) & (c * side > 0)
+    if not bad.any():
+        return ns
+    idx = np.flatnonzero(bad)
+    r_b = r[idx] + (threshold[idx] - dot(r[idx], ngw[idx]))[:, None] * ngw[idx]
+    h = normalize(wi[idx] + normalize(r_b))
+    out = ns.copy()
+    out[idx] = h * np.sign(c[idx])[:, None]
+    return out
 
 
 class PathTracer:
@@ -243,6 +269,8 @@ class PathTracer:
         bad_shading = two_sided & (dot(wi, ns) <= 0)
         if bad_shading.any():
             ns[bad_shading] = ng[bad_shading]
+        if self.soup.normals is not None:
+            ns = valid_reflection_normal(wi, ns, ng)
         frame = Frame.from_normal_tangent(ns, si["tangent"])
         wi_local = frame.to_local(wi)
         p = si["p"]

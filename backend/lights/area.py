@@ -5,8 +5,8 @@ Geometry (src/scene/light.cpp): the emitter is centred on the object's origin, s
 ``Light.area(matrix_world=...)``), and emits from one side, towards local −Z. Shear is ignored
 (the Y axis is orthogonalised against X).
 
-Units: with ``normalize`` (default) the on-axis-free radiance scale is L0 = P / (π A_world), so a
-Lambertian emitter radiates exactly P watts; without it L0 = P/π (Cycles' ``invarea`` = 1).
+Units: with ``normalize`` (default) the radiance scale is L0 = P / (π A_world), so a Lambertian
+emitter radiates exactly P watts; without it L0 = P/π (Cycles' ``invarea`` = 1).
 
 Angular profile (profiles.py), radiance = L0 · f(θ) / K, always emitting P in total:
 * ``spread`` (Blender's area light spread, degrees, default 180): Cycles' soft-box falloff
@@ -16,13 +16,15 @@ Angular profile (profiles.py), radiance = L0 · f(θ) / K, always emitting P in 
 
 Sampling for next-event estimation: only the part of the emitter that can reach the shading point
 is sampled. A point at height h in front of the light receives light only from the disk of radius
-h·tan(cutoff) around its projection; that disk's bounding box is clipped to the emitter, and a
-point whose box is empty gets no sample at all (value 0, no shadow ray). Rectangles (and clipped
-ellipses, when the box is smaller than the ellipse) are sampled uniformly in solid angle with the
-spherical-rectangle map; whole ellipses uniformly by area. ``pdf_hit`` redoes the same choice, so
-MIS sees the exact density.
+h·tan(cutoff) around its projection; a point whose disk box misses the emitter gets no sample at
+all (value 0, no shadow ray). Otherwise the smallest of these is sampled: the cutoff cone of
+directions itself, ∝ the emitted power (``ConeTable``; its footprint is that disk), the disk's
+bounding box clipped to the emitter, uniformly in solid angle (spherical-rectangle map), or a whole
+ellipse by area. ``pdf_hit`` redoes the same choice, so MIS sees the exact density.
 """
 from __future__ import annotations
+
+from dataclasses import fields, replace
 
 import numpy as np
 
@@ -235,7 +237,7 @@ class AreaLight(Light):
 
 
 def _take(sr, m):
-    from dataclasses import fields, replace
+    """The spherical rectangles of the lanes selected by m."""
     return replace(sr, **{f.name: getattr(sr, f.name)[m] for f in fields(sr)})
 
 

@@ -77,6 +77,9 @@ class PointLight(Light):
             out *= f[:, None]
         return out
 
+    #: Directional weight besides the profile (a spot cone), on local directions; None = 1.
+    _cone_weight = None
+
     def _mean_factor(self, z_lo: float = -1.0, breaks=()) -> float:
         """Mean directional factor over the world sphere of directions (light selection only).
 
@@ -86,6 +89,9 @@ class PointLight(Light):
         """
         if self.directional_factor(np.array([[0.0, 0.0, -1.0]])) is None:
             return 1.0
+        if self.profile is not None and hasattr(self.profile, "mean_factor"):
+            # Profiles (IES) integrate their own table exactly, cell by cell.
+            return self.profile.mean_factor(self._linear, weight=self._cone_weight)
         xn, xw = np.polynomial.legendre.leggauss(48)
         edges = np.unique(np.clip([z_lo, *breaks, 1.0], z_lo, 1.0))
         z = np.concatenate([0.5 * (b - a) * xn + 0.5 * (a + b) for a, b in zip(edges[:-1], edges[1:])])
@@ -101,7 +107,8 @@ class PointLight(Light):
         jac = abs(np.linalg.det(self._linear)) / np.maximum(length, 1e-300) ** 3
         f = self.directional_factor(world / length[:, None])
         mean = float(np.sum(f * jac * W.ravel()) * (2.0 * np.pi / nphi) / (4.0 * np.pi))
-        return min(max(mean, 0.0), 1.0)
+        # Not clamped to 1: an IES beam that concentrates flux has a mean factor of flux/177.83 lm.
+        return max(mean, 0.0)
 
     def power(self) -> float:
         return power_luminance(self.color, self.watts) * self._mean_factor()
