@@ -198,7 +198,7 @@ class PathTracer:
     def _clamp(self, contrib: np.ndarray, segment: int) -> np.ndarray:
         if self.clamp > 0 and segment > 0:
             m = max3(contrib)
-            scale = np.where(m > self.clamp, self.clamp / np.where(m > 0, m, 1.0), 1.0)
+            scale = np.where(m > self.clamp, self.clamp / np.where(m > self.clamp, m, 1.0), 1.0)  # no overflow for tiny m
             return contrib * scale[:, None]
         return contrib
 

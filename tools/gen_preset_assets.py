@@ -11,8 +11,8 @@ presets/textures/wood_grain.png  lacquer thickness multiplier of `lacquered-wood
                                  with a wavy distortion and fine pores, grey, linear in [0.25, 1]
 presets/textures/twill_weave.png fiber orientation of `gabardine`: a 2/2 twill (64 threads) of warp (tangent x)
                                  and weft (bitangent y) threads, encoded like a normal map
-presets/textures/enamel_pattern.png  enamel thickness multiplier of `enamelled-silver`: a tiled
-                                 ornament of rings and petals, grey, linear in [0, 1]
+presets/textures/enamel_pattern.png  enamel thickness multiplier of `enamelled-silver`: 4 × 2
+                                 rosettes of rings and petals, grey, linear in [0, 1]
 
 Everything is plain NumPy (no noise library) so the output is bit-identical on every machine.
 """
@@ -37,6 +37,7 @@ def write_image(path: Path, pixels: np.ndarray, half: bool = False) -> None:
     if path.suffix == ".exr":
         spec = oiio.ImageSpec(w, h, c, "half" if half else "float")
         spec.attribute("compression", "zip")
+        spec.attribute("DateTime", "2000:01:01 00:00:00")   # fixed: deterministic output
         data = pixels.astype(np.float32)
     else:
         spec = oiio.ImageSpec(w, h, c, "uint8")
@@ -127,10 +128,10 @@ def twill(size: int = 256, threads: int = 64) -> np.ndarray:
     return 0.5 * vec + 0.5                             # normal-map encoding: value·2 − 1
 
 
-def enamel(size: int = 256) -> np.ndarray:
-    y, x = (np.mgrid[0:size, 0:size] + 0.5) / size
-    # Two tiles across: each a rosette of 8 petals in a ring.
-    cx, cy = (x * 2) % 1 - 0.5, (y * 2) % 1 - 0.5
+def enamel(width: int = 512, height: int = 256) -> np.ndarray:
+    """4 × 2 rosettes (8 petals in a ring): round on a UV sphere, whose u spans twice its v."""
+    y, x = (np.mgrid[0:height, 0:width] + 0.5)
+    cx, cy = (x * 4 / width) % 1 - 0.5, (y * 2 / height) % 1 - 0.5
     r = np.hypot(cx, cy)
     a = np.arctan2(cy, cx)
     petal = np.clip(1 - np.abs(r - (0.22 + 0.08 * np.cos(8 * a))) / 0.05, 0, 1)
