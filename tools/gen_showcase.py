@@ -178,7 +178,7 @@ def scene() -> dict:
              "to_world": translate(-0.44, 0.02, TABLE_TOP + 0.15), "materials": ["microflake"]},
             {"name": "amber vase", "mesh": "vase", "to_world": translate(-0.12, 0.2, TABLE_TOP),
              "materials": ["amber"]},
-            {"name": "enamel cup", "mesh": "cup", "to_world": translate(0.16, -0.08, TABLE_TOP),
+            {"name": "enamel cup", "mesh": "cup", "to_world": translate(0.17, -0.1, TABLE_TOP, 1.35),
              "materials": ["enamel"]},
             {"name": "gold ring", "mesh": "ring", "to_world": translate(0.47, 0.08, TABLE_TOP + 0.045),
              "materials": ["gold"]},
@@ -197,7 +197,7 @@ def scene() -> dict:
              "ies": {"file": "erco_defined_spot_lm95.ies"}},
             {"type": "area", "_comment": "directional soft box: full radiance within 20° of its axis, none beyond 35°",
              "to_world": look_at(box_at, target), "shape": "rectangle", "size": 0.9, "size_y": 0.6,
-             "power": 90.0, "color": [0.85, 0.92, 1.0], "cutoff_angle": 35.0, "beam_width": 20.0},
+             "power": 8.0, "color": [0.85, 0.92, 1.0], "cutoff_angle": 35.0, "beam_width": 20.0},
         ],
         "world": {"type": "constant", "color": [0.035, 0.04, 0.05], "strength": 1.0},
     }
