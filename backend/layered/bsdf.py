@@ -27,7 +27,7 @@ from ..materials.base import BSDF, IMPORTANCE, RADIANCE, BSDFSample
 from .connect import bidirectional
 from .nee import unidirectional
 from .stack import BoundStack
-from .walk import walk
+from .walk import RR_SAMPLE, walk
 
 CHUNK = 16384  # lanes per walk batch (bounds the memory of vertex records)
 
@@ -54,10 +54,13 @@ class LayeredBSDF(BSDF):
         self.options = options
         self.transmissive = stack.transmissive
         self.stats = stats if stats is not None else new_stats()
+        k = stack.kernels
+        self._uni_blind_top = len(k) > 1 and k[0].delta_only and k[1].delta_only
+        self._uni_blind_bottom = len(k) > 1 and k[-1].delta_only and k[-2].delta_only
 
     # ------------------------------------------------------------------ helpers
     def _note(self, result) -> None:
-        self.stats["walks"] += result.exit_dir.shape[0]
+        self.stats["walks"] += result.exit_dir.shape[1]
         self.stats["vertices"] += result.vertices
         if result.capped:
             self.stats["cap_hits"] += result.capped
@@ -83,27 +86,32 @@ class LayeredBSDF(BSDF):
         eo = np.where(wo[:, 2] > 0, s.eta_top, s.eta_bottom)
         return (ei / eo) ** 2
 
-    def _chunks(self, lanes: np.ndarray):
+    def _chunks_of(self, lanes: np.ndarray):
+        """(lane indices, stack for them) in batches of at most CHUNK lanes."""
+        if lanes.size == 0:
+            return
+        if lanes.size == self.n and self.n <= CHUNK:
+            yield lanes, self.stack
+            return
         for start in range(0, lanes.size, CHUNK):
             idx = lanes[start:start + CHUNK]
-            stack = self.stack if idx.size == self.n else self.stack.take(idx)
-            yield idx, stack
+            yield idx, self.stack.take(idx)
 
-    def _single(self, stack: BoundStack, wi, wo, rng, pdf: bool):
-        """The one-vertex path: reflection at the entry interface (exact)."""
-        m = wi.shape[0]
-        out = np.zeros(m) if pdf else np.zeros((m, 3))
-        same = wi[:, 2] * wo[:, 2] > 0
-        for l, side in ((0, wi[:, 2] > 0), (stack.N - 1, wi[:, 2] < 0)):
+    @staticmethod
+    def _single(stack: BoundStack, a, b, rng, pdf: bool):
+        """The one-vertex path: reflection at the entry interface (exact). a, b: (3, m)."""
+        m = a.shape[1]
+        out = np.zeros(m) if pdf else np.zeros((3, m))
+        same = a[2] * b[2] > 0
+        for l, side in ((0, a[2] > 0), (stack.N - 1, a[2] < 0)):
             pos = np.flatnonzero(same & side)
-            if not pos.size:
+            if not pos.size or stack.kernels[l].delta_only:
                 continue
-            b = stack.ifaces[l]
-            if getattr(b, "delta_only", False):
-                continue
-            b = b.take(pos)
-            out[pos] = b.pdf(wi[pos], wo[pos], rng, IMPORTANCE) if pdf else \
-                b.eval(wi[pos], wo[pos], rng, IMPORTANCE)
+            v, pf, _ = stack.kernels[l].take(pos).eval(a[:, pos], b[:, pos], rng, need_rev=False)
+            if pdf:
+                out[pos] = pf
+            else:
+                out[:, pos] = v
         return out
 
     # ------------------------------------------------------------------ queries
@@ -113,16 +121,27 @@ class LayeredBSDF(BSDF):
         est = estimator or self.options.estimator
         valid = np.flatnonzero(self._valid(wi, wo))
         for idx, stack in self._chunks_of(valid):
-            a, b = wi[idx], wo[idx]
+            a, b = np.ascontiguousarray(wi[idx].T), np.ascontiguousarray(wo[idx].T)
             f = self._single(stack, a, b, rng, pdf=False)
             if stack.N > 1:
                 L = self._walk(stack, a, rng).records
-                if est == "uni":
+                uni = est == "uni"
+                if uni:
                     f += unidirectional(stack, b, L, rng)
+                    # NEE through the exit interface needs a non-delta interface at the exit or
+                    # across the slab next to it; otherwise the paths "medium → specular → specular
+                    # exit" have no unidirectional strategy: use the bidirectional estimator.
+                    need_bi = np.flatnonzero(np.where(b[2] > 0, self._uni_blind_top, self._uni_blind_bottom))
+                    if need_bi.size:
+                        Lb = self._walk(stack.take(need_bi), a[:, need_bi], rng).records
+                        Rb = self._walk(stack.take(need_bi), b[:, need_bi], rng).records
+                        f[:, need_bi] = self._single(stack.take(need_bi), a[:, need_bi], b[:, need_bi],
+                                                     rng, pdf=False) + bidirectional(
+                            stack.take(need_bi), b[:, need_bi], Lb, Rb, rng) * np.abs(b[2, need_bi])
                 else:
                     R = self._walk(stack, b, rng).records
-                    f += bidirectional(stack, b, L, R, rng) * np.abs(b[:, 2])[:, None]
-            out[idx] = f
+                    f += bidirectional(stack, b, L, R, rng) * np.abs(b[2])
+            out[idx] = f.T
         return out * self._mode_factor(wi, wo, mode)[:, None]
 
     def pdf(self, wi, wo, rng, mode=RADIANCE, kind: str | None = None):
@@ -132,17 +151,17 @@ class LayeredBSDF(BSDF):
         valid = np.flatnonzero(self._valid(wi, wo))
         approx = kind != "stochastic"
         for idx, stack in self._chunks_of(valid):
-            a, b = wi[idx], wo[idx]
+            a, b = np.ascontiguousarray(wi[idx].T), np.ascontiguousarray(wo[idx].T)
             p = self._single(stack, a, b, rng, pdf=True)
             if stack.N > 1:
                 nmax = None
                 cap = self.options.max_vertices
                 if approx:
                     slabs = stack.N - 1
-                    nmax = np.where(a[:, 2] * b[:, 2] > 0, 2 * slabs + 1, slabs + 1)
+                    nmax = np.where(a[2] * b[2] > 0, 2 * slabs + 1, slabs + 1)
                     cap = 2 * slabs
-                L = walk(stack, a, rng, approx=approx, max_vertices=cap)
-                R = walk(stack, b, rng, approx=approx, max_vertices=cap)
+                L = walk(stack, a, rng, approx=approx, max_vertices=cap, purpose="pdf")
+                R = walk(stack, b, rng, approx=approx, max_vertices=cap, purpose="pdf")
                 if not approx:
                     self._note(L)
                     self._note(R)
@@ -153,21 +172,23 @@ class LayeredBSDF(BSDF):
             out[idx] = p
         return out
 
-    def sample(self, wi, rng, mode=RADIANCE) -> BSDFSample:
+    def sample(self, wi, rng, mode=RADIANCE, want_pdf: bool = True) -> BSDFSample:
+        """Forward walk from wi. ``want_pdf=False`` skips the MIS pdf estimate (e.g. for albedo
+        integration), leaving ``pdf`` 0."""
         n = wi.shape[0]
         wo = np.zeros((n, 3))
         weight = np.zeros((n, 3))
         delta = np.zeros(n, dtype=bool)
         valid = np.flatnonzero(self._valid(wi))
         for idx, stack in self._chunks_of(valid):
-            r = self._walk(stack, wi[idx], rng, record=False)
-            wo[idx] = r.exit_dir
-            weight[idx] = r.exit_weight
+            r = self._walk(stack, np.ascontiguousarray(wi[idx].T), rng, record=False, rr=RR_SAMPLE)
+            wo[idx] = r.exit_dir.T
+            weight[idx] = r.exit_weight.T
             delta[idx] = r.exit_delta
         exited = np.any(weight > 0, axis=1)
         weight *= self._mode_factor(wi, wo, mode)[:, None]
         pdf = np.zeros(n)
-        need = np.flatnonzero(exited & ~delta)
+        need = np.flatnonzero(exited & ~delta) if want_pdf else np.zeros(0, dtype=np.int64)
         if need.size:
             sub = self if need.size == n else self.take(need)
             pdf[need] = sub.pdf(wi[need], wo[need], rng, mode)
@@ -179,19 +200,8 @@ class LayeredBSDF(BSDF):
         rng = np.random.default_rng(self.n)
         wi = np.zeros((self.n, 3))
         wi[:, 2] = 1.0
-        s = self.sample(wi, rng, IMPORTANCE)
+        s = self.sample(wi, rng, IMPORTANCE, want_pdf=False)
         return np.where((s.wo[:, 2] > 0)[:, None], s.weight, 0.0)
 
     def take(self, idx) -> "LayeredBSDF":
         return LayeredBSDF(self.stack.take(idx), self.options, self.stats)
-
-    # ------------------------------------------------------------------ internal
-    def _chunks_of(self, lanes: np.ndarray):
-        if lanes.size == 0:
-            return
-        if lanes.size == self.n:
-            yield from self._chunks(lanes)
-            return
-        for start in range(0, lanes.size, CHUNK):
-            idx = lanes[start:start + CHUNK]
-            yield idx, self.stack.take(idx)

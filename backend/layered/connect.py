@@ -32,11 +32,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..materials.base import IMPORTANCE
 from .stack import GRAZING, BoundStack
 from .walk import Records
 
-MAX_PAIRS = 1 << 20  # connections processed at once (memory bound)
+MAX_PAIRS = 1 << 19  # connections processed at once (memory bound)
 
 
 def safe_div(a, b):
@@ -46,43 +45,45 @@ def safe_div(a, b):
 
 def eval_vertex(stack: BoundStack, rec: Records, rows: np.ndarray, w: np.ndarray,
                 rng: np.random.Generator, need_rev: bool = True):
-    """Vertex function of records ``rows`` for the outgoing direction ``w`` (pointing away from
-    the vertex): interface f(w_in → w)·|cos w| (importance) or phase p(−w_in → w); plus the
-    forward density of w given w_in and the reverse density of w_in given w."""
+    """Vertex function of records ``rows`` for the outgoing direction ``w`` ((3, m), pointing
+    away from the vertex): interface f(w_in → w)·|cos w| (importance) or phase p(−w_in → w);
+    plus the forward density of w given w_in and the reverse density of w_in given w."""
     m = rows.size
-    val = np.zeros((m, 3))
-    pf = np.zeros(m)
-    pr = np.zeros(m)
     kind = rec.kind[rows]
     layer = rec.layer[rows]
     lane = rec.lane[rows]
-    w_in = rec.w_in[rows]
+    w_in = rec.w_in[:, rows]
     N = stack.N
-    for l in range(N):
-        pos = np.flatnonzero((kind == 1) & (layer == l))
-        if not pos.size:
-            continue
-        b = stack.ifaces[l]
-        if getattr(b, "delta_only", False):
-            continue  # a delta vertex cannot be evaluated: value and densities 0
-        b = b.take(lane[pos])
-        wi, wo = w_in[pos], w[pos]
-        val[pos] = b.eval(wi, wo, rng, IMPORTANCE)
-        pf[pos] = b.pdf(wi, wo, rng, IMPORTANCE)
+    groups = [(1, l, np.flatnonzero((kind == 1) & (layer == l))) for l in range(N)]
+    if not np.all(kind == 1):
+        groups += [(0, k, np.flatnonzero((kind == 0) & (layer == k))) for k in range(N - 1)]
+    groups = [g for g in groups if g[2].size]
+    if len(groups) == 1:
+        return _eval_group(stack, groups[0][0], groups[0][1], lane, w_in, w, rng, need_rev)
+    val = np.zeros((3, m))
+    pf = np.zeros(m)
+    pr = np.zeros(m) if need_rev else None
+    for is_if, l, pos in groups:
+        v, f, r = _eval_group(stack, is_if, l, lane[pos], w_in[:, pos], w[:, pos], rng, need_rev)
+        val[:, pos] = v
+        pf[pos] = f
         if need_rev:
-            pr[pos] = b.pdf(wo, wi, rng, IMPORTANCE)
-    for k in range(N - 1):
-        pos = np.flatnonzero((kind == 0) & (layer == k))
-        if not pos.size:
-            continue
-        ph = stack.media[k].phase.take(lane[pos])
-        d_in, d_out = -w_in[pos], w[pos]
-        p = ph.eval(d_in, d_out)
-        val[pos] = p[:, None]
-        pf[pos] = p
-        if need_rev:
-            pr[pos] = ph.pdf(-d_out, -d_in)
+            pr[pos] = r
     return val, pf, pr
+
+
+def _eval_group(stack, is_if, l, lane, w_in, w, rng, need_rev):
+    if is_if:
+        ker = stack.kernels[l]
+        if ker.delta_only:
+            m = lane.size
+            return np.zeros((3, m)), np.zeros(m), np.zeros(m)
+        return ker.take(lane).eval(w_in, w, rng, need_rev)
+    ph = stack.slabs[l].phase.take(lane)
+    d_in, d_out = (-w_in).T, w.T
+    p = ph.eval(d_in, d_out)
+    pr = ph.pdf(-d_out, -d_in) if need_rev else None
+    return np.broadcast_to(p, (3, p.size)), p, pr
 
 
 def _A(X: Records, rows, valid, pdfrev, dens_in):
@@ -122,8 +123,8 @@ def _pairs(L: Records, R: Records, lanes: np.ndarray):
     start = np.repeat(np.cumsum(npair) - npair, npair)
     q = np.arange(total) - start
     cRp = R.count[pl]
-    iL = L.offset[pl] + q // cRp
-    iR = R.offset[pl] + q % cRp
+    iL = L.perm[L.offset[pl] + q // cRp]
+    iR = R.perm[R.offset[pl] + q % cRp]
     return pl, iL, iR
 
 
@@ -139,13 +140,14 @@ def _lane_batches(L: Records, R: Records):
 
 def bidirectional(stack: BoundStack, wo: np.ndarray, L: Records, R: Records, rng,
                   pdf_mode: bool = False, approx: bool = False, nmax: np.ndarray | None = None):
-    """Sum over all connections per lane: (n, 3) f·|cos θo| (without the single-interface term and
-    before any transport-mode factor) or, with ``pdf_mode``, (n,) the pdf estimate. ``nmax`` (per
-    lane) keeps only paths of at most that many vertices (approximate pdf)."""
+    """Sum over all connections per lane: (3, n) f·|cos θo| / |cos θo| (i.e. without the final
+    cosine, without the single-interface term and before any transport-mode factor) or, with
+    ``pdf_mode``, (n,) the pdf estimate. ``wo`` is (3, n). ``nmax`` (per lane) keeps only paths
+    of at most that many vertices (approximate pdf)."""
     n = L.n
-    out = np.zeros(n) if pdf_mode else np.zeros((n, 3))
+    out = np.zeros(n) if pdf_mode else np.zeros((3, n))
     N = stack.N
-    exit_top = wo[:, 2] > 0
+    exit_top = wo[2] > 0
     for lanes in _lane_batches(L, R):
         pl, iL, iR = _pairs(L, R, lanes)
         if not pl.size:
@@ -159,24 +161,25 @@ def bidirectional(stack: BoundStack, wo: np.ndarray, L: Records, R: Records, rng
         ok &= ~((kL == 1) & (kR == 1) & (yL == yR))
         if nmax is not None:
             ok &= (L.k[iL] + R.k[iR]) <= nmax[pl]
+        dt = R.t[iR] - L.t[iL]
         for u in (0, 1):
             if u == 0:
-                c = L.w_out[iL]
-                src = L.pdf_fwd[iL] > 0 if pdf_mode else np.any(L.thru1[iL] > 0, axis=1)
+                cz = L.w_out[2, iL]
+                src = L.pdf_fwd[iL] > 0 if pdf_mode else L.thru1[:, iL].max(axis=0) > 0
             else:
-                c = -R.w_out[iR]
-                src = R.pdf_fwd[iR] > 0 if pdf_mode else np.any(R.thru1[iR] > 0, axis=1)
-            dt = R.t[iR] - L.t[iL]
-            sel = np.flatnonzero(ok & src & (-c[:, 2] * dt > 0) & (np.abs(c[:, 2]) >= GRAZING))
+                cz = -R.w_out[2, iR]
+                src = R.pdf_fwd[iR] > 0 if pdf_mode else R.thru1[:, iR].max(axis=0) > 0
+            sel = np.flatnonzero(ok & src & (-cz * dt > 0) & (np.abs(cz) >= GRAZING))
             if not sel.size:
                 continue
-            contrib = _connect(stack, L, R, iL[sel], iR[sel], pl[sel], c[sel], slab[sel], u,
+            c = L.w_out[:, iL[sel]] if u == 0 else -R.w_out[:, iR[sel]]
+            contrib = _connect(stack, L, R, iL[sel], iR[sel], pl[sel], c, slab[sel], u,
                                exit_top, rng, pdf_mode, approx)
             if pdf_mode:
                 out += np.bincount(pl[sel], contrib, minlength=n)
             else:
                 for ch in range(3):
-                    out[:, ch] += np.bincount(pl[sel], contrib[:, ch], minlength=n)
+                    out[ch] += np.bincount(pl[sel], contrib[ch], minlength=n)
     return out
 
 
@@ -188,23 +191,41 @@ def _connect(stack, L, R, iL, iR, pl, c, slab, u, exit_top, rng, pdf_mode, appro
         v, pf, pr = eval_vertex(stack, R, iR, -c, rng)
     else:
         v, pf, pr = eval_vertex(stack, L, iL, c, rng)
-    live = (pf > 0) | np.any(v > 0, axis=1)
-    T = np.zeros((m, 3)) if not pdf_mode else None
+    T = np.ones(m) if pdf_mode else np.ones((3, m))
     pass_p = np.ones(m)
     dens_to_R = np.ones(m)
     dens_to_L = np.ones(m)
+    toR_med = R.kind[iR] == 0
+    toL_med = L.kind[iL] == 0
     for k in range(stack.N - 1):
-        pos = np.flatnonzero((slab == k) & live)
-        if not pos.size:
+        if stack.kinds[k] == 0 and not approx:
+            continue  # empty slab: transmittance and densities 1
+        whole = stack.N == 2
+        pos = None if whole else np.flatnonzero(slab == k)
+        if pos is not None and not pos.size:
             continue
-        lanes = pl[pos]
-        ck = c[pos]
+        sl = (lambda a: a) if whole else (lambda a: a[..., pos])
+        lanes, ck, t0, t1 = sl(pl), sl(c), sl(tL), sl(tR)
         if not pdf_mode:
-            T[pos] = stack.transmittance(k, lanes, ck, tL[pos], tR[pos])
+            Tk = stack.transmittance(k, lanes, ck, t0, t1)
+            if whole:
+                T = T * Tk
+            else:
+                T[:, pos] = Tk
         elif approx:
-            pass_p[pos] = stack.pass_probability(k, lanes, ck, tL[pos], tR[pos])
-        dens_to_R[pos] = stack.depth_density(k, lanes, ck, tL[pos], tR[pos], R.kind[iR[pos]] == 0, approx)
-        dens_to_L[pos] = stack.depth_density(k, lanes, -ck, tR[pos], tL[pos], L.kind[iL[pos]] == 0, approx)
+            pp = stack.pass_probability(k, lanes, ck, t0, t1)
+            if whole:
+                pass_p = pp
+            else:
+                pass_p[pos] = pp
+        if not approx and stack.kinds[k] == 2:
+            ops = stack.slabs[k].take(lanes)
+            a = ops.depth_pdf(ck, t0 - k, t1 - k, sl(toR_med))
+            b = ops.depth_pdf(-ck, t1 - k, t0 - k, sl(toL_med))
+            if whole:
+                dens_to_R, dens_to_L = a, b
+            else:
+                dens_to_R[pos], dens_to_L[pos] = a, b
     if u == 0:
         S_L = _S_sampled(L, iL, pf, dens_to_L)       # pf = pdf at R_j of sampling towards L_i
         S_R = _S_evaluated(R, iR, pr, dens_to_R)     # pr = pdf at R_j of R's own incoming
@@ -217,13 +238,10 @@ def _connect(stack, L, R, iL, iR, pl, c, slab, u, exit_top, rng, pdf_mode, appro
             up = _B(R, iR, pr, dens_to_R)
         else:
             up = safe_div(pf, R.pdf_fwd[iR]) * _B(R, iR, R.pdf_rev[iR], dens_to_R)
-        val = up * L.gamma[iL] * R.gamma[iR] * w_mis * pass_p
-        return np.where(live, val, 0.0)
-    inv_cos = 1.0 / np.abs(c[:, 2])
-    corr = stack.eta_corr(slab, exit_top[pl])
+        return up * L.gamma[iL] * R.gamma[iR] * w_mis * pass_p
+    scale = w_mis * stack.eta_corr(slab, exit_top[pl]) / np.abs(c[2])
     if u == 0:
-        val = L.thru1[iL] * v * R.thru0[iR]
+        val = L.thru1[:, iL] * R.thru0[:, iR]
     else:
-        val = L.thru0[iL] * v * R.thru1[iR]
-    val = val * T * (inv_cos * corr * w_mis)[:, None]
-    return np.where(live[:, None], val, 0.0)
+        val = L.thru0[:, iL] * R.thru1[:, iR]
+    return val * v * T * scale

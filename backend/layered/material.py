@@ -62,11 +62,12 @@ class LayeredMaterial(Material):
     type_name = "layered"
 
     def __init__(self, interfaces: list, media: list, eta_slab: list[float], eta_bottom: float,
-                 options: Options, emission=None):
+                 options: Options, emission=None, eta_top: float = 1.0):
         self.interfaces = interfaces        # Materials (bind → BSDF)
         self.media = media                  # MediumSpecs
         self.eta_slab = eta_slab
         self.eta_bottom = eta_bottom
+        self.eta_top = eta_top              # index above the stack (≠ 1 when nested)
         self.options = options
         self.emission = emission
         self.transmissive = _transmits(interfaces[-1])
@@ -84,7 +85,7 @@ class LayeredMaterial(Material):
             return self.interfaces[0].bind(ctx)
         ifaces = [m.bind(ctx) for m in self.interfaces]
         media = [m.bind(ctx.uv) for m in self.media]
-        stack = BoundStack(ctx.n, ifaces, media, self.eta_slab, self.eta_bottom)
+        stack = BoundStack.build(ctx.n, ifaces, media, self.eta_slab, self.eta_bottom, self.eta_top)
         return LayeredBSDF(stack, self.options, self.stats)
 
 
@@ -167,7 +168,7 @@ def parse_layered(node: Node, eta_above: float = 1.0) -> LayeredMaterial:
     emission = parse_emission(node)
     node.finish()
     eta_slab = etas[:-1] if n_media else []
-    return LayeredMaterial(interfaces, media, list(eta_slab), etas[-1], options, emission)
+    return LayeredMaterial(interfaces, media, list(eta_slab), etas[-1], options, emission, eta_above)
 
 
 @register("layered")

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..materials.base import IMPORTANCE
 from .connect import eval_vertex, safe_div
 from .stack import GRAZING, BoundStack
 from .walk import Records
@@ -34,31 +33,32 @@ def power(a, b):
 
 
 def unidirectional(stack: BoundStack, wo: np.ndarray, L: Records, rng) -> np.ndarray:
-    """(n, 3) sum of NEE and continuation terms per lane (importance transport, f·|cos θo|)."""
+    """(3, n) sum of NEE and continuation terms per lane (importance transport, f·|cos θo|);
+    ``wo`` is (3, n)."""
     n = L.n
     N = stack.N
-    out = np.zeros((n, 3))
+    out = np.zeros((3, n))
     if N < 2:
         return out
-    exit_top = wo[:, 2] > 0
+    exit_top = wo[2] > 0
     E = np.where(exit_top, 0, N - 1)
     slab_E = np.where(exit_top, 0, N - 2)
     face = np.where(exit_top, 1, N - 2)
     # One refraction sample through the exit interface per lane, from outside.
-    u = np.zeros((n, 3))
-    w_b = np.zeros((n, 3))
+    u = np.zeros((3, n))
+    w_b = np.zeros((3, n))
     p_E = np.zeros(n)
     delta_E = np.zeros(n, dtype=bool)
     for e in (0, N - 1):
         lanes = np.flatnonzero(E == e)
         if not lanes.size:
             continue
-        s = stack.ifaces[e].take(lanes).sample(wo[lanes], rng, IMPORTANCE)
-        inward = s.wo[:, 2] * wo[lanes, 2] < 0
-        u[lanes] = s.wo
-        w_b[lanes] = np.where((inward & (np.abs(s.wo[:, 2]) >= GRAZING))[:, None], s.weight, 0.0)
-        p_E[lanes] = s.pdf
-        delta_E[lanes] = s.delta
+        d, w, pf, _, dl = stack.kernels[e].take(lanes).sample(wo[:, lanes], rng)
+        inward = (d[2] * wo[2, lanes] < 0) & (np.abs(d[2]) >= GRAZING)
+        u[:, lanes] = d
+        w_b[:, lanes] = np.where(inward, w, 0.0)
+        p_E[lanes] = pf
+        delta_E[lanes] = dl
     eta_corr = stack.eta_corr(slab_E, exit_top)
     lane = L.lane
     eligible = ((L.kind == 0) & (L.layer == slab_E[lane])) | ((L.kind == 1) & (L.layer == face[lane]))
@@ -69,46 +69,48 @@ def unidirectional(stack: BoundStack, wo: np.ndarray, L: Records, rng) -> np.nda
     t_E = E[ln].astype(np.float64)
     t_v = L.t[rows]
     # ------------------------------------------------------------------ NEE
-    nee = np.flatnonzero(np.any(w_b[ln] > 0, axis=1))
+    nee = np.flatnonzero(w_b[:, ln].max(axis=0) > 0)
     if nee.size:
         r, l2 = rows[nee], ln[nee]
-        d = -u[l2]  # from the vertex towards E (pointing away from the vertex)
+        d = -u[:, l2]  # from the vertex towards E (pointing away from the vertex)
         val, p_v, _ = eval_vertex(stack, L, r, d, rng, need_rev=False)
         T = _transmittance(stack, slab_E[l2], l2, d, t_v[nee], t_E[nee])
         w = np.where(delta_E[l2], 1.0, power(p_E[l2], p_v))
-        factor = np.abs(wo[l2, 2]) * safe_div(np.ones(nee.size), np.abs(u[l2, 2])) * eta_corr[l2] * w
-        c = L.thru0[r] * val * T * w_b[l2] * factor[:, None]
+        factor = np.abs(wo[2, l2]) * safe_div(np.ones(nee.size), np.abs(u[2, l2])) * eta_corr[l2] * w
+        c = L.thru0[:, r] * val * T * w_b[:, l2] * factor
         for ch in range(3):
-            out[:, ch] += np.bincount(l2, c[:, ch], minlength=n)
+            out[ch] += np.bincount(l2, c[ch], minlength=n)
     # ------------------------------------------------------------------ continuation
-    d = L.w_out[rows]
-    heads = np.where(exit_top[ln], d[:, 2] > 0, d[:, 2] < 0) & np.any(L.thru1[rows] > 0, axis=1)
+    dz = L.w_out[2, rows]
+    heads = np.where(exit_top[ln], dz > 0, dz < 0) & (L.thru1[:, rows].max(axis=0) > 0)
     cont = np.flatnonzero(heads)
     if cont.size:
-        r, l2, dc = rows[cont], ln[cont], d[cont]
+        r, l2 = rows[cont], ln[cont]
+        dc = L.w_out[:, r]
         T = _transmittance(stack, slab_E[l2], l2, dc, t_v[cont], t_E[cont])
-        fE = np.zeros((cont.size, 3))
+        fE = np.zeros((3, cont.size))
         pE = np.zeros(cont.size)
         for e in (0, N - 1):
             pos = np.flatnonzero(E[l2] == e)
             if not pos.size:
                 continue
-            b = stack.ifaces[e]
-            if getattr(b, "delta_only", False):
+            ker = stack.kernels[e]
+            if ker.delta_only:
                 continue
-            b = b.take(l2[pos])
-            fE[pos] = b.eval(-dc[pos], wo[l2[pos]], rng, IMPORTANCE)
-            pE[pos] = b.pdf(wo[l2[pos]], -dc[pos], rng, IMPORTANCE)
+            # Flow −dc → wo at E; the density of E's sampler from wo towards −dc is its reverse.
+            v, _, pr = ker.take(l2[pos]).eval(-dc[:, pos], wo[:, l2[pos]], rng)
+            fE[:, pos] = v
+            pE[pos] = pr
         w = np.where(L.delta[r], 1.0, power(L.pdf_fwd[r], pE))
-        c = L.thru1[r] * T * fE * w[:, None]
+        c = L.thru1[:, r] * T * fE * w
         for ch in range(3):
-            out[:, ch] += np.bincount(l2, c[:, ch], minlength=n)
+            out[ch] += np.bincount(l2, c[ch], minlength=n)
     return out
 
 
 def _transmittance(stack: BoundStack, slab, lanes, d, t0, t1):
-    T = np.zeros((d.shape[0], 3))
+    T = np.zeros((3, d.shape[1]))
     for k in np.unique(slab):
         pos = np.flatnonzero(slab == k)
-        T[pos] = stack.transmittance(int(k), lanes[pos], d[pos], t0[pos], t1[pos])
+        T[:, pos] = stack.transmittance(int(k), lanes[pos], d[:, pos], t0[pos], t1[pos])
     return T

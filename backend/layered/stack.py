@@ -6,7 +6,8 @@ depth 0 (top) … 1 (bottom), so a medium vertex at normalised depth s in slab k
 Directions are in the material's local frame (z up); travelling along d changes t by −d_z per
 unit length.
 
-Refractive indices: ``eta_top`` = 1 (outside above), ``eta_slab[k]`` the index of slab k,
+Refractive indices: ``eta_top`` the index outside above (1, or the coating's for a nested stack),
+``eta_slab[k]`` the index of slab k,
 ``eta_bottom`` the index outside below (meaningful only for transmissive stacks).
 
 Slab kinds, decided at bind time from constants ("skip what is not needed"):
@@ -64,25 +65,40 @@ def slab_kind(medium) -> int:
 
 
 class BoundStack:
-    """Interfaces (lane-bound BSDFs) and media (lane-bound ``layered.medium.Medium``)."""
+    """Interface kernels (kernels.py) and slab operators (slab.py) bound to n lanes.
 
-    def __init__(self, n: int, ifaces: list, media: list, eta_slab, eta_bottom: float,
-                 kinds: list[int] | None = None):
+    Vectors are (3, m) arrays (one row per component) throughout the layered package.
+    """
+
+    def __init__(self, n: int, kernels: list, slabs: list, eta_slab, eta_bottom: float,
+                 kinds: list[int], bsdfs: list | None = None, eta_top: float = 1.0):
         self.n = n
-        self.ifaces = ifaces
-        self.media = media
-        self.N = len(ifaces)
-        self.eta_top = 1.0
+        self.kernels = kernels
+        self.slabs = slabs          # SlabOps, or None for an empty slab
+        self.kinds = kinds
+        self.bsdfs = bsdfs          # the bound interface BSDFs (kept for take/inspection)
+        self.N = len(kernels)
+        self.eta_top = float(eta_top)   # index above the stack (1; a coating's for a nested stack)
         self.eta_slab = np.asarray(eta_slab, dtype=np.float64).reshape(-1)
         self.eta_bottom = float(eta_bottom)
-        self.kinds = kinds if kinds is not None else [slab_kind(m) for m in media]
-        self.transmissive = bool(getattr(ifaces[-1], "transmissive", False))
+        self.transmissive = bool(kernels[-1].transmissive)
+
+    @classmethod
+    def build(cls, n: int, ifaces: list, media: list, eta_slab, eta_bottom: float,
+              eta_top: float = 1.0) -> "BoundStack":
+        from .kernels import kernel_for
+        from .slab import SlabOps
+        kinds = [slab_kind(m) for m in media]
+        slabs = [None if k == EMPTY else SlabOps(m) for k, m in zip(kinds, media)]
+        return cls(n, [kernel_for(b) for b in ifaces], slabs, eta_slab, eta_bottom, kinds, ifaces,
+                   eta_top)
 
     def take(self, idx) -> "BoundStack":
         idx = np.asarray(idx)
         n = int(idx.sum()) if idx.dtype == bool else idx.size
-        return BoundStack(n, [b.take(idx) for b in self.ifaces], [m.take(idx) for m in self.media],
-                          self.eta_slab, self.eta_bottom, self.kinds)
+        return BoundStack(n, [k.take(idx) for k in self.kernels],
+                          [None if s is None else s.take(idx) for s in self.slabs],
+                          self.eta_slab, self.eta_bottom, self.kinds, None, self.eta_top)
 
     def eta_corr(self, slab: np.ndarray, exit_top: np.ndarray) -> np.ndarray:
         """(η_exit-side / η_slab)²: converts subpaths sampled from the exit direction (importance
@@ -92,42 +108,24 @@ class BoundStack:
         return (out / eta_k) ** 2
 
     # ------------------------------------------------------------------ slab transport
-    def transmittance(self, k: int, lane_idx, d, t0, t1) -> np.ndarray:
-        """(m, 3) transmittance in slab k from global depth t0 to t1 along d (0 if d does not
-        lead from t0 to t1)."""
-        kind = self.kinds[k]
-        if kind == EMPTY:
-            diff = (t1 - t0) * -d[:, 2]
-            ok = (diff > 0) | (t1 == t0)
-            return np.where((ok & (np.abs(d[:, 2]) >= GRAZING))[:, None], 1.0, np.zeros((d.shape[0], 3)))
-        med = self.media[k].take(lane_idx)
-        return med.transmittance(d, t0 - k, t1 - k)
+    def transmittance(self, k: int, lane_idx, d, t0, t1):
+        """Transmittance in slab k from global depth t0 to t1 along d ((3, m) or (m,); 0 if d
+        does not lead from t0 to t1)."""
+        if self.kinds[k] == EMPTY:
+            diff = t1 - t0
+            ok = ((diff * -d[2] > 0) & (np.abs(d[2]) >= GRAZING)) | (diff == 0)
+            return ok * 1.0
+        return self.slabs[k].take(lane_idx).transmittance(d, t0 - k, t1 - k)
 
     def depth_density(self, k: int, lane_idx, d, t0, t1, to_medium, approx: bool) -> np.ndarray:
         """(m,) density of sampling depth t1 from t0 along d by a free flight in slab k: per unit
         depth if ``to_medium`` else the probability of reaching the interface. Slabs crossed
         without sampling (empty, absorbing, or all slabs in the approximate pdf) give 1."""
         if approx or self.kinds[k] != SCATTERING:
-            return np.ones(d.shape[0])
-        med = self.media[k].take(lane_idx)
-        return med.free_flight_pdf(t0 - k, t1 - k, d, to_medium)
+            return np.ones(d.shape[1])
+        return self.slabs[k].take(lane_idx).depth_pdf(d, t0 - k, t1 - k, to_medium)
 
     def pass_probability(self, k: int, lane_idx, d, t0, t1) -> np.ndarray:
         """(m,) channel-averaged transmittance (the approximate pdf's attenuation of a slab)."""
-        if self.kinds[k] == EMPTY:
-            return np.ones(d.shape[0])
-        return self.transmittance(k, lane_idx, d, t0, t1).mean(axis=1)
-
-
-def group_indices(keys: np.ndarray, values) -> list[tuple[int, np.ndarray]]:
-    """[(value, positions where keys == value)] for the values present (a loop over layers)."""
-    out = []
-    for v in values:
-        pos = np.flatnonzero(keys == v)
-        if pos.size:
-            out.append((v, pos))
-    return out
-
-
-def lanes_of(value, idx):
-    return lanes(value, idx)
+        T = self.transmittance(k, lane_idx, d, t0, t1)
+        return T.mean(axis=0) if T.ndim == 2 else T

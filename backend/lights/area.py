@@ -149,7 +149,37 @@ class AreaLight(Light):
         return mode, u0, u1, v0, v1, sr, solid
 
     # ------------------------------------------------------------------ NEE
+    def _whole_rectangle(self) -> bool:
+        """The common case (rectangle, no cutoff cone): every lane samples the whole emitter."""
+        return not self.geo.ellipse and not np.isfinite(self.profile.tan_max)
+
+    def _sample_whole_rectangle(self, p, u) -> LightSample:
+        """Fast path of ``sample`` for ``_whole_rectangle`` lights: no per-mode masking."""
+        g = self.geo
+        n = p.shape[0]
+        corner = g.center - g.half_u * g.axis_u - g.half_v * g.axis_v
+        sr = spherical_rect(p, corner, g.axis_u, g.axis_v, g.len_u, g.len_v)
+        x = sample_spherical_rect(sr, u)
+        pdf_sa = safe_div(1.0, sr.solid_angle)
+        small = sr.solid_angle < MIN_SOLID_ANGLE
+        if small.any():
+            # Tiny solid angles: uniform area sampling (see MIN_SOLID_ANGLE).
+            x[small] = corner + (u[small, 0] * g.len_u)[:, None] * g.axis_u + (u[small, 1] * g.len_v)[:, None] * g.axis_v
+        v = x - p
+        t = np.sqrt(dot(v, v))
+        wi = v / np.where(t > 0, t, 1.0)[:, None]
+        cos_out = -dot(wi, g.normal)
+        if small.any():
+            pdf_sa = np.where(small, safe_div(t * t, cos_out * g.area), pdf_sa)
+        _, _, h = g.local(p)
+        ok = (h > 0) & (t > 0) & (cos_out > 0) & (pdf_sa > 0) & self.emits
+        le = self.radiance(np.where(ok, cos_out, 0.0))
+        value = np.where(ok[:, None], le * safe_div(1.0, pdf_sa)[:, None], 0.0)
+        return LightSample(wi, np.where(ok, t, 0.0), value, np.where(ok, pdf_sa, 0.0))
+
     def sample(self, p, u) -> LightSample:
+        if self._whole_rectangle():
+            return self._sample_whole_rectangle(p, u)
         n = p.shape[0]
         g = self.geo
         mode, u0, u1, v0, v1, sr, solid = self._plan(p)
@@ -218,6 +248,13 @@ class AreaLight(Light):
 
     def pdf_hit(self, o, d, t):
         g = self.geo
+        if self._whole_rectangle():
+            corner = g.center - g.half_u * g.axis_u - g.half_v * g.axis_v
+            solid = spherical_rect(o, corner, g.axis_u, g.axis_v, g.len_u, g.len_v).solid_angle
+            cos_out = -dot(d, g.normal)
+            pdf = np.where(solid < MIN_SOLID_ANGLE, safe_div(t * t, cos_out * g.area), safe_div(1.0, solid))
+            _, _, h = g.local(o)
+            return np.where((cos_out > 0) & (h > 0), pdf, 0.0)
         mode, u0, u1, v0, v1, _, solid = self._plan(o)
         x = o + t[:, None] * d
         lu, lv, _ = g.local(x)

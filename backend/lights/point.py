@@ -14,7 +14,9 @@ shapes (``use_soft_falloff``):
   I/(d² + r²) instead of I/d², hence the name.
 
 A directional factor (spot cone, IES profile) multiplies the emission along the direction the
-light travels, in the light's local frame — see ``PointLight.directional_factor``. Inside a sphere
+light travels, in the light's local frame — see ``PointLight.directional_factor``. A profile is a
+callable ``profile(local_dirs (n, 3)) -> (n,)``; if it has ``mean_factor(matrix, weight)`` that
+gives its exact mean over the world sphere for light selection. Inside a sphere
 light Cycles applies no directional factor, and neither do we.
 """
 from __future__ import annotations
@@ -77,9 +79,6 @@ class PointLight(Light):
             out *= f[:, None]
         return out
 
-    #: Directional weight besides the profile (a spot cone), on local directions; None = 1.
-    _cone_weight = None
-
     def _mean_factor(self, z_lo: float = -1.0, breaks=()) -> float:
         """Mean directional factor over the world sphere of directions (light selection only).
 
@@ -89,9 +88,6 @@ class PointLight(Light):
         """
         if self.directional_factor(np.array([[0.0, 0.0, -1.0]])) is None:
             return 1.0
-        if self.profile is not None and hasattr(self.profile, "mean_factor"):
-            # Profiles (IES) integrate their own table exactly, cell by cell.
-            return self.profile.mean_factor(self._linear, weight=self._cone_weight)
         xn, xw = np.polynomial.legendre.leggauss(48)
         edges = np.unique(np.clip([z_lo, *breaks, 1.0], z_lo, 1.0))
         z = np.concatenate([0.5 * (b - a) * xn + 0.5 * (a + b) for a, b in zip(edges[:-1], edges[1:])])
@@ -110,8 +106,17 @@ class PointLight(Light):
         # Not clamped to 1: an IES beam that concentrates flux has a mean factor of flux/177.83 lm.
         return max(mean, 0.0)
 
+    def _profile_mean(self, weight=None):
+        """A profile's own mean over the world sphere (``mean_factor(matrix, weight)``, exact for
+        IES tables), or None when it has none."""
+        mean_factor = getattr(self.profile, "mean_factor", None)
+        if mean_factor is None:
+            return None
+        return max(float(mean_factor(self._linear, weight)), 0.0)
+
     def power(self) -> float:
-        return power_luminance(self.color, self.watts) * self._mean_factor()
+        mean = self._profile_mean()
+        return power_luminance(self.color, self.watts) * (mean if mean is not None else self._mean_factor())
 
     # ------------------------------------------------------------------ sampling
     def sample(self, p: np.ndarray, u: np.ndarray) -> LightSample:

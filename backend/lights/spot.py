@@ -68,12 +68,13 @@ class SpotLight(PointLight):
             f = f * np.asarray(self.profile(local), dtype=np.float64)
         return f
 
-    def _cone_weight(self, local: np.ndarray) -> np.ndarray:
-        return spot_attenuation(-local[:, 2], self.cos_half, self.spot_smooth)
-
     def power(self) -> float:
-        kink = self.cos_half + (1.0 - self.cos_half) * self.spot_blend   # end of the smoothstep
-        return power_luminance(self.color, self.watts) * self._mean_factor(self.cos_half, (kink,))
+        mean = self._profile_mean(
+            lambda local: spot_attenuation(-local[:, 2], self.cos_half, self.spot_smooth))
+        if mean is None:
+            kink = self.cos_half + (1.0 - self.cos_half) * self.spot_blend   # end of the smoothstep
+            mean = self._mean_factor(self.cos_half, (kink,))
+        return power_luminance(self.color, self.watts) * mean
 
 
 @register("spot")
