@@ -61,6 +61,8 @@ def _preset_files(folder: Path) -> list[Path]:
 
 
 def find_preset(name: str) -> Path | None:
+    if not name or "/" in name or "\\" in name or name.startswith("."):
+        return None            # a name, never a path (no escaping the preset folders)
     for folder in preset_dirs():
         direct = folder / f"{name}.json"
         if direct.is_file():

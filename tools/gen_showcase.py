@@ -11,7 +11,7 @@ Four objects on a lacquered table (issue 6, deliverable 6):
   * a ring (torus) of gold under a brushed coat: an anisotropic rough dielectric over a
     homogeneous medium over a very rough conductor;
 lit by an IES spot (ERCO "defined spot", from tests/data/ies, copied next to the scene) from
-above and a directional area light (cutoff 35°, beam 20°) from the front left, with a dim fill.
+above and a directional area light (cutoff 40°, beam 25°) from the left, with a dim fill.
 
 Materials are referenced by preset name (presets/), so the scene shows the library in use.
 Lathe meshes (vase, cup) and the torus carry UVs whose u runs around the axis, so anisotropy
@@ -147,7 +147,7 @@ def scene() -> dict:
     eye, target = np.array([0.12, -1.55, 1.3]), np.array([0.03, 0.06, 0.88])
     hw, hh = 0.42, 0.42 * 9 / 16
     spot_at = np.array([0.02, 0.05, 2.05])
-    box_at = np.array([-1.25, -0.95, 1.45])
+    box_at = np.array([-2.1, -0.5, 1.55])
     legs = [(sx * 0.74, sy * 0.36) for sx in (-1, 1) for sy in (-1, 1)]
     return {
         "format": "lamina-scene", "version": 1,
@@ -193,11 +193,11 @@ def scene() -> dict:
         ],
         "lights": [
             {"type": "point", "_comment": "IES spot straight down onto the table (ERCO defined spot, 1908 lm)",
-             "to_world": translate(*spot_at), "power": 0.12, "color": [1.0, 0.9, 0.78],
+             "to_world": translate(*spot_at), "power": 0.4, "color": [1.0, 0.9, 0.78],
              "ies": {"file": "erco_defined_spot_lm95.ies"}},
-            {"type": "area", "_comment": "directional soft box: full radiance within 20° of its axis, none beyond 35°",
+            {"type": "area", "_comment": "directional soft box: full radiance within 25° of its axis, none beyond 40°",
              "to_world": look_at(box_at, target), "shape": "rectangle", "size": 0.9, "size_y": 0.6,
-             "power": 8.0, "color": [0.85, 0.92, 1.0], "cutoff_angle": 35.0, "beam_width": 20.0},
+             "power": 12.0, "color": [0.85, 0.92, 1.0], "cutoff_angle": 40.0, "beam_width": 25.0},
         ],
         "world": {"type": "constant", "color": [0.035, 0.04, 0.05], "strength": 1.0},
     }
