@@ -104,6 +104,7 @@ class PathTracer:
         tmax = tmax - tmin
 
         L = np.zeros((n, 3))
+        alpha = np.zeros(n)       # coverage: 1 where the camera ray hit a (non-holdout) surface
         albedo = np.zeros((n, 3))
         normal = np.zeros((n, 3))
         lane = np.arange(n)
@@ -121,9 +122,14 @@ class PathTracer:
             t_surf = np.where(prim >= 0, t, np.inf)
             self._add_light_hits(L, lane, o, d, np.minimum(t_surf, tmax), beta, prev_pdf, prev_delta, segment)
             miss = prim < 0
-            if miss.any() and self.infinite:
+            if miss.any() and self.infinite and not (camera_ray and self.scene.transparent):
                 self._add_escaped(L, lane[miss], d[miss], beta[miss], prev_pdf[miss], prev_delta[miss], segment)
             hit = ~miss
+            if camera_ray:
+                # Holdout objects are black, transparent holes for camera rays (as in Cycles);
+                # they still cast shadows and show in reflections.
+                hit[hit] = ~self.soup.holdout[prim[hit]]
+                alpha[lane[hit]] = 1.0
             lane, o, d, beta, prev_pdf, prev_delta = lane[hit], o[hit], d[hit], beta[hit], prev_pdf[hit], prev_delta[hit]
             prim, t, b1, b2 = prim[hit], t[hit], b1[hit], b2[hit]
             if lane.size == 0:
@@ -148,6 +154,7 @@ class PathTracer:
             "albedo": albedo.reshape(P, spp, 3).sum(axis=1),
             "normal": normal.reshape(P, spp, 3).sum(axis=1),
             "count": np.full(P, spp, dtype=np.int64),
+            "alpha": alpha.reshape(P, spp).sum(axis=1),
         }
 
     # ------------------------------------------------------------------ geometry
