@@ -236,11 +236,4 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
 CLASSES = (LaminaRenderEngine,)
 
 
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -269,11 +269,4 @@ class LAMINA_MT_material_presets(bpy.types.Menu):
 CLASSES = (LAMINA_OT_preset_apply, LAMINA_OT_preset_save, LAMINA_MT_material_presets)
 
 
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

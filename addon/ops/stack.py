@@ -171,11 +171,4 @@ CLASSES = (LAMINA_OT_stack_add, LAMINA_OT_stack_remove, LAMINA_OT_stack_duplicat
            LAMINA_OT_stack_move, LAMINA_OT_stack_new)
 
 
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -115,11 +115,4 @@ class LAMINA_PT_light_ies(LaminaPanel, bpy.types.Panel):
 CLASSES = (LAMINA_PT_light, LAMINA_PT_light_beam, LAMINA_PT_light_ies)
 
 
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

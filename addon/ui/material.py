@@ -230,11 +230,4 @@ class LAMINA_PT_material_emission(LaminaPanel, bpy.types.Panel):
 CLASSES = (LAMINA_UL_layers, LAMINA_PT_material_surface, LAMINA_PT_material_emission)
 
 
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

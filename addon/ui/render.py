@@ -100,11 +100,4 @@ CLASSES = (LAMINA_PT_sampling, LAMINA_PT_light_paths, LAMINA_PT_film, LAMINA_PT_
            LAMINA_PT_advanced)
 
 
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -38,11 +38,4 @@ class LAMINA_PT_world_surface(LaminaPanel, bpy.types.Panel):
 CLASSES = (LAMINA_PT_world_surface,)
 
 
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)
