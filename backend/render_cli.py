@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -120,12 +119,12 @@ def cmd_render(args) -> int:
             printer.emit({"event": "warning", "message": w})
         source = str(Path(args.scene).resolve())
 
-        partial_cb = None
-        if args.partial:
-            def partial_cb(film, spp_done):
-                _write_partial(Path(args.partial), film)
-                printer.emit({"event": "partial", "path": str(Path(args.partial).resolve()), "spp": spp_done})
-        renderer = Renderer(scene, source, options, printer.emit, partial_cb, args.partial_interval)
+        def write_partial(film, spp_done):
+            _write_partial(Path(args.partial), film)
+            printer.emit({"event": "partial", "path": str(Path(args.partial).resolve()), "spp": spp_done})
+
+        renderer = Renderer(scene, source, options, printer.emit, write_partial if args.partial else None,
+                            args.partial_interval)
         install_signal_handlers(renderer)
         result = renderer.run()
         write_outputs(result, output, args.png, args.half)
