@@ -60,10 +60,11 @@ def _preset_files(folder: Path) -> list[Path]:
     return out
 
 
-def find_preset(name: str) -> Path | None:
+def find_preset(name: str, dirs=None) -> Path | None:
+    """The file of preset ``name`` in ``dirs`` (default: ``preset_dirs()``), first match wins."""
     if not name or "/" in name or "\\" in name or name.startswith("."):
         return None            # a name, never a path (no escaping the preset folders)
-    for folder in preset_dirs():
+    for folder in (preset_dirs() if dirs is None else [Path(d) for d in dirs]):
         direct = folder / f"{name}.json"
         if direct.is_file():
             return direct
@@ -73,10 +74,12 @@ def find_preset(name: str) -> Path | None:
     return None
 
 
-def list_presets() -> list[Path]:
-    """Every preset file, one per name (earlier folders shadow later ones), sorted by name."""
+def list_presets(dirs=None) -> list[Path]:
+    """Every preset file, one per name (earlier folders shadow later ones), sorted by name.
+
+    ``dirs`` replaces ``preset_dirs()`` (the add-on passes its user folder and the shipped one)."""
     seen, out = set(), []
-    for folder in preset_dirs():
+    for folder in (preset_dirs() if dirs is None else [Path(d) for d in dirs]):
         for p in _preset_files(folder):
             if p.stem not in seen:
                 seen.add(p.stem)

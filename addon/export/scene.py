@@ -18,6 +18,7 @@ from .images import ImageExporter, safe_name
 from .lights import light_json
 from .mesh import mesh_arrays, sanitise, write_npz
 from .nodes import DEFAULT_MATERIAL, NodeTranslator
+from .preset_link import edited_note
 from .stack import StackError, stack_json
 from .world import world_json
 
@@ -123,6 +124,9 @@ class SceneExporter:
     def material_json(self, mat) -> dict:
         settings = getattr(mat, "lamina", None)
         if settings is not None and settings.use_stack:
+            note = edited_note(mat)
+            if note:
+                self.notes.append(note)
             try:
                 return stack_json(mat, self.images)
             except StackError as exc:
