@@ -81,7 +81,9 @@ class ImageExporter:
     # -- internals
 
     def _target(self, image, suffix: str) -> Path:
-        return self._target_named(safe_name(Path(image.name).stem), suffix)
+        # The file's own name where there is one ("wood.png", not the data-block's "wood.png.001").
+        source = Path(bpy.path.basename(image.filepath)) if image.filepath else Path(image.name)
+        return self._target_named(safe_name(source.stem or Path(image.name).stem), suffix)
 
     def _target_named(self, base: str, suffix: str) -> Path:
         name = base + suffix

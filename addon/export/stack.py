@@ -34,7 +34,8 @@ def _colour(value, image, images):
 
 
 def _microfacet(layer, images) -> dict:
-    out = {"roughness": _scalar(alpha(layer.roughness), layer.roughness_texture, images, squared=True)}
+    out = {"roughness": _scalar(alpha(layer.roughness), layer.roughness_texture, images,
+                                squared=not layer.roughness_texture_alpha)}
     if layer.use_anisotropy:
         out["roughness_v"] = alpha(layer.roughness_v)
     out["distribution"] = layer.distribution.lower()

@@ -44,16 +44,19 @@ def apply_preset(material, path: Path) -> tuple[str, list[str]]:
     name, label, doc = library.read_document(path)
     dropped = material_from_json(material, doc, path.parent, label)
     preset_link.attach(material, name=name, label=label, path=path, doc=doc, dropped_fields=dropped)
+    material.update_tag()          # Python edits of ID properties do not tag the depsgraph themselves
     return label, dropped
 
 
 class _PresetImages(ImageExporter):
     """Images of a saved preset go to <user folder>/textures/<preset>/, referenced relative to
-    the preset file (as the preset format wants)."""
+    the preset file (as the preset format wants). They are first written to a staging folder,
+    so an overwritten preset's own images can still be read while the new version is made."""
 
-    def __init__(self, folder: Path, texture_dir: Path, notes: list[str]):
+    def __init__(self, folder: Path, texture_dir: Path, staging: Path, notes: list[str]):
         super().__init__(folder, True, notes)
         self.texture_dir = texture_dir
+        self.staging = staging
 
     def _target_named(self, base: str, suffix: str) -> Path:
         name = base + suffix
@@ -62,15 +65,19 @@ class _PresetImages(ImageExporter):
             n += 1
             name = f"{base}_{n}{suffix}"
         self._used_names.add(name)
-        self.texture_dir.mkdir(parents=True, exist_ok=True)
-        return self.texture_dir / name
+        self.staging.mkdir(parents=True, exist_ok=True)
+        return self.staging / name
+
+    def _relative(self, path: Path) -> str:
+        return super()._relative(self.texture_dir / Path(path).name)
 
 
 def save_preset(material, name: str, folder: Path, *, overwrite: bool = False, **meta) -> tuple[Path, list[str]]:
     """Write ``material``'s stack (or its unedited preset, exactly) as a user preset.
 
     Images are copied next to the preset. Returns (path, notes about images that could not be
-    saved). PresetError if the name is taken (and not ``overwrite``) or the material is invalid.
+    saved). PresetError if the name is taken (and not ``overwrite``) or the material is invalid;
+    a failed save leaves the previous version of the preset as it was.
     """
     folder = Path(folder)
     slug = library.slugify(name)
@@ -78,28 +85,46 @@ def save_preset(material, name: str, folder: Path, *, overwrite: bool = False, *
     if target.exists() and not overwrite:
         raise PresetError(f"a user preset named '{slug}' exists (tick Overwrite to replace it)")
     textures = library.texture_folder(folder, slug)
-    backup = textures.with_name(f".{textures.name}.old")
-    shutil.rmtree(backup, ignore_errors=True)
-    if textures.exists():
-        textures.rename(backup)
+    staging = textures.with_name(f".{textures.name}.new")
+    old_textures = textures.with_name(f".{textures.name}.old")
+    old_file = target.with_name(f".{target.name}.old")
+    for leftover in (staging, old_textures):
+        shutil.rmtree(leftover, ignore_errors=True)
     notes: list[str] = []
     was_exact = preset_link.state(material) == preset_link.EXACT
     dropped = preset_link.dropped(material) if was_exact else []
     try:
+        doc = stack_json(material, _PresetImages(folder, textures, staging, notes))
+    except StackError as exc:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise PresetError(str(exc)) from None
+    # Swap in the new version, keeping the previous one aside until the new one has been checked.
+    if textures.exists():
+        textures.rename(old_textures)
+    if staging.exists():
+        staging.rename(textures)
+    if target.exists():
+        shutil.copy2(target, old_file)
+    try:
+        path = library.write(doc, name, folder, overwrite=overwrite, **meta)
         try:
-            doc = stack_json(material, _PresetImages(folder, textures, notes))
-        except StackError as exc:
-            raise PresetError(str(exc)) from None
-        path = library.save(doc, name, folder, overwrite=overwrite, **meta)
+            library.validate(path)
+        except BaseException:
+            path.unlink(missing_ok=True)
+            raise
     except BaseException:
         shutil.rmtree(textures, ignore_errors=True)
-        if backup.exists():
-            backup.rename(textures)
+        if old_textures.exists():
+            old_textures.rename(textures)
+        if old_file.exists():
+            old_file.replace(target)
         raise
-    shutil.rmtree(backup, ignore_errors=True)
+    shutil.rmtree(old_textures, ignore_errors=True)
+    old_file.unlink(missing_ok=True)
     library.clear_cache()
     saved = library.read_document(path)
     preset_link.attach(material, name=saved[0], label=saved[1], path=path, doc=saved[2], dropped_fields=dropped)
+    material.update_tag()
     return path, notes
 
 
@@ -232,6 +257,7 @@ class LAMINA_OT_preset_detach(bpy.types.Operator):
 
     def execute(self, context):
         preset_link.detach(context.material)
+        context.material.update_tag()
         return {"FINISHED"}
 
 

@@ -129,12 +129,20 @@ class Converter:
 
     def roughness(self, layer, itf: dict, path: str, default: float) -> None:
         a = itf.get("roughness", default)
-        if _is_number(a):
-            self.put(layer, "roughness", math.sqrt(max(float(a), 0.0)), f"{path}.roughness")
-        else:        # the editor's roughness texture holds r (squared on export), a preset's holds α
-            self.drop(f"{path}.roughness", "an α texture (the editor's roughness texture holds r = √α)")
-            layer.roughness = math.sqrt(default)
         layer.roughness_texture = None
+        layer.roughness_texture_alpha = False
+        if isinstance(a, dict):            # a file's roughness texture holds α: exported unsquared
+            scale = a.get("scale", 1.0)
+            if not _is_number(scale):
+                self.drop(f"{path}.roughness.scale", "a non-scalar scale")
+                scale = 1.0
+            self.put(layer, "roughness", math.sqrt(max(float(scale), 0.0)), f"{path}.roughness.scale")
+            layer.roughness_texture = self.image(a, f"{path}.roughness", colour=False)
+            layer.roughness_texture_alpha = True
+        elif _is_number(a):
+            self.put(layer, "roughness", math.sqrt(max(float(a), 0.0)), f"{path}.roughness")
+        else:
+            raise PresetError(f"{self.name}: {path}.roughness: unexpected value {a!r}")
         if "roughness_v" in itf:
             av = itf["roughness_v"]
             if _is_number(av):

@@ -8,7 +8,10 @@ that folder to the backend process as ``LAMINA_PRESET_PATH``.
 """
 from __future__ import annotations
 
+import json
 import shutil
+import subprocess
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,6 +24,7 @@ from .. import preferences
 SHIPPED = lib.SHIPPED
 USER_CATEGORY = "user"
 USER_TEXTURES = "textures"          # <user folder>/textures/<preset name>/ holds a preset's images
+VALIDATE_TIMEOUT = 60.0             # seconds for the backend to check a preset (starting Python ~1 s)
 
 
 class PresetError(Exception):
@@ -119,7 +123,6 @@ def read_document(path: Path) -> tuple[str, str, dict]:
 
 
 def _bare_material(path: Path):
-    import json
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError):
@@ -131,12 +134,48 @@ def texture_folder(folder: Path, name: str) -> Path:
     return Path(folder) / USER_TEXTURES / lib.slugify(name)
 
 
-def save(material: dict, name: str, folder: Path, **meta) -> Path:
-    """Validate and write a user preset (backend.presets.save_user_preset); PresetError on failure."""
+def write(material: dict, name: str, folder: Path, **meta) -> Path:
+    """Write a user preset file (backend.presets.save_user_preset, without loading the material:
+    that needs the renderer's parsers, which stay out of Blender — see ``validate``)."""
     try:
-        return lib.save_user_preset(material, name, folder, **meta)
+        return lib.save_user_preset(material, name, folder, validate=False, **meta)
     except LaminaError as exc:
         raise PresetError(str(exc)) from None
+
+
+def python_executable() -> str:
+    prefs = preferences.get()
+    if prefs is not None and prefs.python_executable:
+        return bpy.path.abspath(prefs.python_executable)
+    return sys.executable
+
+
+def backend_environment() -> dict:
+    """The environment of a backend child process: its import paths and the user preset folder."""
+    from ..engine.job import child_environment          # bpy-free; engine ranks above presets
+    user = user_dir()
+    return child_environment({"LAMINA_PRESET_PATH": str(user)} if user is not None else None)
+
+
+def validate(path: Path) -> list[str]:
+    """Check a preset file with the backend in a child process (``presets validate --json``):
+    metadata, material schema, textures. Returns the warnings; PresetError with the backend's
+    message if the file would not load."""
+    cmd = [python_executable(), "-m", "backend", "presets", "validate", str(path), "--json"]
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=backend_environment(),
+                              timeout=VALIDATE_TIMEOUT, stdin=subprocess.DEVNULL)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise PresetError(f"cannot run the renderer to check the preset: {exc}") from None
+    try:
+        records = json.loads(proc.stdout)["presets"]
+    except (ValueError, KeyError, TypeError):
+        lines = [l for l in proc.stderr.splitlines() if l.strip()]
+        raise PresetError(lines[-1] if lines else f"the preset check exited with status {proc.returncode}") from None
+    bad = [r for r in records if not r.get("ok")]
+    if bad:
+        raise PresetError(str(bad[0].get("error")))
+    return [w for r in records for w in r.get("warnings", [])]
 
 
 def delete(name: str, folder: Path) -> None:

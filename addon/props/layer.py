@@ -54,6 +54,10 @@ class LaminaLayer(PropertyGroup):
     masking: EnumProperty(name="Masking", items=MASKINGS, default="HEIGHT_CORRELATED",
                           description="Microfacet masking-shadowing form")
     roughness_texture: _image_prop("Roughness Texture", "the roughness (stores r; squared on export)")
+    roughness_texture_alpha: BoolProperty(
+        name="Texture Holds α", default=False,
+        description="The roughness texture stores the microfacet α itself (as preset files do), "
+                    "not Blender's roughness r: it is not squared on export")
 
     # --- conductor
     metal: EnumProperty(name="Metal", items=METAL_ITEMS, default="Cu",

@@ -117,8 +117,11 @@ def draw_interface(layout, layer, index: int) -> None:
             col.prop(layer, "roughness_v")
         col.prop(layer, "distribution")
         col.prop(layer, "masking")
-        col.label(text=f"α = r² = {alpha(layer.roughness):.4g}" +
-                       (" (× texture²)" if layer.roughness_texture else ""))
+        if layer.roughness_texture:
+            col.prop(layer, "roughness_texture_alpha")
+        texture = (" (× texture)" if layer.roughness_texture_alpha else " (× texture²)") \
+            if layer.roughness_texture else ""
+        col.label(text=f"α = r² = {alpha(layer.roughness):.4g}{texture}")
 
 
 def draw_medium(layout, layer, index: int) -> None:
