@@ -12,6 +12,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import bpy
+
 from ..presets import library
 from .stack import StackError, stack_json
 
@@ -68,12 +70,16 @@ def detach(material) -> None:
         setattr(settings, prop, "")
 
 
+def preset_path(settings) -> Path:
+    return Path(bpy.path.abspath(settings.preset_file, library=settings.id_data.library))
+
+
 def base_dirs(settings) -> list[Path]:
     """Folders a linked preset's relative texture paths may be relative to: where the preset was
     read from, then where a preset of that name is found now (another machine, an updated add-on)."""
     out = []
-    if settings.preset_file:
-        out.append(Path(settings.preset_file).parent)
+    if settings.preset_file:       # may be relative to the .blend ("//..."), like image paths
+        out.append(preset_path(settings).parent)
     found = library.find(settings.preset_name) if settings.preset_name else None
     if found is not None and found.parent not in out:
         out.append(found.parent)

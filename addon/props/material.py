@@ -27,7 +27,7 @@ class LaminaMaterialSettings(PropertyGroup):
     preset_name: StringProperty(name="Preset", default="", options={'HIDDEN'},
                                 description="Name of the preset this stack was loaded from")
     preset_label: StringProperty(name="Preset Label", default="", options={'HIDDEN'})
-    preset_file: StringProperty(name="Preset File", default="", options={'HIDDEN'}, subtype='FILE_PATH',
+    preset_file: StringProperty(name="Preset File", default="", options={'HIDDEN'},
                                 description="Where the preset was read from (texture paths are relative to it)")
     preset_material: StringProperty(name="Preset Material", default="", options={'HIDDEN'},
                                      description="The preset's material JSON, exactly as in its file")

@@ -4,8 +4,6 @@ Panels are thin; ``draw_*`` functions take (layout, data) so they can be tested 
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 import bpy
 
 from ..constants import INTERFACE_KINDS
@@ -203,8 +201,8 @@ def draw_preset_link(layout, material) -> None:
             col.label(text=f"{len(dropped)} preset field(s) no longer rendered:", icon="ERROR")
         op = row.operator("lamina.preset_apply", text="", icon="FILE_REFRESH")
         op.name = settings.preset_name
-        op.filepath = settings.preset_file if settings.preset_file and \
-            Path(settings.preset_file).is_file() else ""
+        path = preset_link.preset_path(settings) if settings.preset_file else None
+        op.filepath = str(path) if path is not None and path.is_file() else ""
     row.operator("lamina.preset_detach", text="", icon="X")
     for field in dropped[:MAX_DROPPED_SHOWN]:
         col.label(text="    " + field)

@@ -66,9 +66,9 @@ def json_diff(a, b, dir_a: Path | None, dir_b: Path | None, path: str = "") -> l
 SKIP_ATTRS = {"stats", "source"}      # run counters; a texture's file name (its texels are compared)
 
 
-def object_diff(a, b, rtol: float, path: str = "material", seen=None) -> list[str]:
-    """Differences between two parsed materials (backend objects), recursively through their
-    attributes; numbers within ``rtol`` (0 = exactly equal)."""
+def object_diff(a, b, rtol: float, path: str = "value", seen=None, skip=SKIP_ATTRS) -> list[str]:
+    """Differences between two parsed backend objects (materials, lights), recursively through
+    their attributes; numbers within ``rtol`` (0 = exactly equal); attributes in ``skip`` ignored."""
     seen = set() if seen is None else seen
     if type(a) is not type(b):
         return [f"{path}: {type(a).__name__} vs {type(b).__name__}"]
@@ -88,18 +88,18 @@ def object_diff(a, b, rtol: float, path: str = "material", seen=None) -> list[st
     if isinstance(a, dict):
         if set(a) != set(b):
             return [f"{path}: keys {sorted(map(str, a))} vs {sorted(map(str, b))}"]
-        return [d for k in a if k not in SKIP_ATTRS for d in object_diff(a[k], b[k], rtol, f"{path}[{k!r}]", seen)]
+        return [d for k in a if k not in skip for d in object_diff(a[k], b[k], rtol, f"{path}[{k!r}]", seen, skip)]
     if isinstance(a, (list, tuple)):
         if len(a) != len(b):
             return [f"{path}: {len(a)} vs {len(b)} items"]
-        return [d for i, (x, y) in enumerate(zip(a, b)) for d in object_diff(x, y, rtol, f"{path}[{i}]", seen)]
+        return [d for i, (x, y) in enumerate(zip(a, b)) for d in object_diff(x, y, rtol, f"{path}[{i}]", seen, skip)]
     key = (id(a), id(b))
     if key in seen:
         return []
     seen.add(key)
     if hasattr(a, "__dict__"):
-        return object_diff({k: v for k, v in vars(a).items() if k not in SKIP_ATTRS},
-                           {k: v for k, v in vars(b).items() if k not in SKIP_ATTRS}, rtol, path, seen)
+        return object_diff({k: v for k, v in vars(a).items() if k not in skip},
+                           {k: v for k, v in vars(b).items() if k not in skip}, rtol, path, seen, skip)
     return [] if a == b else [f"{path}: {a!r} vs {b!r}"]
 
 
