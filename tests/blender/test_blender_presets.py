@@ -161,6 +161,11 @@ def test_shipped_presets_apply_and_export_as_the_backend_loads_them(results):
         reference = parse(doc, name, base)
         # Exported through the link: the very material of the preset file.
         assert not object_diff(reference, parse(rec["linked"], f"{name} (export)", base), 0.0), name
+        # A portable export copies the preset's textures next to the scene and still loads the same.
+        copied_dir = Path(rec["copied_dir"])
+        assert not object_diff(reference, parse(rec["copied"], f"{name} (copied)", copied_dir), 0.0), name
+        if "texture" in json.dumps(doc):
+            assert "/presets/" not in json.dumps(rec["copied"]) and (copied_dir / "textures").is_dir()
         # The stack the editor shows: equal within float32 storage exactly when nothing was dropped.
         stack_diff = object_diff(reference, parse(rec["stack"], f"{name} (stack)", base), FLOAT32_RTOL)
         assert bool(stack_diff) == bool(rec["dropped"]), (name, stack_diff[:3], rec["dropped"])

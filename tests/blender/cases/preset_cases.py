@@ -170,9 +170,11 @@ def shipped(tmp):
         mat = bpy.data.materials.new(entry.name)
         with bpy.context.temp_override(material=mat):
             status = bpy.ops.lamina.preset_apply(name=entry.name)
+        copied = export_dir(tmp, f"copied-{entry.name}")          # File > Export with Copy Textures
         out[entry.name] = {"status": list(status), "file": str(entry.path), "state": link.state(mat),
                            "dropped": link.dropped(mat), "linked": stack_export(mat, None, links=True),
-                           "stack": stack_export(mat, None, links=False)}
+                           "stack": stack_export(mat, None, links=False),
+                           "copied": stack_export(mat, copied, links=True), "copied_dir": str(copied)}
     return out
 
 
