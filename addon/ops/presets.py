@@ -173,7 +173,7 @@ class LAMINA_OT_preset_save(bpy.types.Operator):
     bl_idname = "lamina.preset_save"
     bl_label = "Save Current Stack as Preset"
     bl_description = "Save the active material's layer stack as a preset in your user preset folder"
-    bl_options = {"REGISTER"}
+    bl_options = {"REGISTER", "UNDO"}      # the material is linked to the new preset
 
     name: StringProperty(name="Name", default="My Material")
     description: StringProperty(name="Description", default="")

@@ -244,8 +244,9 @@ def node_findings(material) -> list[tuple[str, str]]:
 
 
 def draw_nodes(layout, material) -> None:
-    row = layout.row()
+    row = layout.row(align=True)
     row.operator("lamina.stack_new", icon="NODE_COMPOSITING")
+    row.menu("LAMINA_MT_material_presets", text="Presets", icon="PRESET")
     tree = material.node_tree
     if tree is None:
         layout.prop(material, "diffuse_color", text="Color")

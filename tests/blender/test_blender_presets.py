@@ -200,6 +200,7 @@ def test_menu_lists_every_shipped_preset_with_its_thumbnail(results):
     assert any(c[:2] == ["operator", "lamina.preset_detach"] for c in panel)
     assert ["template_icon_view", "lamina_preset_browser"] in r["browser_panel"]
     assert ["operator", "lamina.preset_apply"] in r["browser_panel"]
+    assert r["unknown_icons"] == []
 
 
 def test_user_presets_live_in_the_extension_user_directory(results):

@@ -228,7 +228,10 @@ def menu(tmp):
     browser_log = []
     bpy.context.window_manager.lamina_preset_browser = "satin"
     ui.draw_preset_browser(Recorder(browser_log), bpy.context)
-    return {"entries": entries, "loaded": loaded, "thumbnails": thumbnails, "user_names": user_names, "delete": _menu_entries(delete_log), "browser": browser,
+    known = {i.identifier for i in bpy.types.UILayout.bl_rna.functions["prop"].parameters["icon"].enum_items}
+    used = {kw["icon"] for log_ in (log, delete_log, panel_log, browser_log) for _, _, kw in log_ if "icon" in kw}
+    used |= {icon for _, _, _, icon, _ in items if isinstance(icon, str)}
+    return {"unknown_icons": sorted(used - known), "entries": entries, "loaded": loaded, "thumbnails": thumbnails, "user_names": user_names, "delete": _menu_entries(delete_log), "browser": browser,
             "shipped_dir": str(library.SHIPPED), "user_dir": str(library.user_dir()),
             "panel": [[c[0], *[a for a in c[1] if isinstance(a, str)], c[2].get("text"), c[2].get("icon")]
                       for c in panel_log if c[0] in ("label", "menu", "operator")],
