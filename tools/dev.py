@@ -94,7 +94,9 @@ def main(argv: list[str]) -> int:
         return run([str(py), "-m", "backend", "presets", "thumbnails", *rest])
     if command == "test":
         py = ensure_venv("dev")
-        return run([str(py), "-m", "pytest", "-q", *rest])
+        # Always name the tests folder, so pytest finds tests/pytest.ini (see the comment there).
+        paths = [] if any(arg.startswith("tests") for arg in rest) else ["tests"]
+        return run([str(py), "-m", "pytest", "-q", *paths, *rest])
     if command == "bench":
         py = ensure_venv("dev")
         return run([str(py), "-m", "benchmarks", *rest])
