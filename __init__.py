@@ -1,7 +1,9 @@
 """Lamina Blender extension entry point (id "lamina"); everything lives in ``addon/``.
 
 The extension is imported by Blender as ``bl_ext.<repository>.lamina``: only relative imports are
-used, and ``backend/`` is never imported here (it runs in a child process, see addon/engine).
+used. The renderer (``backend/``) runs in a child process (see addon/engine); the only backend
+module imported into Blender is the bpy-free preset file handling (``backend/presets.py``, as a
+sibling package through a relative import, for addon/presets).
 """
 from . import addon
 

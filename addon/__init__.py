@@ -1,7 +1,7 @@
 """The Blender side of Lamina: properties, UI, operators, scene export and the render engine.
 
 Import ranks (lower never imports higher): ``util``/``stack_check``/``metals`` (no bpy) <
-``props`` < ``export`` < ``ops`` < ``engine`` < ``ui``. Modules register in that order and
+``props`` < ``presets.library`` < ``export`` < ``ops``/``presets.convert`` < ``engine`` < ``ui``. Modules register in that order and
 unregister in reverse. No module touches ``gpu``, keymaps or the network at register time, so
 ``blender -b`` works.
 """

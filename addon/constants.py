@@ -47,6 +47,11 @@ DISTRIBUTIONS = (
     ("BECKMANN", "Beckmann", "Beckmann microfacets", 1),
 )
 
+MASKINGS = (
+    ("HEIGHT_CORRELATED", "Height-Correlated", "G2 = 1/(1 + Λi + Λo), as Cycles (default)", 0),
+    ("SEPARABLE", "Separable", "G1·G1, as Mitsuba 0.6 and Guo et al.'s layered reference", 1),
+)
+
 ESTIMATORS = (
     ("BIDIRECTIONAL", "Bidirectional", "Connections inside each slab with MIS (lower noise; default)", 0),
     ("UNIDIRECTIONAL", "Unidirectional", "Next-event estimation through the exit interface only", 1),

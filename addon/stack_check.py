@@ -36,7 +36,7 @@ def check_material(mat: dict) -> list[tuple[str, str]]:
                             "passes into the object (thin-slab or glass behaviour)"))
     if interfaces and interfaces[0].get("type") == "null" and n > 1 and media:
         m0 = media[0]
-        if _value(m0.get("sigma_t", 0)) == 0:
+        if _value(m0.get("sigma_t", 0)) in (0, [0, 0, 0]):
             out.append(("INFO", "A null top interface over a clear medium does nothing"))
     above = 1.0
     for i, itf in enumerate(interfaces):
@@ -48,8 +48,12 @@ def check_material(mat: dict) -> list[tuple[str, str]]:
             above = ior
     for i, med in enumerate(media):
         sigma = _value(med.get("sigma_t", 0.0))
-        thickness = med.get("thickness", 1.0)
-        tau = float(sigma) * float(thickness) if not isinstance(sigma, list) else 0.0
+        thickness = _value(med.get("thickness", 1.0))
+        if isinstance(sigma, list):            # chromatic: the least extinguished channel decides
+            sigma = min(sigma) if sigma else 0.0
+        if isinstance(thickness, list):
+            thickness = thickness[0] if thickness else 1.0
+        tau = float(sigma) * float(thickness)
         if thickness == 0 and sigma:
             out.append(("INFO", f"Medium {i + 1} has zero thickness: its density has no effect"))
         if tau > THICK_OPTICAL_DEPTH:

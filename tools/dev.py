@@ -5,6 +5,9 @@
     python3.11 tools/dev.py test     run the whole test suite (pytest)
     python3.11 tools/dev.py bench    run the benchmark report (benchmarks/)
     python3.11 tools/dev.py build    build the Blender extension zip into build/
+    python3.11 tools/dev.py showcase render the showcase scene to out/showcase.exr and out/showcase.png
+                             (--blend: render showcase/showcase.blend in bpy to out/showcase_blend.png)
+    python3.11 tools/dev.py thumbnails  render the preset thumbnails and the gallery (docs/presets.md)
 
 Each command first creates or updates a local virtual environment (.venv) with the pinned
 requirements, so nothing but python3.11 needs to be installed. The environment is only
@@ -75,9 +78,25 @@ def main(argv: list[str]) -> int:
         (ROOT / "out").mkdir(exist_ok=True)
         return run([str(py), "-m", "backend", "render", "demo/demo.json",
                     "-o", "out/demo.exr", "--png", "out/demo.png", *rest])
+    if command == "showcase" and "--blend" in rest:
+        py = ensure_venv("dev")                      # the bpy module renders the .blend
+        (ROOT / "out").mkdir(exist_ok=True)
+        rest = [a for a in rest if a != "--blend"]
+        return run([str(py), "tools/render_blend.py", "showcase/showcase.blend",
+                    "-o", "out/showcase_blend.png", *rest])
+    if command == "showcase":
+        py = ensure_venv("runtime")
+        (ROOT / "out").mkdir(exist_ok=True)
+        return run([str(py), "-m", "backend", "render", "showcase/showcase.json",
+                    "-o", "out/showcase.exr", "--png", "out/showcase.png", *rest])
+    if command == "thumbnails":
+        py = ensure_venv("runtime")
+        return run([str(py), "-m", "backend", "presets", "thumbnails", *rest])
     if command == "test":
         py = ensure_venv("dev")
-        return run([str(py), "-m", "pytest", "-q", *rest])
+        # Always name the tests folder, so pytest finds tests/pytest.ini (see the comment there).
+        paths = [] if any(arg.startswith("tests") for arg in rest) else ["tests"]
+        return run([str(py), "-m", "pytest", "-q", *paths, *rest])
     if command == "bench":
         py = ensure_venv("dev")
         return run([str(py), "-m", "benchmarks", *rest])

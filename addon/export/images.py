@@ -65,10 +65,27 @@ class ImageExporter:
             tex["channel"] = channel
         return tex
 
+    def file(self, source: Path) -> str:
+        """A texture path for an image file on disk (a preset's texture): copied next to the
+        scene for a portable export, else referenced where it is (absolute)."""
+        source = Path(source)
+        if not (self.copy_files and self.directory is not None and source.is_file()):
+            return str(source)
+        key = ("file", str(source.resolve()))
+        if key not in self._cache:
+            target = self._target_named(safe_name(source.stem), source.suffix)
+            shutil.copyfile(source, target)
+            self._cache[key] = self._relative(target)
+        return self._cache[key]
+
     # -- internals
 
     def _target(self, image, suffix: str) -> Path:
-        base = safe_name(Path(image.name).stem)
+        # The file's own name where there is one ("wood.png", not the data-block's "wood.png.001").
+        source = Path(bpy.path.basename(image.filepath)) if image.filepath else Path(image.name)
+        return self._target_named(safe_name(source.stem or Path(image.name).stem), suffix)
+
+    def _target_named(self, base: str, suffix: str) -> Path:
         name = base + suffix
         n = 1
         while name in self._used_names:

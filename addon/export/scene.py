@@ -18,6 +18,7 @@ from .images import ImageExporter, safe_name
 from .lights import light_json
 from .mesh import mesh_arrays, sanitise, write_npz
 from .nodes import DEFAULT_MATERIAL, NodeTranslator
+from .preset_link import edited_note
 from .stack import StackError, stack_json
 from .world import world_json
 
@@ -123,6 +124,9 @@ class SceneExporter:
     def material_json(self, mat) -> dict:
         settings = getattr(mat, "lamina", None)
         if settings is not None and settings.use_stack:
+            note = edited_note(mat)
+            if note:
+                self.notes.append(note)
             try:
                 return stack_json(mat, self.images)
             except StackError as exc:
@@ -186,8 +190,7 @@ class SceneExporter:
         if not inst.is_instance and not inst.show_self:
             return
         original = obj.original if obj.original is not None else obj
-        if getattr(original, "is_holdout", False) or getattr(obj, "is_holdout", False):
-            return
+        holdout = bool(getattr(original, "is_holdout", False) or getattr(obj, "is_holdout", False))
         mesh = self.mesh_for(obj)
         if mesh is None:
             return
@@ -196,6 +199,8 @@ class SceneExporter:
             slots = [self.material_name(None)]
         entry = {"_name": obj.name, "mesh": mesh, "to_world": matrix_rows(inst.matrix_world.copy()),
                  "materials": slots}
+        if holdout:
+            entry["holdout"] = True
         hidden_floor = self.preview and any(
             slot.material is not None and slot.material.name.startswith(PREVIEW_FLOOR) for slot in obj.material_slots)
         if not getattr(obj, "visible_camera", True) or hidden_floor:

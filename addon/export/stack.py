@@ -34,14 +34,17 @@ def _colour(value, image, images):
 
 
 def _microfacet(layer, images) -> dict:
-    out = {"roughness": _scalar(alpha(layer.roughness), layer.roughness_texture, images, squared=True)}
+    out = {"roughness": _scalar(alpha(layer.roughness), layer.roughness_texture, images,
+                                squared=not layer.roughness_texture_alpha)}
     if layer.use_anisotropy:
         out["roughness_v"] = alpha(layer.roughness_v)
     out["distribution"] = layer.distribution.lower()
+    if layer.masking == "SEPARABLE":
+        out["masking"] = "separable"
     return out
 
 
-def interface_json(layer, images, visiting: tuple) -> dict:
+def interface_json(layer, images, visiting: tuple, links: bool = True) -> dict:
     kind = layer.kind
     if kind == "DIELECTRIC":
         return {"type": "dielectric", "ior": f32(layer.ior), **_microfacet(layer, images)}
@@ -64,48 +67,81 @@ def interface_json(layer, images, visiting: tuple) -> dict:
         nested = layer.material
         if nested is None:
             raise StackError(f"interface '{layer.name or 'Nested'}' has no material set")
-        return stack_json(nested, images, visiting)
+        return stack_json(nested, images, visiting, links=links)
     raise StackError(f"unknown interface kind {kind!r}")
 
 
-def _axis(layer) -> list[float]:
-    """The axis as entered (the renderer normalises it); a zero vector means +X (the default)."""
+def _axis(layer, images=None):
+    """The axis as entered (the renderer normalises it); a zero vector means +X (the default).
+    An axis texture replaces it (decoded by the renderer like a normal map)."""
+    if layer.orientation_texture is not None and images is not None:
+        tex = images.texture(layer.orientation_texture)
+        if tex is not None:
+            return tex
     axis = [f32(v) for v in layer.flake_orientation]
     return axis if any(axis) else [1.0, 0.0, 0.0]
 
 
+def _density(layer, images):
+    """σt: grey (a number) or chromatic (RGB); a texture multiplies either."""
+    if layer.use_chromatic:
+        value = rgb(layer.sigma_t_rgb)
+        if layer.sigma_t_texture is not None and images is not None:
+            tex = images.texture(layer.sigma_t_texture, scale=value)
+            if tex is not None:
+                return tex
+        return value
+    return _scalar(f32(layer.sigma_t), layer.sigma_t_texture, images)
+
+
+def is_clear(layer) -> bool:
+    """A medium with zero extinction (and no density texture) neither scatters nor absorbs."""
+    density = any(layer.sigma_t_rgb) if layer.use_chromatic else layer.sigma_t != 0.0
+    return not density and layer.sigma_t_texture is None
+
+
 def medium_json(layer, images) -> dict:
-    out = {"thickness": f32(layer.thickness),
-           "sigma_t": _scalar(f32(layer.sigma_t), layer.sigma_t_texture, images)}
-    clear = layer.sigma_t == 0.0 and layer.sigma_t_texture is None
+    out = {"thickness": _scalar(f32(layer.thickness), layer.thickness_texture, images),
+           "sigma_t": _density(layer, images)}
+    clear = is_clear(layer)
     if clear:
         return out
     out["albedo"] = _colour(layer.albedo, layer.albedo_texture, images)
     if layer.phase == "HG":
         out["phase"] = {"type": "hg", "g": f32(layer.hg_g)}
     elif layer.phase == "MICROFLAKE":
-        out["phase"] = {"type": "microflake", "stddev": f32(layer.flake_stddev), "orientation": _axis(layer)}
+        out["phase"] = {"type": "microflake", "stddev": f32(layer.flake_stddev), "orientation": _axis(layer, images)}
     elif layer.phase == "VMF":
         out["phase"] = {"type": "vmf", "kappa": f32(layer.vmf_kappa)}
     elif layer.phase == "SGGX":
-        out["phase"] = {"type": "sggx", "shape": layer.sggx_shape.lower(), "orientation": _axis(layer),
+        out["phase"] = {"type": "sggx", "shape": layer.sggx_shape.lower(), "orientation": _axis(layer, images),
                         "roughness": f32(layer.sggx_roughness)}
     else:
         out["phase"] = {"type": "isotropic"}
     return out
 
 
-def stack_json(material, images, visiting: tuple = ()) -> dict:
-    """The material JSON of a material with ``lamina.use_stack``; nested materials recurse."""
+def stack_json(material, images, visiting: tuple = (), *, links: bool = True) -> dict:
+    """The material JSON of a material with ``lamina.use_stack``; nested materials recurse.
+
+    With ``links`` (export), a stack unchanged since a preset was applied is written as that
+    preset's own material JSON (export/preset_link.py); ``links=False`` always writes the stack
+    as edited (the preset link's fingerprint).
+    """
     if material.name in visiting:
         chain = " → ".join([*visiting, material.name])
         raise StackError(f"nested materials form a cycle: {chain}")
+    if links:
+        from .preset_link import linked_material       # (imports this module)
+        linked = linked_material(material, images)
+        if linked is not None:
+            return linked
     visiting = (*visiting, material.name)
     settings = material.lamina
     layers = list(settings.layers)
     if not layers:
         raise StackError(f"material '{material.name}' has an empty layer stack")
-    interfaces = [interface_json(layer, images, visiting) for layer in layers]
+    interfaces = [interface_json(layer, images, visiting, links) for layer in layers]
     if len(layers) == 1:
         out = interfaces[0]
     else:

@@ -1,198 +1,134 @@
-"""Material presets: JSON files in the shared material schema (docs/materials.md) ↔ layer stacks.
+"""Material presets in the layer-stack panel: apply, save as a user preset, delete, browse.
 
-The menu lists ``*.json`` presets from the extension's ``presets/`` folder and the user's preset
-folder; other code (the preset library) can add entries by appending a ``draw(menu, context)``
-function to ``MENU_HOOKS``. A preset file is ``{"name", "category", "description", "tags",
-"material": {...}}`` (backend/presets.py), or a bare material object.
+Presets are JSON files in the shared material schema (presets/README.md). Applying one converts
+its material into the stack properties (presets/convert.py: whatever the editor cannot show is
+reported) and keeps the preset's JSON with the material, so export writes an unedited preset
+exactly (export/preset_link.py). User presets are saved in the extension's user directory
+(presets/library.py), never inside the extension. Other code can add menu entries by appending a
+``draw(menu, context)`` function to ``MENU_HOOKS``.
 """
 from __future__ import annotations
 
-import json
 import math
+import shutil
 from pathlib import Path
 
 import bpy
-from bpy.props import StringProperty
+from bpy.props import BoolProperty, EnumProperty, StringProperty
 
-from .. import preferences
-from ..export.images import ImageExporter, safe_name
+from ..export import preset_link
+from ..export.images import ImageExporter
 from ..export.stack import StackError, stack_json
-from .stack import add_layer, default_name
+from ..presets import library, previews
+from ..presets.convert import material_from_json  # noqa: F401  (re-exported for scripts and tests)
+from ..presets.library import PresetError
 
-SHIPPED = Path(__file__).resolve().parent.parent.parent / "presets"
-MENU_HOOKS: list = []          # draw(menu, context) functions added by the preset library
-
-
-class PresetError(Exception):
-    pass
+SHIPPED = library.SHIPPED
+MENU_HOOKS: list = []          # draw(menu, context) functions added by other code
+MENU_ROWS = 16                 # rows per menu column before a new column starts
+SHOWN_DROPPED = 3              # fields listed in a report before "and N more"
 
 
 def user_preset_dir(create: bool = False) -> Path | None:
+    return library.user_dir(create)
+
+
+def _summary(fields: list[str]) -> str:
+    shown = "; ".join(fields[:SHOWN_DROPPED])
+    return shown + (f"; and {len(fields) - SHOWN_DROPPED} more" if len(fields) > SHOWN_DROPPED else "")
+
+
+def apply_preset(material, path: Path) -> tuple[str, list[str]]:
+    """Convert preset ``path`` into ``material``'s stack and link it; returns (label, dropped)."""
+    path = Path(path)
+    name, label, doc = library.read_document(path)
+    dropped = material_from_json(material, doc, path.parent, label)
+    preset_link.attach(material, name=name, label=label, path=path, doc=doc, dropped_fields=dropped)
+    material.update_tag()          # Python edits of ID properties do not tag the depsgraph themselves
+    return label, dropped
+
+
+class _PresetImages(ImageExporter):
+    """Images of a saved preset go to <user folder>/textures/<preset>/, referenced relative to
+    the preset file (as the preset format wants). They are first written to a staging folder,
+    so an overwritten preset's own images can still be read while the new version is made."""
+
+    def __init__(self, folder: Path, texture_dir: Path, staging: Path, notes: list[str]):
+        super().__init__(folder, True, notes)
+        self.texture_dir = texture_dir
+        self.staging = staging
+
+    def _target_named(self, base: str, suffix: str) -> Path:
+        name = base + suffix
+        n = 1
+        while name in self._used_names:
+            n += 1
+            name = f"{base}_{n}{suffix}"
+        self._used_names.add(name)
+        self.staging.mkdir(parents=True, exist_ok=True)
+        return self.staging / name
+
+    def _relative(self, path: Path) -> str:
+        return super()._relative(self.texture_dir / Path(path).name)
+
+
+def save_preset(material, name: str, folder: Path, *, overwrite: bool = False, **meta) -> tuple[Path, list[str]]:
+    """Write ``material``'s stack (or its unedited preset, exactly) as a user preset.
+
+    Images are copied next to the preset. Returns (path, notes about images that could not be
+    saved). PresetError if the name is taken (and not ``overwrite``) or the material is invalid;
+    a failed save leaves the previous version of the preset as it was.
+    """
+    folder = Path(folder)
+    slug = library.slugify(name)
+    target = folder / f"{slug}.json"
+    if target.exists() and not overwrite:
+        raise PresetError(f"a user preset named '{slug}' exists (tick Overwrite to replace it)")
+    textures = library.texture_folder(folder, slug)
+    staging = textures.with_name(f".{textures.name}.new")
+    old_textures = textures.with_name(f".{textures.name}.old")
+    old_file = target.with_name(f".{target.name}.old")
+    for leftover in (staging, old_textures):
+        shutil.rmtree(leftover, ignore_errors=True)
+    notes: list[str] = []
+    was_exact = preset_link.state(material) == preset_link.EXACT
+    dropped = preset_link.dropped(material) if was_exact else []
     try:
-        return Path(bpy.utils.extension_path_user(preferences.ADDON_ID, path="presets", create=create))
-    except (ValueError, RuntimeError, TypeError):       # development: not an installed extension
-        return None
-
-
-def preset_files() -> list[Path]:
-    found, seen = [], set()
-    for folder in (user_preset_dir(), SHIPPED):
-        if folder is None or not folder.is_dir():
-            continue
-        for path in sorted(folder.rglob("*.json")):
-            if path.stem not in seen:
-                seen.add(path.stem)
-                found.append(path)
-    return found
-
-
-def read_preset(path: Path) -> tuple[str, dict]:
+        doc = stack_json(material, _PresetImages(folder, textures, staging, notes))
+    except StackError as exc:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise PresetError(str(exc)) from None
+    # Swap in the new version, keeping the previous one aside until the new one has been checked.
+    if textures.exists():
+        textures.rename(old_textures)
+    if staging.exists():
+        staging.rename(textures)
+    if target.exists():
+        shutil.copy2(target, old_file)
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise PresetError(f"{path.name}: cannot read preset ({exc})") from None
-    material = doc.get("material", doc) if isinstance(doc, dict) else None
-    if not isinstance(material, dict) or "type" not in material:
-        raise PresetError(f"{path.name}: no material in the preset")
-    return str(doc.get("name", path.stem)), material
+        path = library.write(doc, name, folder, overwrite=overwrite, **meta)
+        try:
+            library.validate(path)
+        except BaseException:
+            path.unlink(missing_ok=True)
+            raise
+    except BaseException:
+        shutil.rmtree(textures, ignore_errors=True)
+        if old_textures.exists():
+            old_textures.rename(textures)
+        if old_file.exists():
+            old_file.replace(target)
+        raise
+    shutil.rmtree(old_textures, ignore_errors=True)
+    old_file.unlink(missing_ok=True)
+    library.clear_cache()
+    saved = library.read_document(path)
+    preset_link.attach(material, name=saved[0], label=saved[1], path=path, doc=saved[2], dropped_fields=dropped)
+    material.update_tag()
+    return path, notes
 
 
-# ------------------------------------------------------------------------ JSON → stack
-
-def _number(value, base_dir: Path, what: str):
-    """(constant, image) from a texturable scalar."""
-    if isinstance(value, dict):
-        image = _load_image(value.get("texture"), base_dir)
-        scale = value.get("scale", 1.0)
-        return float(scale if not isinstance(scale, list) else scale[0]), image
-    return float(value), None
-
-
-def _colour(value, base_dir: Path, default):
-    if isinstance(value, dict):
-        image = _load_image(value.get("texture"), base_dir)
-        scale = value.get("scale", 1.0)
-        return (list(scale) if isinstance(scale, list) else [float(scale)] * 3), image
-    if value is None:
-        return list(default), None
-    if isinstance(value, (int, float)):
-        return [float(value)] * 3, None
-    return [float(v) for v in value[:3]], None
-
-
-def _load_image(path, base_dir: Path):
-    if not path:
-        return None
-    p = Path(path)
-    if not p.is_absolute():
-        p = base_dir / p
-    try:
-        return bpy.data.images.load(str(p), check_existing=True)
-    except RuntimeError as exc:
-        raise PresetError(f"cannot load texture {p}: {exc}") from None
-
-
-def _set_roughness(layer, itf: dict, base_dir: Path) -> None:
-    alpha, image = _number(itf.get("roughness", 0.1 if itf.get("type") == "conductor" else 0.0),
-                           base_dir, "roughness")
-    layer.roughness = math.sqrt(max(alpha, 0.0))
-    layer.roughness_texture = image
-    if "roughness_v" in itf:
-        alpha_v, _ = _number(itf["roughness_v"], base_dir, "roughness_v")
-        layer.use_anisotropy = True
-        layer.roughness_v = math.sqrt(max(alpha_v, 0.0))
-    layer.distribution = "BECKMANN" if itf.get("distribution") == "beckmann" else "GGX"
-
-
-def _fill_interface(layer, itf, base_dir: Path, name: str) -> None:
-    if isinstance(itf, str):
-        raise PresetError(f"{name}: preset names inside stacks are not supported in the editor")
-    kind = itf.get("type")
-    if kind == "dielectric":
-        layer.kind = "DIELECTRIC"
-        layer.ior = float(itf.get("ior", 1.5))
-        _set_roughness(layer, itf, base_dir)
-    elif kind == "conductor":
-        layer.kind = "CONDUCTOR"
-        if "eta" in itf or "k" in itf:
-            layer.metal = "CUSTOM"
-            layer.eta = _colour(itf.get("eta"), base_dir, (1.0, 1.0, 1.0))[0]
-            layer.k = _colour(itf.get("k"), base_dir, (0.0, 0.0, 0.0))[0]
-        else:
-            layer.metal = itf.get("metal", "Cu")
-        if "tint" in itf:
-            layer.tint = _colour(itf["tint"], base_dir, (1.0, 1.0, 1.0))[0]
-        _set_roughness(layer, itf, base_dir)
-    elif kind == "diffuse":
-        layer.kind = "DIFFUSE"
-        layer.color, layer.color_texture = _colour(itf.get("color"), base_dir, (0.8, 0.8, 0.8))
-    elif kind == "null":
-        layer.kind = "NULL"
-    elif kind == "layered":
-        nested = bpy.data.materials.new(f"{name} (nested)")
-        material_from_json(nested, itf, base_dir, name=nested.name)
-        layer.kind = "MATERIAL"
-        layer.material = nested
-    else:
-        raise PresetError(f"{name}: interface type {kind!r} cannot be edited as a stack")
-
-
-def _fill_medium(layer, med: dict, base_dir: Path) -> None:
-    layer.thickness = float(med.get("thickness", 1.0))
-    layer.sigma_t, layer.sigma_t_texture = _number(med.get("sigma_t", 0.0), base_dir, "sigma_t")
-    layer.albedo, layer.albedo_texture = _colour(med.get("albedo"), base_dir, (0.8, 0.8, 0.8))
-    phase = med.get("phase") or {"type": "isotropic"}
-    kind = phase.get("type", "isotropic")
-    if kind == "isotropic" or (kind == "hg" and float(phase.get("g", 0.0)) == 0.0):
-        layer.phase = "ISOTROPIC"
-    elif kind == "hg":
-        layer.phase = "HG"
-        layer.hg_g = float(phase.get("g", 0.0))
-    elif kind == "microflake":
-        layer.phase = "MICROFLAKE"
-        layer.flake_stddev = float(phase.get("stddev", 0.05))
-        layer.flake_orientation = [float(v) for v in phase.get("orientation", [1, 0, 0])]
-    elif kind == "vmf":
-        layer.phase = "VMF"
-        layer.vmf_kappa = float(phase.get("kappa", 10.0))
-    elif kind == "sggx" and "matrix" not in phase:
-        layer.phase = "SGGX"
-        layer.sggx_shape = "FLAKE" if phase.get("shape") == "flake" else "FIBER"
-        default = [0, 0, 1] if layer.sggx_shape == "FLAKE" else [1, 0, 0]
-        layer.flake_orientation = [float(v) for v in phase.get("orientation", default)]
-        layer.sggx_roughness = float(phase.get("roughness", 0.3))
-    else:
-        raise PresetError(f"phase function {kind!r} cannot be edited in the stack editor")
-
-
-def material_from_json(mat, doc: dict, base_dir: Path, name: str = "") -> None:
-    """Replace ``mat``'s Lamina stack with the material described by ``doc``."""
-    settings = mat.lamina
-    interfaces = doc.get("interfaces") if doc.get("type") == "layered" else [doc]
-    media = doc.get("media", []) if doc.get("type") == "layered" else []
-    if not interfaces:
-        raise PresetError(f"{name}: the stack has no interfaces")
-    if len(media) != len(interfaces) - 1:
-        raise PresetError(f"{name}: {len(interfaces)} interfaces need {len(interfaces) - 1} media")
-    settings.layers.clear()
-    for i, itf in enumerate(interfaces):
-        layer = add_layer(settings, "DIELECTRIC", i)
-        _fill_interface(layer, itf, base_dir, name)
-        layer.name = ""
-        layer.name = (itf.get("_name") if isinstance(itf, dict) else None) or default_name(settings, layer.kind)
-        if i < len(media):
-            _fill_medium(layer, media[i], base_dir)
-    emission = doc.get("emission")
-    if emission is not None and not isinstance(emission, dict):
-        peak = max(float(v) for v in emission) if emission else 0.0
-        if peak > 0:
-            settings.emission_strength = peak
-            settings.emission_color = [float(v) / peak for v in emission]
-    settings.active_layer = 0
-    settings.use_stack = True
-
-
-# ------------------------------------------------------------------------ operators and menu
+# ------------------------------------------------------------------------ operators
 
 class LAMINA_OT_preset_apply(bpy.types.Operator):
     bl_idname = "lamina.preset_apply"
@@ -200,52 +136,179 @@ class LAMINA_OT_preset_apply(bpy.types.Operator):
     bl_description = "Replace the layer stack of the active material with a preset"
     bl_options = {"REGISTER", "UNDO"}
 
+    name: StringProperty(name="Preset", description="Preset name", options={"SKIP_SAVE"})
     filepath: StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE"})
 
     @classmethod
     def poll(cls, context):
         return getattr(context, "material", None) is not None
 
+    @classmethod
+    def description(cls, context, properties):
+        for entry in library.entries():
+            if entry.name == properties.name or str(entry.path) == properties.filepath:
+                return entry.description or entry.label
+        return cls.bl_description
+
     def execute(self, context):
-        path = Path(self.filepath)
-        try:
-            name, doc = read_preset(path)
-            material_from_json(context.material, doc, path.parent, name)
-        except PresetError as exc:
-            self.report({"ERROR"}, str(exc))
+        path = Path(self.filepath) if self.filepath else library.find(self.name)
+        if path is None:
+            self.report({"ERROR"}, f"Lamina: no preset named '{self.name}'")
             return {"CANCELLED"}
+        try:
+            label, dropped = apply_preset(context.material, path)
+        except PresetError as exc:
+            self.report({"ERROR"}, f"Lamina: {exc}")
+            return {"CANCELLED"}
+        if dropped:
+            self.report({"WARNING"}, f"Lamina: preset '{label}' applied; {len(dropped)} field(s) cannot be "
+                                     f"edited in the stack and render from the preset until you edit it: "
+                                     f"{_summary(dropped)}")
+        else:
+            self.report({"INFO"}, f"Lamina: preset '{label}' applied")
         return {"FINISHED"}
 
 
 class LAMINA_OT_preset_save(bpy.types.Operator):
     bl_idname = "lamina.preset_save"
-    bl_label = "Save Material Preset"
-    bl_description = "Save the active material's layer stack as a preset in your preset folder"
+    bl_label = "Save Current Stack as Preset"
+    bl_description = "Save the active material's layer stack as a preset in your user preset folder"
+    bl_options = {"REGISTER", "UNDO"}      # the material is linked to the new preset
 
     name: StringProperty(name="Name", default="My Material")
+    description: StringProperty(name="Description", default="")
+    category: StringProperty(name="Category", default="user")
+    tags: StringProperty(name="Tags", default="", description="Comma-separated tags")
+    overwrite: BoolProperty(name="Overwrite", default=False,
+                            description="Replace a user preset of the same name")
 
     @classmethod
     def poll(cls, context):
         mat = getattr(context, "material", None)
-        return mat is not None and len(mat.lamina.layers) > 0 and user_preset_dir() is not None
+        if mat is None or not len(mat.lamina.layers):
+            cls.poll_message_set("The active material has no layer stack")
+            return False
+        if library.user_dir() is None:
+            cls.poll_message_set("User presets need Lamina installed as an extension")
+            return False
+        return True
 
     def invoke(self, context, event):
-        self.name = context.material.name
+        settings = context.material.lamina
+        self.name = settings.preset_label or context.material.name
         return context.window_manager.invoke_props_dialog(self)
 
     def execute(self, context):
-        folder = user_preset_dir(create=True)
-        notes: list[str] = []
-        try:
-            material = stack_json(context.material, ImageExporter(None, False, notes))
-        except StackError as exc:
-            self.report({"ERROR"}, str(exc))
+        folder = library.user_dir(create=True)
+        if folder is None:
+            self.report({"ERROR"}, "Lamina: user presets need Lamina installed as an extension")
             return {"CANCELLED"}
-        path = folder / f"{safe_name(self.name)}.json"
-        doc = {"name": self.name, "category": "User", "description": "", "tags": [], "material": material}
-        path.write_text(json.dumps(doc, indent=2), encoding="utf-8")
-        self.report({"INFO"}, f"Saved preset {path}")
+        tags = [t.strip() for t in self.tags.split(",") if t.strip()]
+        try:
+            path, notes = save_preset(context.material, self.name, folder, overwrite=self.overwrite,
+                                      label=self.name.strip(), category=self.category.strip() or "user",
+                                      description=self.description.strip(), tags=tags)
+        except PresetError as exc:
+            self.report({"ERROR"}, f"Lamina: {exc}")
+            return {"CANCELLED"}
+        if notes:
+            self.report({"WARNING"}, "Lamina: saved without: " + "; ".join(notes))
+        self.report({"INFO"}, f"Lamina: saved preset {path}")
         return {"FINISHED"}
+
+
+class LAMINA_OT_preset_delete(bpy.types.Operator):
+    bl_idname = "lamina.preset_delete"
+    bl_label = "Delete User Preset"
+    bl_description = "Delete a preset from your user preset folder (materials using it keep their stack)"
+    bl_options = {"REGISTER"}
+
+    name: StringProperty(name="Preset", options={"SKIP_SAVE"})
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_confirm(self, event, title=f"Delete preset '{self.name}'?")
+
+    def execute(self, context):
+        folder = library.user_dir()
+        if folder is None:
+            self.report({"ERROR"}, "Lamina: no user preset folder")
+            return {"CANCELLED"}
+        try:
+            library.delete(self.name, folder)
+        except PresetError as exc:
+            self.report({"ERROR"}, f"Lamina: {exc}")
+            return {"CANCELLED"}
+        library.clear_cache()
+        self.report({"INFO"}, f"Lamina: deleted preset '{self.name}'")
+        return {"FINISHED"}
+
+
+class LAMINA_OT_preset_detach(bpy.types.Operator):
+    bl_idname = "lamina.preset_detach"
+    bl_label = "Unlink Preset"
+    bl_description = ("Forget the preset this stack came from: export then always writes the stack as "
+                      "shown (preset fields the editor cannot show are dropped)")
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        mat = getattr(context, "material", None)
+        return mat is not None and bool(mat.lamina.preset_material)
+
+    def execute(self, context):
+        preset_link.detach(context.material)
+        context.material.update_tag()
+        return {"FINISHED"}
+
+
+# ------------------------------------------------------------------------ menus and browser
+
+def _blocks(entries) -> list[tuple[str, list]]:
+    """Shipped presets by category (sorted), then the user's presets."""
+    shipped: dict[str, list] = {}
+    user = []
+    for entry in entries:
+        if entry.user:
+            user.append(entry)
+        else:
+            shipped.setdefault(entry.category, []).append(entry)
+    blocks = [(cat.capitalize(), sorted(items, key=lambda e: e.label)) for cat, items in sorted(shipped.items())]
+    if user:
+        blocks.append(("User", sorted(user, key=lambda e: e.label)))
+    return blocks
+
+
+def draw_preset_items(layout, entries) -> None:
+    """Category headings with one apply entry per preset (thumbnail icons), in columns."""
+    blocks = _blocks(entries)
+    total = sum(len(items) + 1 for _, items in blocks)
+    columns = max(1, math.ceil(total / MENU_ROWS))
+    per_column = math.ceil(total / columns)
+    row = layout.row()
+    col, used = row.column(), 0
+    for title, items in blocks:
+        if used and used + len(items) + 1 > per_column:
+            col, used = row.column(), 0
+        col.label(text=title)
+        for entry in items:
+            text = entry.label + (" (broken)" if entry.error else "")
+            op = col.operator(LAMINA_OT_preset_apply.bl_idname, text=text, **previews.icon_args(entry.thumbnail))
+            op.name = entry.name
+            op.filepath = str(entry.path)
+        used += len(items) + 1
+
+
+class LAMINA_MT_user_presets_delete(bpy.types.Menu):
+    bl_idname = "LAMINA_MT_user_presets_delete"
+    bl_label = "Delete User Preset"
+
+    def draw(self, context):
+        user = [e for e in library.entries() if e.user]
+        if not user:
+            self.layout.label(text="No user presets")
+        for entry in user:
+            self.layout.operator(LAMINA_OT_preset_delete.bl_idname, text=entry.label,
+                                 **previews.icon_args(entry.thumbnail)).name = entry.name
 
 
 class LAMINA_MT_material_presets(bpy.types.Menu):
@@ -254,19 +317,48 @@ class LAMINA_MT_material_presets(bpy.types.Menu):
 
     def draw(self, context):
         layout = self.layout
-        files = preset_files()
-        for path in files:
-            op = layout.operator(LAMINA_OT_preset_apply.bl_idname, text=path.stem.replace("-", " ").title())
-            op.filepath = str(path)
+        entries = library.entries()
+        if entries:
+            draw_preset_items(layout, entries)
         for hook in MENU_HOOKS:
             hook(self, context)
-        if not files and not MENU_HOOKS:
+        if not entries and not MENU_HOOKS:
             layout.label(text="No presets installed")
         layout.separator()
         layout.operator(LAMINA_OT_preset_save.bl_idname, icon="ADD")
+        layout.menu(LAMINA_MT_user_presets_delete.bl_idname, icon="REMOVE")
+        if library.user_dir() is not None:
+            layout.label(text=f"User presets: {library.user_dir()}", icon="FILE_FOLDER")
 
 
-CLASSES = (LAMINA_OT_preset_apply, LAMINA_OT_preset_save, LAMINA_MT_material_presets)
+_browser_items: list = []      # Blender keeps no copy of dynamic enum items: hold them here
 
 
-register, unregister = bpy.utils.register_classes_factory(CLASSES)
+def browser_items(self, context):
+    items = []
+    for i, entry in enumerate(library.entries()):
+        ident = previews.icon_id(entry.thumbnail)
+        items.append((entry.name, entry.label, entry.description, ident or previews.GENERIC_ICON, i))
+    _browser_items[:] = items or [("NONE", "No presets", "", "INFO", 0)]
+    return _browser_items
+
+
+CLASSES = (LAMINA_OT_preset_apply, LAMINA_OT_preset_save, LAMINA_OT_preset_delete, LAMINA_OT_preset_detach,
+           LAMINA_MT_user_presets_delete, LAMINA_MT_material_presets)
+
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(CLASSES)
+
+
+def register():
+    previews.register()
+    _register_classes()
+    bpy.types.WindowManager.lamina_preset_browser = EnumProperty(
+        name="Preset", items=browser_items, options={"SKIP_SAVE"},
+        description="Material preset (thumbnail: a sphere on a checker floor, rendered by Lamina)")
+
+
+def unregister():
+    del bpy.types.WindowManager.lamina_preset_browser
+    _unregister_classes()
+    previews.unregister()
+    _browser_items.clear()

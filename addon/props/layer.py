@@ -12,7 +12,7 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorPro
                        PointerProperty, StringProperty)
 from bpy.types import PropertyGroup
 
-from ..constants import DISTRIBUTIONS, INTERFACE_KINDS, METALS, PHASE_KINDS, SGGX_SHAPES
+from ..constants import DISTRIBUTIONS, INTERFACE_KINDS, MASKINGS, METALS, PHASE_KINDS, SGGX_SHAPES
 
 METAL_ITEMS = [(sym, f"{name} ({sym})", f"Measured complex IOR of {name.lower()}", i)
                for i, (sym, name) in enumerate(METALS)]
@@ -51,7 +51,13 @@ class LaminaLayer(PropertyGroup):
     roughness_v: FloatProperty(name="Roughness V", default=0.1, min=0.0, max=1.0, subtype='FACTOR',
                                description="Perceptual roughness across the UV tangent (α_v = r_v²)")
     distribution: EnumProperty(name="Distribution", items=DISTRIBUTIONS, default="GGX")
+    masking: EnumProperty(name="Masking", items=MASKINGS, default="HEIGHT_CORRELATED",
+                          description="Microfacet masking-shadowing form")
     roughness_texture: _image_prop("Roughness Texture", "the roughness (stores r; squared on export)")
+    roughness_texture_alpha: BoolProperty(
+        name="Texture Holds α", default=False,
+        description="The roughness texture stores the microfacet α itself (as preset files do), "
+                    "not Blender's roughness r: it is not squared on export")
 
     # --- conductor
     metal: EnumProperty(name="Metal", items=METAL_ITEMS, default="Cu",
@@ -81,6 +87,14 @@ class LaminaLayer(PropertyGroup):
                            description="Extinction coefficient per unit thickness; 0 = a clear "
                                        "layer that neither scatters nor absorbs")
     sigma_t_texture: _image_prop("Density Texture", "the extinction (multiplied by σt)")
+    thickness_texture: _image_prop("Thickness Texture", "the thickness (multiplied by Thickness; "
+                                                        "grey variation of the optical depth)")
+    use_chromatic: BoolProperty(name="Chromatic Density", default=False,
+                                description="A separate extinction per RGB channel (coloured "
+                                            "absorption); slower than a grey density")
+    sigma_t_rgb: FloatVectorProperty(name="Density σt (RGB)", size=3, default=(1.0, 1.0, 1.0),
+                                     min=0.0, soft_max=20.0, precision=3,
+                                     description="Extinction per unit thickness for each RGB channel")
     albedo: FloatVectorProperty(name="Albedo", subtype='COLOR', size=3, default=(0.8, 0.8, 0.8),
                                 min=0.0, max=1.0,
                                 description="Single-scattering albedo of the medium (1 = no absorption)")
@@ -94,6 +108,8 @@ class LaminaLayer(PropertyGroup):
                                            default=(1.0, 0.0, 0.0), soft_min=-1.0, soft_max=1.0,
                                            description="Fibre axis (or SGGX flake normal) in the shading frame "
                                                        "(x = UV tangent, z = normal); the renderer normalises it")
+    orientation_texture: _image_prop("Axis Texture", "the fibre axis / flake normal, encoded like a "
+                                                    "tangent-space normal map (RGB·2 − 1; non-colour data)")
     vmf_kappa: FloatProperty(name="Concentration κ", default=10.0, min=0.0, soft_max=1000.0,
                              description="von Mises-Fisher concentration: 0 = isotropic, larger = narrower forward lobe")
     sggx_shape: EnumProperty(name="Shape", items=SGGX_SHAPES, default="FIBER")

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import bpy
 from bpy.props import (BoolProperty, CollectionProperty, FloatProperty, FloatVectorProperty,
-                       IntProperty, PointerProperty)
+                       IntProperty, PointerProperty, StringProperty)
 from bpy.types import PropertyGroup
 
 from .layer import LaminaLayer
@@ -21,6 +21,20 @@ class LaminaMaterialSettings(PropertyGroup):
     emission_strength: FloatProperty(name="Strength", default=0.0, min=0.0, soft_max=100.0,
                                      description="Emitted radiance (W m⁻² sr⁻¹) = colour × strength; "
                                                  "0 = not a light")
+    # The preset this stack came from (addon/presets/link.py). While the stack is unchanged
+    # since then (same fingerprint), export writes the preset's material JSON exactly, so
+    # fields the stack editor cannot show are kept; an edit detaches it.
+    preset_name: StringProperty(name="Preset", default="", options={'HIDDEN'},
+                                description="Name of the preset this stack was loaded from")
+    preset_label: StringProperty(name="Preset Label", default="", options={'HIDDEN'})
+    preset_file: StringProperty(name="Preset File", default="", options={'HIDDEN'},
+                                description="Where the preset was read from (texture paths are relative to it)")
+    preset_material: StringProperty(name="Preset Material", default="", options={'HIDDEN'},
+                                     description="The preset's material JSON, exactly as in its file")
+    preset_fingerprint: StringProperty(name="Preset Fingerprint", default="", options={'HIDDEN'},
+                                       description="The stack's JSON right after the preset was applied")
+    preset_dropped: StringProperty(name="Preset Fields Not Editable", default="", options={'HIDDEN'},
+                                   description="Preset fields the stack editor cannot represent (JSON list)")
 
 
 CLASSES = (LaminaMaterialSettings,)

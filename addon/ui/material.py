@@ -7,13 +7,16 @@ from __future__ import annotations
 import bpy
 
 from ..constants import INTERFACE_KINDS
+from ..export import preset_link
 from ..export.images import ImageExporter
 from ..export.nodes import NodeTranslator
-from ..export.stack import StackError, alpha, stack_json
+from ..export.stack import StackError, alpha, is_clear, stack_json
+from ..presets import library
 from ..stack_check import check_material
 from .base import LaminaPanel, draw_findings
 
 KIND_ICONS = {item[0]: item[3] for item in INTERFACE_KINDS}
+MAX_DROPPED_SHOWN = 6
 KIND_LABELS = {item[0]: item[1] for item in INTERFACE_KINDS}
 
 
@@ -33,13 +36,18 @@ def interface_summary(layer) -> str:
     return "pass-through"
 
 
+def optical_depth(layer) -> str:
+    if layer.use_chromatic:
+        return "(" + ", ".join(f"{s * layer.thickness:.3g}" for s in layer.sigma_t_rgb) + ")"
+    return f"{layer.sigma_t * layer.thickness:.3g}"
+
+
 def medium_summary(layer) -> str:
-    if layer.sigma_t == 0 and layer.sigma_t_texture is None:
+    if is_clear(layer):
         return "clear"
-    tau = layer.sigma_t * layer.thickness
     phase = {"ISOTROPIC": "iso", "HG": f"g {layer.hg_g:.2g}", "MICROFLAKE": "fibres",
              "VMF": f"κ {layer.vmf_kappa:.3g}", "SGGX": "sggx"}[layer.phase]
-    return f"τ {tau:.3g} · {phase}"
+    return f"τ {optical_depth(layer)} · {phase}"
 
 
 def stack_findings(material) -> list[tuple[str, str]]:
@@ -106,8 +114,12 @@ def draw_interface(layout, layer, index: int) -> None:
         if layer.use_anisotropy:
             col.prop(layer, "roughness_v")
         col.prop(layer, "distribution")
-        col.label(text=f"α = r² = {alpha(layer.roughness):.4g}" +
-                       (" (× texture²)" if layer.roughness_texture else ""))
+        col.prop(layer, "masking")
+        if layer.roughness_texture:
+            col.prop(layer, "roughness_texture_alpha")
+        texture = (" (× texture)" if layer.roughness_texture_alpha else " (× texture²)") \
+            if layer.roughness_texture else ""
+        col.label(text=f"α = r² = {alpha(layer.roughness):.4g}{texture}")
 
 
 def draw_medium(layout, layer, index: int) -> None:
@@ -116,23 +128,25 @@ def draw_medium(layout, layer, index: int) -> None:
     col = box.column()
     col.use_property_split = True
     col.use_property_decorate = False
-    col.prop(layer, "thickness")
-    _texture_row(col, layer, "sigma_t", "sigma_t_texture")
-    if layer.sigma_t > 0 or layer.sigma_t_texture is not None:
+    _texture_row(col, layer, "thickness", "thickness_texture")
+    col.prop(layer, "use_chromatic")
+    _texture_row(col, layer, "sigma_t_rgb" if layer.use_chromatic else "sigma_t", "sigma_t_texture")
+    if not is_clear(layer):
         _texture_row(col, layer, "albedo", "albedo_texture")
         col.prop(layer, "phase")
         if layer.phase == "HG":
             col.prop(layer, "hg_g")
         elif layer.phase == "MICROFLAKE":
             col.prop(layer, "flake_stddev")
-            col.prop(layer, "flake_orientation")
+            _texture_row(col, layer, "flake_orientation", "orientation_texture")
         elif layer.phase == "VMF":
             col.prop(layer, "vmf_kappa")
         elif layer.phase == "SGGX":
             col.prop(layer, "sggx_shape")
-            col.prop(layer, "flake_orientation", text="Normal" if layer.sggx_shape == "FLAKE" else "Axis")
+            _texture_row(col, layer, "flake_orientation", "orientation_texture",
+                         text="Normal" if layer.sggx_shape == "FLAKE" else "Axis")
             col.prop(layer, "sggx_roughness")
-        col.label(text=f"Optical depth τ = σt·d = {layer.sigma_t * layer.thickness:.4g}")
+        col.label(text=f"Optical depth τ = σt·d = {optical_depth(layer)}")
 
 
 def draw_stack(layout, material) -> None:
@@ -142,6 +156,7 @@ def draw_stack(layout, material) -> None:
     row.menu("LAMINA_MT_material_presets", text="Presets", icon="PRESET")
     if not settings.use_stack:
         return
+    draw_preset_link(layout, material)
     row = layout.row()
     row.template_list("LAMINA_UL_layers", "", settings, "layers", settings, "active_layer", rows=4)
     col = row.column(align=True)
@@ -164,6 +179,55 @@ def draw_stack(layout, material) -> None:
     draw_findings(layout, stack_findings(material))
 
 
+def draw_preset_link(layout, material) -> None:
+    """Which preset the stack came from, and whether export still writes it exactly."""
+    settings = material.lamina
+    state = preset_link.state(material)
+    if state == preset_link.NONE:
+        return
+    dropped = preset_link.dropped(material)
+    label = settings.preset_label or settings.preset_name
+    box = layout.box()
+    col = box.column(align=True)
+    row = col.row(align=True)
+    if state == preset_link.EXACT:
+        row.label(text=f"Preset: {label}", icon="LINKED")
+        if dropped:
+            col.label(text=f"{len(dropped)} preset field(s) not editable here, rendered from the preset:",
+                      icon="INFO")
+    else:
+        row.label(text=f"Edited since preset: {label}", icon="UNLINKED")
+        if dropped:
+            col.label(text=f"{len(dropped)} preset field(s) no longer rendered:", icon="ERROR")
+        op = row.operator("lamina.preset_apply", text="", icon="FILE_REFRESH")
+        op.name = settings.preset_name
+        path = preset_link.preset_path(settings) if settings.preset_file else None
+        op.filepath = str(path) if path is not None and path.is_file() else ""
+    row.operator("lamina.preset_detach", text="", icon="X")
+    for field in dropped[:MAX_DROPPED_SHOWN]:
+        col.label(text="    " + field)
+    if len(dropped) > MAX_DROPPED_SHOWN:
+        col.label(text=f"    and {len(dropped) - MAX_DROPPED_SHOWN} more")
+
+
+def draw_preset_browser(layout, context) -> None:
+    wm = context.window_manager
+    layout.template_icon_view(wm, "lamina_preset_browser", show_labels=True, scale=6.0, scale_popup=5.0)
+    entry = next((e for e in library.entries() if e.name == wm.lamina_preset_browser), None)
+    if entry is None:
+        return
+    col = layout.column(align=True)
+    col.label(text=f"{entry.label} · {entry.category}" + (" · user" if entry.user else ""))
+    if entry.error:
+        col.label(text=entry.error, icon="ERROR")
+    row = layout.row(align=True)
+    op = row.operator("lamina.preset_apply", text="Apply to Material", icon="IMPORT")
+    op.name = entry.name
+    op.filepath = str(entry.path)
+    if entry.user:
+        row.operator("lamina.preset_delete", text="", icon="TRASH").name = entry.name
+
+
 def draw_emission(layout, material) -> None:
     settings = material.lamina
     col = layout.column()
@@ -180,8 +244,9 @@ def node_findings(material) -> list[tuple[str, str]]:
 
 
 def draw_nodes(layout, material) -> None:
-    row = layout.row()
+    row = layout.row(align=True)
     row.operator("lamina.stack_new", icon="NODE_COMPOSITING")
+    row.menu("LAMINA_MT_material_presets", text="Presets", icon="PRESET")
     tree = material.node_tree
     if tree is None:
         layout.prop(material, "diffuse_color", text="Color")
@@ -227,7 +292,25 @@ class LAMINA_PT_material_emission(LaminaPanel, bpy.types.Panel):
         draw_emission(self.layout, context.material)
 
 
-CLASSES = (LAMINA_UL_layers, LAMINA_PT_material_surface, LAMINA_PT_material_emission)
+class LAMINA_PT_material_presets(LaminaPanel, bpy.types.Panel):
+    bl_label = "Preset Library"
+    bl_context = "material"
+    bl_parent_id = "LAMINA_PT_material_surface"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return super().poll(context) and getattr(context, "material", None) is not None
+
+    def draw_header(self, context):
+        self.layout.label(text="", icon="ASSET_MANAGER")
+
+    def draw(self, context):
+        draw_preset_browser(self.layout, context)
+
+
+CLASSES = (LAMINA_UL_layers, LAMINA_PT_material_surface, LAMINA_PT_material_emission,
+           LAMINA_PT_material_presets)
 
 
 register, unregister = bpy.utils.register_classes_factory(CLASSES)

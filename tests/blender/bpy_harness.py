@@ -55,13 +55,20 @@ def run_cases(module: str, cases: list[str], *, tmp: Path, env: dict | None = No
               timeout: float = 300, args: dict | None = None, dev_load: bool = True) -> dict:
     """Run case functions in one bpy process; returns {case: result or {"error": text}}.
 
-    ``dev_load=False`` leaves loading the add-on to the cases (extension install tests)."""
-    dev = None
-    if dev_load:
+    ``dev_load=False`` leaves loading the add-on to the cases (extension install tests);
+    ``dev_load="extension"`` loads this checkout as an extension (``bl_ext.lamina_dev.lamina``,
+    from a local repository holding a symlink), so extension-only APIs such as
+    ``bpy.utils.extension_path_user`` work. Cases find the package name in
+    ``os.environ["LAMINA_TEST_PACKAGE"]``."""
+    dev = repo = None
+    if dev_load == "extension":
+        repo = Path(tempfile.mkdtemp(prefix="lamina-repo-", dir=tmp))
+        (repo / "lamina").symlink_to(ROOT, target_is_directory=True)
+    elif dev_load:
         dev = Path(tempfile.mkdtemp(prefix="lamina-dev-", dir=tmp))
         (dev / "lamina").symlink_to(ROOT, target_is_directory=True)
     payload = {"module": module, "cases": cases, "dev": str(dev) if dev else None, "tmp": str(tmp),
-               "args": args or {}}
+               "repo": str(repo) if repo else None, "args": args or {}}
     child_env = dict(os.environ)
     child_env.setdefault("BLENDER_USER_RESOURCES", str(Path(tmp) / "blender-user"))
     child_env["PYTHONPATH"] = os.pathsep.join([str(HERE), str(ROOT), child_env.get("PYTHONPATH", "")])

@@ -3,8 +3,11 @@ from __future__ import annotations
 
 import importlib
 import json
+import os
 import sys
 import traceback
+
+DEV_REPO = "lamina_dev"      # repository module name of an extension-mode development load
 
 
 def main() -> int:
@@ -14,10 +17,18 @@ def main() -> int:
         sys.path.insert(0, payload["dev"])
         import addon_utils
         addon_utils.enable("lamina", default_set=True, handle_error=None)
+        os.environ["LAMINA_TEST_PACKAGE"] = "lamina"
+    elif payload.get("repo"):
+        import addon_utils
+        bpy.context.preferences.extensions.repos.new(name="Lamina Dev", module=DEV_REPO,
+                                                     custom_directory=payload["repo"], source="USER")
+        package = f"bl_ext.{DEV_REPO}.lamina"
+        addon_utils.enable(package, default_set=True, handle_error=None)
+        os.environ["LAMINA_TEST_PACKAGE"] = package
     module = importlib.import_module(f"cases.{payload['module']}")
     results = {}
     for case in payload["cases"]:
-        if payload["dev"]:
+        if payload["dev"] or payload.get("repo"):
             bpy.ops.wm.read_homefile(use_empty=True)
         try:
             results[case] = getattr(module, case)(payload["tmp"], **payload["args"].get(case, {}))

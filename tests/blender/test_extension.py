@@ -43,7 +43,7 @@ def test_zip_validated_and_contents(built):
     names = zipfile.ZipFile(path).namelist()
     tops = {n.split("/")[0] for n in names}
     assert {"__init__.py", "blender_manifest.toml", "addon", "backend"} <= tops
-    assert not tops & {"tests", "tools", ".venv", "build", "benchmarks", ".git", "pytest.ini"}
+    assert not tops & {"tests", "tools", ".venv", "build", "benchmarks", ".git", "pytest.ini", "showcase"}
     assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
     wheels = [n for n in names if n.endswith(".whl")]
     assert not [w for w in wheels if "numpy" in w]

@@ -69,6 +69,7 @@ def test_stack_panel(results):
     assert r["poll"] == {"lamina": True, "cycles": False, "none": False}
     assert any(c[0] == "label" and "Noise Texture" in c[1] for c in r["node_calls"])
     assert ["operator", "lamina.stack_new"] in r["node_calls"]
+    assert ["menu", "LAMINA_MT_material_presets"] in r["node_calls"]     # presets for node materials too
 
 
 def test_light_and_render_panels(results):
