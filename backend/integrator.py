@@ -20,8 +20,8 @@ import numpy as np
 from . import stats
 from .geometry.accel import offset_origin
 from .materials.base import ShadingContext
+from .lights.selection import build_selector
 from .mathutil import Frame, dot, max3, normalize
-from .sampling.discrete import Discrete1D
 
 SHADOW_EPS = 1e-4  # shorten shadow rays by this fraction so they do not hit the light's own surface
 
@@ -43,8 +43,8 @@ class PathTracer:
         self.rr_depth = s.rr_depth
         self.clamp = s.clamp
         self.lights = list(scene.lights)
-        powers = np.array([max(float(l.power()), 0.0) for l in self.lights]) if self.lights else np.zeros(0)
-        self.selector = Discrete1D(powers) if self.lights and powers.sum() > 0 else None
+        # Selection ∝ power; zero-power lights are never picked (lights/selection.py).
+        self.selector = build_selector(self.lights)
         self.hittable = [i for i, l in enumerate(self.lights) if l.is_hittable]
         self.infinite = [i for i, l in enumerate(self.lights) if l.is_infinite]
         self.mesh_light_index = None
@@ -192,6 +192,8 @@ class PathTracer:
     def _add_escaped(self, L, lane, d, beta, prev_pdf, prev_delta, segment):
         for li in self.infinite:
             light = self.lights[li]
+            if segment == 0 and not getattr(light, "visible_camera", True):
+                continue   # e.g. a sun disk hidden from the camera (Blender's default for lights)
             Le = light.eval_escaped(d)
             w = self._mis_weight_for_hit(li, light.pdf_escaped(d), prev_pdf, prev_delta)
             L[lane] += self._clamp(beta * Le * w[:, None], segment)

@@ -1,0 +1,81 @@
+"""Spot lights, as Cycles ≥ 4.0 (src/scene/light.cpp, src/kernel/light/spot.h).
+
+A spot light is a point light (point.py: same units, radius, soft falloff) whose emission is
+multiplied by Cycles' cone falloff, evaluated on the direction the light travels expressed in the
+light object's local frame (``M⁻¹ w``, normalised; the cone axis is local −Z)::
+
+    z'    = −(M⁻¹ w / |M⁻¹ w|)_z                 cosine to the cone axis in local space
+    x     = (z' − cos(spot_size/2)) / ((1 − cos(spot_size/2)) · spot_blend)
+    atten = smoothstep(x) = 0 (x ≤ 0), 1 (x ≥ 1), x²(3 − 2x) otherwise
+
+so a non-uniformly scaled spot light has an elliptical cone, as in Blender. ``spot_blend`` = 0
+gives a hard edge. An optional profile (IES) multiplies the attenuation; ``spot_attenuation`` is
+the function to combine with it.
+
+Sampling: like Cycles, a sphere spot light seen from close by samples the (larger) cone of the
+spot instead of the sphere's visible cone when that is narrower: directions outside the spot cone
+carry no light anyway.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import register
+from .common import column, power_luminance, sin2_to_one_minus_cos, unit
+from .point import PointLight, parse_point_fields
+
+
+def spot_attenuation(cos_axis: np.ndarray, cos_half_angle: float, spot_smooth: float) -> np.ndarray:
+    """Cycles' spot falloff of the local cosine to the cone axis (see module docstring).
+
+    ``spot_smooth`` = 1/((1 − cos_half_angle) · spot_blend); ``np.inf`` for a hard edge.
+    """
+    z = np.asarray(cos_axis, dtype=np.float64)
+    if not np.isfinite(spot_smooth):
+        return (z > cos_half_angle).astype(np.float64)
+    x = np.clip((z - cos_half_angle) * spot_smooth, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def spot_smooth_factor(cos_half_angle: float, blend: float) -> float:
+    den = (1.0 - cos_half_angle) * blend
+    return 1.0 / den if den > 0 else np.inf
+
+
+class SpotLight(PointLight):
+    def __init__(self, to_world, power, color, spot_size: float, spot_blend: float,
+                 radius: float = 0.0, soft_falloff: bool = False, visible_camera: bool = False,
+                 profile=None):
+        """``spot_size``: full cone angle in radians; ``spot_blend`` in [0, 1]."""
+        super().__init__(to_world, power, color, radius, soft_falloff, visible_camera, profile)
+        half = 0.5 * float(spot_size)
+        self.spot_size = float(spot_size)
+        self.spot_blend = float(spot_blend)
+        self.cos_half = float(np.cos(half))
+        self.spot_smooth = spot_smooth_factor(self.cos_half, self.spot_blend)
+        # World half-angle of the widest part of the (possibly elliptical) cone: tan scales with
+        # the object's x/y scale over its z scale.
+        su, sv, sw = (float(np.linalg.norm(column(self.to_world, i))) for i in range(3))
+        tan_wide = np.tan(half) * max(su, sv) / sw if half < 0.5 * np.pi else np.inf
+        sin2_wide = 1.0 if not np.isfinite(tan_wide) else tan_wide ** 2 / (1.0 + tan_wide ** 2)
+        self._spread_one_minus_cos = float(sin2_to_one_minus_cos(np.array(sin2_wide)))
+        self._spread_axis = unit(column(self.to_world, 2))   # towards the light from lit points
+
+    def directional_factor(self, w_out):
+        local = self.local_direction(w_out)
+        f = spot_attenuation(-local[:, 2], self.cos_half, self.spot_smooth)
+        if self.profile is not None:
+            f = f * np.asarray(self.profile(local), dtype=np.float64)
+        return f
+
+    def power(self) -> float:
+        kink = self.cos_half + (1.0 - self.cos_half) * self.spot_blend   # end of the smoothstep
+        return power_luminance(self.color, self.watts) * self._mean_factor(self.cos_half, (kink,))
+
+
+@register("spot")
+def parse_spot(node) -> SpotLight:
+    fields = parse_point_fields(node)
+    size = node.number("spot_size", 45.0, lo=1.0, hi=180.0)
+    blend = node.number("spot_blend", 0.15, lo=0.0, hi=1.0)
+    return SpotLight(spot_size=np.radians(size), spot_blend=blend, **fields)
