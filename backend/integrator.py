@@ -33,6 +33,32 @@ def power_heuristic(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.where(den > 0, a2 / np.where(den > 0, den, 1.0), 0.0)
 
 
+def valid_reflection_normal(wi: np.ndarray, ns: np.ndarray, ng: np.ndarray) -> np.ndarray:
+    """Bend interpolated shading normals so that the mirror direction of wi stays above the
+    geometric surface (the idea of Cycles' ensure_valid_specular_reflection, own derivation).
+
+    On coarse smooth-shaded meshes the mirror reflection about ns can point below the triangle;
+    such a ray would enter the object and the energy is lost (dark rims on mirrors). Where that
+    happens, the reflection is lifted to just above the geometric plane (cosine ``threshold``) and
+    the normal replaced by the half vector of wi and the lifted reflection, keeping ns's side.
+    """
+    side = np.where(dot(wi, ng) >= 0, 1.0, -1.0)
+    ngw = ng * side[:, None]                       # geometric normal on the viewer's side
+    cos_i = dot(wi, ngw)
+    c = dot(wi, ns)
+    r = 2.0 * c[:, None] * ns - wi
+    threshold = np.minimum(0.9 * cos_i, 0.01)
+    bad = (dot(r, ngw) < threshold) & (c * side > 0)
+    if not bad.any():
+        return ns
+    idx = np.flatnonzero(bad)
+    r_b = r[idx] + (threshold[idx] - dot(r[idx], ngw[idx]))[:, None] * ngw[idx]
+    h = normalize(wi[idx] + normalize(r_b))
+    out = ns.copy()
+    out[idx] = h * np.sign(c[idx])[:, None]
+    return out
+
+
 class PathTracer:
     def __init__(self, scene, accel):
         self.scene = scene
@@ -200,8 +226,8 @@ class PathTracer:
 
     def _add_surface_emission(self, L, lane, o, d, t, si, beta, prev_pdf, prev_delta, segment):
         emits = self.emissive_material[si["material"]]
-        front = dot(d, si["ng"]) < 0   # emitters are one-sided: the counter-clockwise front
-        m = emits & front
+        # Emission shaders emit from both faces, as in Cycles (measured with Cycles 5.0.1).
+        m = emits
         if not m.any():
             return
         idx = np.nonzero(m)[0]
@@ -243,6 +269,8 @@ class PathTracer:
         bad_shading = two_sided & (dot(wi, ns) <= 0)
         if bad_shading.any():
             ns[bad_shading] = ng[bad_shading]
+        if self.soup.normals is not None:
+            ns = valid_reflection_normal(wi, ns, ng)
         frame = Frame.from_normal_tangent(ns, si["tangent"])
         wi_local = frame.to_local(wi)
         p = si["p"]
@@ -253,25 +281,31 @@ class PathTracer:
         new_beta = np.zeros((n, 3))
         new_pdf = np.zeros(n)
         new_delta = np.zeros(n, dtype=bool)
-        shadow = []  # (lane indices into this batch, origin, dir, tmax, contribution)
         can_nee = self.selector is not None and segment + 1 < self.max_segments
+        if can_nee:
+            # Light samples for every lane at once; the BSDF is evaluated per material group below.
+            wi_w, dist, value, lpdf, is_delta, sel_p = self._sample_lights(p, rng)
+            wo_nee = frame.to_local(wi_w)
+            live = (max3(value) > 0) & ((dot(wi_w, ng) * wo_nee[:, 2]) > 0)
+            f_nee = np.zeros((n, 3))
+            bsdf_pdf = np.zeros(n)
+            any_rough_light = not is_delta.all()
 
         bounds = np.concatenate([[0], np.flatnonzero(np.diff(mats)) + 1, [n]])
         for a, b in zip(bounds[:-1], bounds[1:]):
             g = slice(int(a), int(b))
             material = self.scene.materials[mats[a]]
             bsdf = material.bind(ShadingContext(si["uv"][g]))
-            fr = Frame(frame.s[g], frame.t[g], frame.n[g])
             wi_g = wi_local[g]
             if albedo_aov is not None:
                 albedo_aov[lane[g]] = np.broadcast_to(np.asarray(bsdf.albedo(), dtype=np.float64), (b - a, 3))
-            if can_nee and not bsdf.delta_only:
-                found = self._nee(bsdf, wi_g, fr, p[g], ng[g], beta[g], rng)
-                if found is not None:
-                    shadow.append((found[0] + a,) + found[1:])
+            if can_nee and not bsdf.delta_only and live[g].any():
+                f_nee[g] = bsdf.eval(wi_g, wo_nee[g], rng)
+                if any_rough_light:
+                    bsdf_pdf[g] = bsdf.pdf(wi_g, wo_nee[g], rng)
             if do_continue:
                 smp = bsdf.sample(wi_g, rng)
-                d_world = fr.to_world(smp.wo)
+                d_world = Frame(frame.s[g], frame.t[g], frame.n[g]).to_world(smp.wo)
                 new_dir[g] = d_world
                 # Leak guard: the sampled side must agree for the shading and the geometric normal.
                 ok = (dot(d_world, ng[g]) * smp.wo[:, 2]) > 0
@@ -279,16 +313,17 @@ class PathTracer:
                 new_pdf[g] = smp.pdf
                 new_delta[g] = smp.delta
 
-        if shadow:
-            idx = np.concatenate([x[0] for x in shadow])
-            if idx.size:
-                so = np.concatenate([x[1] for x in shadow])
-                sd = np.concatenate([x[2] for x in shadow])
-                st = np.concatenate([x[3] for x in shadow])
-                sc = np.concatenate([x[4] for x in shadow])
-                free = ~self.accel.occluded(so, sd, st)
+        if can_nee:
+            w = np.where(is_delta, 1.0, power_heuristic(sel_p * lpdf, bsdf_pdf)) / sel_p
+            contrib = beta * f_nee * value * (w * live)[:, None]
+            keep = np.flatnonzero(max3(contrib) > 0)
+            if keep.size:
+                origin = offset_origin(p[keep], ng[keep], wi_w[keep])
+                d_keep = dist[keep]
+                tmax = np.where(np.isfinite(d_keep), d_keep * (1.0 - SHADOW_EPS), np.inf)
+                free = ~self.accel.occluded(origin, wi_w[keep], tmax)
                 # One shadow ray per lane and bounce: lane indices are unique, plain += is exact.
-                L[lane[idx[free]]] += self._clamp(sc[free], segment)
+                L[lane[keep[free]]] += self._clamp(contrib[keep[free]], segment)
 
         if not do_continue:
             return lane[:0], p[:0], new_dir[:0], new_beta[:0], new_pdf[:0], new_delta[:0]
@@ -306,46 +341,26 @@ class PathTracer:
         origin = offset_origin(p[alive], ng[alive], new_dir[alive])
         return lane[alive], origin, new_dir[alive], new_beta[alive], new_pdf[alive], new_delta[alive]
 
-    def _nee(self, bsdf, wi_g, frame, p, ng, beta, rng):
-        """Light sample + BSDF eval for one material group (all arrays are that group's lanes)."""
-        m = wi_g.shape[0]
+    def _sample_lights(self, p, rng):
+        """Pick a light per lane (∝ power) and sample it: world directions, distances,
+        radiance/pdf values, solid-angle pdfs, delta flags and selection probabilities."""
+        m = p.shape[0]
         u_sel = rng.random(m)
         u_light = rng.random((m, 2))
         if len(self.lights) == 1:
-            li_of = np.zeros(m, np.int64)
-            sel_p = np.ones(m)
             light = self.lights[0]
             ls = light.sample(p, u_light)
-            wi_w, dist, value, lpdf = ls.wi, ls.dist, ls.value, ls.pdf
-            is_delta = np.full(m, light.is_delta)
-        else:
-            li_of, sel_p, _ = self.selector.sample(u_sel)
-            wi_w = np.zeros((m, 3))
-            dist = np.zeros(m)
-            value = np.zeros((m, 3))
-            lpdf = np.zeros(m)
-            is_delta = np.zeros(m, dtype=bool)
-            for li in np.unique(li_of):
-                k = li_of == li
-                light = self.lights[li]
-                ls = light.sample(p[k], u_light[k])
-                wi_w[k], dist[k], value[k], lpdf[k] = ls.wi, ls.dist, ls.value, ls.pdf
-                is_delta[k] = light.is_delta
-        wo_l = frame.to_local(wi_w)
-        live = (max3(value) > 0) & ((dot(wi_w, ng) * wo_l[:, 2]) > 0)
-        if not live.any():
-            return None
-        # Evaluate every lane (cheaper than gathering the live ones when most are live).
-        f = bsdf.eval(wi_g, wo_l, rng)
-        w = 1.0 / sel_p
-        if not is_delta.all():
-            bp = bsdf.pdf(wi_g, wo_l, rng)
-            w = np.where(is_delta, 1.0, power_heuristic(sel_p * lpdf, bp)) / sel_p
-        contrib = beta * f * (value * (w * live)[:, None])
-        keep = np.flatnonzero(max3(contrib) > 0)
-        if keep.size == 0:
-            return None
-        origin = offset_origin(p[keep], ng[keep], wi_w[keep])
-        d_keep = dist[keep]
-        tmax = np.where(np.isfinite(d_keep), d_keep * (1.0 - SHADOW_EPS), np.inf)
-        return keep, origin, wi_w[keep], tmax, contrib[keep]
+            return ls.wi, ls.dist, ls.value, ls.pdf, np.full(m, light.is_delta), np.ones(m)
+        li_of, sel_p, _ = self.selector.sample(u_sel)
+        wi_w = np.zeros((m, 3))
+        dist = np.zeros(m)
+        value = np.zeros((m, 3))
+        lpdf = np.zeros(m)
+        is_delta = np.zeros(m, dtype=bool)
+        for li in np.unique(li_of):
+            k = li_of == li
+            light = self.lights[li]
+            ls = light.sample(p[k], u_light[k])
+            wi_w[k], dist[k], value[k], lpdf[k] = ls.wi, ls.dist, ls.value, ls.pdf
+            is_delta[k] = light.is_delta
+        return wi_w, dist, value, lpdf, is_delta, sel_p

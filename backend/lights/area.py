@@ -5,8 +5,8 @@ Geometry (src/scene/light.cpp): the emitter is centred on the object's origin, s
 ``Light.area(matrix_world=...)``), and emits from one side, towards local −Z. Shear is ignored
 (the Y axis is orthogonalised against X).
 
-Units: with ``normalize`` (default) the on-axis-free radiance scale is L0 = P / (π A_world), so a
-Lambertian emitter radiates exactly P watts; without it L0 = P/π (Cycles' ``invarea`` = 1).
+Units: with ``normalize`` (default) the radiance scale is L0 = P / (π A_world), so a Lambertian
+emitter radiates exactly P watts; without it L0 = P/π (Cycles' ``invarea`` = 1).
 
 Angular profile (profiles.py), radiance = L0 · f(θ) / K, always emitting P in total:
 * ``spread`` (Blender's area light spread, degrees, default 180): Cycles' soft-box falloff
@@ -16,13 +16,15 @@ Angular profile (profiles.py), radiance = L0 · f(θ) / K, always emitting P in 
 
 Sampling for next-event estimation: only the part of the emitter that can reach the shading point
 is sampled. A point at height h in front of the light receives light only from the disk of radius
-h·tan(cutoff) around its projection; that disk's bounding box is clipped to the emitter, and a
-point whose box is empty gets no sample at all (value 0, no shadow ray). Rectangles (and clipped
-ellipses, when the box is smaller than the ellipse) are sampled uniformly in solid angle with the
-spherical-rectangle map; whole ellipses uniformly by area. ``pdf_hit`` redoes the same choice, so
-MIS sees the exact density.
+h·tan(cutoff) around its projection; a point whose disk box misses the emitter gets no sample at
+all (value 0, no shadow ray). Otherwise the smallest of these is sampled: the cutoff cone of
+directions itself, ∝ the emitted power (``ConeTable``; its footprint is that disk), the disk's
+bounding box clipped to the emitter, uniformly in solid angle (spherical-rectangle map), or a whole
+ellipse by area. ``pdf_hit`` redoes the same choice, so MIS sees the exact density.
 """
 from __future__ import annotations
+
+from dataclasses import fields, replace
 
 import numpy as np
 
@@ -147,7 +149,37 @@ class AreaLight(Light):
         return mode, u0, u1, v0, v1, sr, solid
 
     # ------------------------------------------------------------------ NEE
+    def _whole_rectangle(self) -> bool:
+        """The common case (rectangle, no cutoff cone): every lane samples the whole emitter."""
+        return not self.geo.ellipse and not np.isfinite(self.profile.tan_max)
+
+    def _sample_whole_rectangle(self, p, u) -> LightSample:
+        """Fast path of ``sample`` for ``_whole_rectangle`` lights: no per-mode masking."""
+        g = self.geo
+        n = p.shape[0]
+        corner = g.center - g.half_u * g.axis_u - g.half_v * g.axis_v
+        sr = spherical_rect(p, corner, g.axis_u, g.axis_v, g.len_u, g.len_v)
+        x = sample_spherical_rect(sr, u)
+        pdf_sa = safe_div(1.0, sr.solid_angle)
+        small = sr.solid_angle < MIN_SOLID_ANGLE
+        if small.any():
+            # Tiny solid angles: uniform area sampling (see MIN_SOLID_ANGLE).
+            x[small] = corner + (u[small, 0] * g.len_u)[:, None] * g.axis_u + (u[small, 1] * g.len_v)[:, None] * g.axis_v
+        v = x - p
+        t = np.sqrt(dot(v, v))
+        wi = v / np.where(t > 0, t, 1.0)[:, None]
+        cos_out = -dot(wi, g.normal)
+        if small.any():
+            pdf_sa = np.where(small, safe_div(t * t, cos_out * g.area), pdf_sa)
+        _, _, h = g.local(p)
+        ok = (h > 0) & (t > 0) & (cos_out > 0) & (pdf_sa > 0) & self.emits
+        le = self.radiance(np.where(ok, cos_out, 0.0))
+        value = np.where(ok[:, None], le * safe_div(1.0, pdf_sa)[:, None], 0.0)
+        return LightSample(wi, np.where(ok, t, 0.0), value, np.where(ok, pdf_sa, 0.0))
+
     def sample(self, p, u) -> LightSample:
+        if self._whole_rectangle():
+            return self._sample_whole_rectangle(p, u)
         n = p.shape[0]
         g = self.geo
         mode, u0, u1, v0, v1, sr, solid = self._plan(p)
@@ -216,6 +248,13 @@ class AreaLight(Light):
 
     def pdf_hit(self, o, d, t):
         g = self.geo
+        if self._whole_rectangle():
+            corner = g.center - g.half_u * g.axis_u - g.half_v * g.axis_v
+            solid = spherical_rect(o, corner, g.axis_u, g.axis_v, g.len_u, g.len_v).solid_angle
+            cos_out = -dot(d, g.normal)
+            pdf = np.where(solid < MIN_SOLID_ANGLE, safe_div(t * t, cos_out * g.area), safe_div(1.0, solid))
+            _, _, h = g.local(o)
+            return np.where((cos_out > 0) & (h > 0), pdf, 0.0)
         mode, u0, u1, v0, v1, _, solid = self._plan(o)
         x = o + t[:, None] * d
         lu, lv, _ = g.local(x)
@@ -235,7 +274,7 @@ class AreaLight(Light):
 
 
 def _take(sr, m):
-    from dataclasses import fields, replace
+    """The spherical rectangles of the lanes selected by m."""
     return replace(sr, **{f.name: getattr(sr, f.name)[m] for f in fields(sr)})
 
 

@@ -1,14 +1,14 @@
 """Emissive triangles (objects whose material has ``emission``), for next-event estimation.
 
 The integrator builds one ``MeshLight`` from all emissive triangles of the scene (world space,
-float64) with one radiance per triangle — a textured emission is approximated by its value at the
-triangle's UV centroid for *sampling*; what a ray sees on hitting the surface is the full texture.
+float64) with one radiance per triangle, used to pick triangles; a textured emission picks by its
+value at the triangle's UV centroid, and the sample's value is the exact texture lookup at the
+sampled point (``radiance_at``), so next-event estimation stays unbiased.
 The integrator intersects the triangles through embree (they are ordinary scene geometry), so this
 class provides sampling and the MIS density ``pdf_hit_triangle`` only.
 
-Emission is one-sided by default: only the front, the side the counter-clockwise winding normal
-points to (Blender's face normal), emits. (Cycles' emission shader emits from both sides of a
-face; ``two_sided=True`` gives that.)
+Scenes use ``two_sided=True``: Cycles' emission shader emits from both faces (measured with
+Cycles 5.0.1). One-sided emission (the counter-clockwise front only) remains available.
 
 Sampling: a triangle with probability ∝ area × luminance(radiance), then a uniform point on it
 (Heitz's low-distortion square-to-triangle map); pdf in solid angle = P(tri) / area × t² / |cos|.
@@ -25,7 +25,12 @@ from .common import safe_div
 
 
 class MeshLight(Light):
-    def __init__(self, triangles_world: np.ndarray, radiance: np.ndarray, two_sided: bool = False):
+    def __init__(self, triangles_world: np.ndarray, radiance: np.ndarray, two_sided: bool = False,
+                 radiance_at=None):
+        """``radiance_at(tri, bary)`` (optional) gives the exact radiance at sampled points
+        (textured emission): tri (n,) triangle indices, bary (n, 3) weights of v0, v1, v2. Without
+        it the per-triangle ``radiance`` is used; with it, ``radiance`` only steers sampling."""
+        self.radiance_at = radiance_at
         v = np.asarray(triangles_world, dtype=np.float64).reshape(-1, 3, 3)
         self.v0 = v[:, 0]
         self.e1 = v[:, 1] - v[:, 0]
@@ -67,7 +72,11 @@ class MeshLight(Light):
             cos_l = np.abs(cos_l)
         pdf = safe_div(prob * t * t, self.area[tri] * cos_l)
         ok = (cos_l > 0) & (t > 0) & (pdf > 0)
-        value = np.where(ok[:, None], self.radiance[tri] * safe_div(1.0, pdf)[:, None], 0.0)
+        if self.radiance_at is not None:
+            emitted = self.radiance_at(tri, np.stack([b0, b1, 1.0 - b0 - b1], axis=-1))
+        else:
+            emitted = self.radiance[tri]
+        value = np.where(ok[:, None], emitted * safe_div(1.0, pdf)[:, None], 0.0)
         return LightSample(wi, np.where(ok, t, 0.0), value, np.where(ok, pdf, 0.0))
 
     def pdf_hit_triangle(self, o, d, t, tri_index) -> np.ndarray:

@@ -14,7 +14,9 @@ shapes (``use_soft_falloff``):
   I/(d² + r²) instead of I/d², hence the name.
 
 A directional factor (spot cone, IES profile) multiplies the emission along the direction the
-light travels, in the light's local frame — see ``PointLight.directional_factor``. Inside a sphere
+light travels, in the light's local frame — see ``PointLight.directional_factor``. A profile is a
+callable ``profile(local_dirs (n, 3)) -> (n,)``; if it has ``mean_factor(matrix, weight)`` that
+gives its exact mean over the world sphere for light selection. Inside a sphere
 light Cycles applies no directional factor, and neither do we.
 """
 from __future__ import annotations
@@ -101,10 +103,20 @@ class PointLight(Light):
         jac = abs(np.linalg.det(self._linear)) / np.maximum(length, 1e-300) ** 3
         f = self.directional_factor(world / length[:, None])
         mean = float(np.sum(f * jac * W.ravel()) * (2.0 * np.pi / nphi) / (4.0 * np.pi))
-        return min(max(mean, 0.0), 1.0)
+        # Not clamped to 1: an IES beam that concentrates flux has a mean factor of flux/177.83 lm.
+        return max(mean, 0.0)
+
+    def _profile_mean(self, weight=None):
+        """A profile's own mean over the world sphere (``mean_factor(matrix, weight)``, exact for
+        IES tables), or None when it has none."""
+        mean_factor = getattr(self.profile, "mean_factor", None)
+        if mean_factor is None:
+            return None
+        return max(float(mean_factor(self._linear, weight)), 0.0)
 
     def power(self) -> float:
-        return power_luminance(self.color, self.watts) * self._mean_factor()
+        mean = self._profile_mean()
+        return power_luminance(self.color, self.watts) * (mean if mean is not None else self._mean_factor())
 
     # ------------------------------------------------------------------ sampling
     def sample(self, p: np.ndarray, u: np.ndarray) -> LightSample:

@@ -1,13 +1,13 @@
 """Angular emission profiles of area lights: radiance ∝ f(θ), θ = angle to the emitter's normal.
 
-Every profile is normalised so that the light emits the same power as a Lambertian emitter of the
-same on-axis-free radiance scale: the radiance is ``L0 · f(θ) / K`` with
+Profiles are normalised to keep the emitted power: the radiance is ``L0 · f(θ) / K`` with
 
     K = 2 ∫₀^{π/2} f(θ) cos θ sin θ dθ        (K = 1 for f ≡ 1)
 
-so ``∫ L cos θ dω = π L0`` whatever the cone: narrowing the cone concentrates the same power, as
-Cycles does for the area light ``spread``. Profiles expose ``cos_max``/``tan_max`` (the cutoff:
-f = 0 beyond it) so samplers can skip the parts of an emitter that cannot reach a point.
+so ``∫ L cos θ dω = π L0`` whatever the profile, as for a Lambertian emitter of radiance L0:
+narrowing the beam concentrates the same power (as Cycles does for the area light ``spread``).
+Profiles expose ``cos_max``/``tan_max`` (the cutoff: f = 0 beyond it) so samplers can skip the
+parts of an emitter that cannot reach a point.
 """
 from __future__ import annotations
 

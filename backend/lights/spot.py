@@ -69,8 +69,12 @@ class SpotLight(PointLight):
         return f
 
     def power(self) -> float:
-        kink = self.cos_half + (1.0 - self.cos_half) * self.spot_blend   # end of the smoothstep
-        return power_luminance(self.color, self.watts) * self._mean_factor(self.cos_half, (kink,))
+        mean = self._profile_mean(
+            lambda local: spot_attenuation(-local[:, 2], self.cos_half, self.spot_smooth))
+        if mean is None:
+            kink = self.cos_half + (1.0 - self.cos_half) * self.spot_blend   # end of the smoothstep
+            mean = self._mean_factor(self.cos_half, (kink,))
+        return power_luminance(self.color, self.watts) * mean
 
 
 @register("spot")
