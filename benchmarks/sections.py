@@ -106,7 +106,9 @@ def series_stats(runs: list) -> dict:
     s_wall, _, _ = fit_loglog(wall, rmse)
     s_spp, _, se_spp = fit_loglog(spp, rmse)
     t0, c = fit_cost(spp, cpu)
-    s_sampling, _, _ = fit_loglog(np.maximum(np.array(cpu) - t0, 1e-9), rmse) if t0 > 0 else (s_cpu, 0, 0)
+    # Slope over the upper half of the sample counts, where the fixed cost t0 no longer matters.
+    hi = [i for i, r in enumerate(rows) if r["mean_spp"] >= max(spp) / 8]
+    s_hi, _, se_hi = fit_loglog([cpu[i] for i in hi], [rmse[i] for i in hi])
     cons = [r["consistency"] for r in rows if r["mean_spp"] >= 4 and math.isfinite(r["consistency"])]
     eff = [1.0 / (r["mse"] * r["cpu"]) for r in rows if r["mean_spp"] >= 4 and r["mse"] > 0]
     stats_tot: dict = {}
@@ -115,7 +117,7 @@ def series_stats(runs: list) -> dict:
             if k not in ("cpu_time", "master_cpu_time", "rays", "paths"):
                 stats_tot[k] = stats_tot.get(k, 0) + v
     return {"slope_cpu": s_cpu, "slope_cpu_se": se_cpu, "slope_wall": s_wall, "slope_spp": s_spp,
-            "slope_spp_se": se_spp, "t0": t0, "cost_per_spp": c, "slope_sampling": s_sampling,
+            "slope_spp_se": se_spp, "t0": t0, "cost_per_spp": c, "slope_hi": s_hi, "slope_hi_se": se_hi,
             "consistency": statistics.median(cons) if cons else float("nan"),
             "efficiency": statistics.median(eff) if eff else float("nan"), "counters": stats_tot,
             "paths_per_s": sum(r.stats.get("paths", 0) for r in runs) / max(sum(cpu), 1e-9)}
@@ -133,14 +135,15 @@ def explain(st: dict) -> str:
                          f"measured error {st['consistency']:.1f}× the image's own variance estimate)")
         else:
             parts.append(f"error vs spp falls with slope {ss:+.2f} (scatter of single renders)")
-    if s < -0.58 and st["t0"] > 0:
+    if s < -0.58 and abs(ss + 0.5) <= 0.1:
         # time = t0 + c·spp grows slower than spp while t0 matters, so the error falls faster per
         # second than spp^−½ at the cheap end: a steeper slope.
-        parts.append(f"steeper than −½ because of the fixed cost t0 = {st['t0']:.2f} s (scene load, embree build, "
-                     f"work set-up) in the cheapest renders; against sampling time (CPU − t0) the slope is "
-                     f"{st['slope_sampling']:+.2f}")
+        parts.append(f"steeper than −½ because of the fixed cost (t0 ≈ {max(st['t0'], 0):.2f} s: scene load, embree "
+                     f"build, work set-up) in the cheapest renders; over the top three octaves of spp the slope "
+                     f"is {st['slope_hi']:+.2f}")
     elif s > -0.42 and abs(ss + 0.5) <= 0.1:
-        parts.append("flatter than −½ although error vs spp is −½: the CPU time per spp grows with spp")
+        parts.append("flatter than −½ although error vs spp is −½: the CPU time per spp grows with spp "
+                     f"(slope over the top three octaves {st['slope_hi']:+.2f})")
     if not parts:
         return "as expected (−½)"
     return "; ".join(parts)
@@ -185,16 +188,16 @@ def time_vs_error(ctx: Context, scenes=BENCH_SCENES) -> str:
           "axes; the expectation for an unbiased Monte Carlo estimator is −½ for RMSE vs time (−1 for "
           "relative MSE, which is a squared error).", ""]
     md += ["| scene | image | reference spp (CPU time) | reference noise RMSE / RMSE at max spp | slope RMSE vs CPU time | "
-           "slope vs spp | fixed cost t0 | CPU per spp | k paths/s (CPU) | consistency | counters | note |",
-           "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+           "same, top 3 octaves of spp | slope vs spp | fixed cost t0 | CPU per spp | k paths/s (CPU) | consistency | counters | note |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for sc, ser, st, ref_rmse, last in rows:
         counters = ", ".join(f"{k} {v}" for k, v in sorted(st["counters"].items())) or "none"
         md.append(f"| {sc.name} | {ser.size[0]}×{ser.size[1]} | {ser.ref.spp} ({_fmt(ser.ref.cpu)} s{', cached' if ser.ref_cached else ''}) | "
                   f"{_fmt(ref_rmse)} / {_fmt(last)} | {st['slope_cpu']:+.2f} ± {_fmt(st['slope_cpu_se'], 2)} | "
-                  f"{st['slope_spp']:+.2f} | {_fmt(st['t0'])} s | {_fmt(st['cost_per_spp'])} s | "
+                  f"{st['slope_hi']:+.2f} | {st['slope_spp']:+.2f} | {_fmt(st['t0'])} s | {_fmt(st['cost_per_spp'])} s | "
                   f"{st['paths_per_s'] / 1e3:.1f} | {_fmt(st['consistency'])} | {counters} | {explain(st)} |")
     for name, why in ctx.skipped.items():
-        md.append(f"| {name} | – | skipped: `{why}` | | | | | | | | | |")
+        md.append(f"| {name} | – | skipped: `{why}` | | | | | | | | | | |")
     md += ["", "*consistency* = measured MSE / the image's own variance-of-mean estimate (median over "
            "renders with ≥ 4 spp); ≈ 1 for an unbiased estimator with well-estimated variance. "
            "*counters* = renderer statistics summed over the series (NaN/Inf samples dropped, walk-cap hits...).", ""]
@@ -355,7 +358,7 @@ def _profile_groups(data: dict, spp: int) -> dict:
 
 
 def overhead(ctx: Context) -> str:
-    size, spp, reps = (32, 4, 2) if ctx.quick else (96, 32, 6)
+    size, spp, reps = (32, 4, 2) if ctx.quick else (96, 16, 10)
     ctx.log(f"  A/B: cornell {size}x{size} {spp} spp, {reps} interleaved repetitions in fresh processes")
     probes = {False: [], True: []}
 
@@ -432,8 +435,10 @@ ADAPTIVE_SCENES = {"sky_spheres": ([0.3, 0.15, 0.08, 0.05, 0.03], 16), "cornell"
 def adaptive(ctx: Context) -> str:
     md = ["### Adaptive sampling vs uniform sampling", "",
           "`render.noise_target` stops pixels whose relative standard error is below the target (after "
-          "`min_spp`); the spp cap is the uniform series' largest spp. The saving is the CPU time the uniform "
-          "series needs for the same error (from its log-log fit) divided by the adaptive render's CPU time.", ""]
+          "`min_spp`; the renderer checks after each round of work items, so the first check comes after the "
+          "first round's spp); the spp cap is the uniform series' largest spp. Each adaptive point is the mean "
+          "MSE and CPU time of independent renders (2 in the full run). The saving is the CPU time the uniform "
+          "series needs for the same error (from its log-log fit) divided by the adaptive CPU time.", ""]
     for name, (targets, min_spp) in ADAPTIVE_SCENES.items():
         ser = ctx.series.get(name)
         if ser is None:
@@ -443,13 +448,26 @@ def adaptive(ctx: Context) -> str:
         cap = max(spps)
         if ctx.quick:
             targets, min_spp = targets[:3], 2
+        repeats = 1 if ctx.quick else 2
         runs = []
         for i, tgt in enumerate(targets):
-            run = render(ser.data, cap, 700 + i, ctx.workers, f"{name} adaptive {tgt}", noise_target=tgt,
-                         min_spp=min_spp)
-            run.metrics = errors(run, ser.ref, ser.noise)
+            # Independent repeats, errors and times averaged: single renders of scenes with
+            # caustics scatter too much to compare one point with a fitted line.
+            reps = []
+            for k in range(repeats):
+                run = render(ser.data, cap, 700 + 10 * i + k, ctx.workers, f"{name} adaptive {tgt}",
+                             noise_target=tgt, min_spp=min_spp)
+                run.metrics = errors(run, ser.ref, ser.noise)
+                reps.append(run)
+            run = reps[0]
+            for key in ("mse", "relmse", "mse_raw", "relmse_raw"):
+                run.metrics[key] = float(np.mean([r.metrics[key] for r in reps]))
+            run.metrics["rmse"] = math.sqrt(run.metrics["mse"]) if run.metrics["mse"] > 0 else float("nan")
+            run.cpu = float(np.mean([r.cpu for r in reps]))
+            run.wall = float(np.mean([r.wall for r in reps]))
+            run.counts = np.mean([r.counts for r in reps], axis=0)
             ctx.log(f"    {name} adaptive {tgt}: mean spp {run.mean_spp:.1f} cpu {run.cpu:.2f} s "
-                    f"rmse {_fmt(run.metrics['rmse'])}")
+                    f"rmse {_fmt(run.metrics['rmse'])} ({repeats} renders)")
             runs.append(run)
         uni = [r.summary() for r in ser.runs]
         ada = []

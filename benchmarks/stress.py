@@ -46,6 +46,7 @@ class Case:
     spec: dict
     energy: bool = True  # physically R + T <= 1: check for energy gain
     fast: bool = False   # part of the fast subset (tests/test_stress_fast.py)
+    cost: float = 1.0    # lanes are divided by this (expensive layered walks)
 
 
 @dataclass
@@ -160,7 +161,7 @@ def layered_cases() -> list[Case]:
     # 16 interfaces: 15 rough coats of alternating index over copper, 15 slabs.
     ifaces = [_coat(1.3 if i % 2 else 1.6, 0.1) for i in range(15)] + [cu]
     media = [_slab(sigma_t=0.3, albedo=0.95, phase={"type": "hg", "g": 0.3}) for _ in range(15)]
-    L.append(Case("layered", "16-layer stack", stack(ifaces, media), fast=True))
+    L.append(Case("layered", "16-layer stack", stack(ifaces, media), fast=True, cost=8.0))
     for est, pdf in (("uni", "approx"), ("bi", "stochastic")):
         L.append(Case("layered", f"validation 1 estimator {est} pdf {pdf}",
                       {**validation_stack(1), "estimator": est, "pdf": pdf}, fast=est == "uni"))
@@ -233,7 +234,11 @@ def render_cases(tex: Path) -> list[Case]:
 
 
 def all_cases(tex: Path) -> list[Case]:
-    return material_cases() + layered_cases() + phase_cases() + medium_cases() + texture_cases(tex) + render_cases(tex)
+    cases = material_cases() + layered_cases() + phase_cases() + medium_cases() + texture_cases(tex) + render_cases(tex)
+    for c in cases:
+        if c.spec.get("type") == "layered" and c.cost == 1.0:
+            c.cost = 4.0   # a layered query is ~100-1000× an analytic one
+    return cases
 
 
 def write_texture(path: Path, huge: bool = False) -> Path:
@@ -521,6 +526,10 @@ def run_case(case: Case, base: Path, lanes: int, fast: bool, seed: int = 1) -> R
     return res
 
 
+def lanes_for(case: Case, lanes: int) -> int:
+    return max(64, int(lanes / case.cost))
+
+
 def run(fast: bool = False, families=None, lanes: int | None = None, base: Path | None = None,
         log=None, select=None) -> list[Result]:
     base = Path(base) if base is not None else Path(__file__).resolve().parent / ".cache"
@@ -536,7 +545,7 @@ def run(fast: bool = False, families=None, lanes: int | None = None, base: Path 
         if select and not select(case):
             continue
         t0 = time.perf_counter()
-        res = run_case(case, base, lanes, fast)
+        res = run_case(case, base, lanes_for(case, lanes), fast)
         res.seconds = time.perf_counter() - t0
         if log:
             log(format_row(res))

@@ -31,7 +31,7 @@ def _cases():
 @pytest.mark.parametrize("case", _cases(), ids=lambda c: f"{c.family}:{c.name}")
 def test_stress_case_has_no_failures(case, base):
     case = _with_texture(case, base)
-    res = stress.run_case(case, base, LANES, fast=True)
+    res = stress.run_case(case, base, stress.lanes_for(case, LANES), fast=True)
     if not res.available:
         pytest.skip(res.note)
     assert res.nan == 0, f"{case.name}: {res.nan} NaN/Inf values ({res.note})"
