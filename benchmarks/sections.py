@@ -321,6 +321,8 @@ def _probe(scene: str, size: int, spp: int, block: bool) -> dict:
 
 def _ab(ctx: Context, reps: int, a: Callable[[], float], b: Callable[[], float]) -> dict:
     """Interleaved A/B timing (ABBA order cancels slow drifts of the machine's load)."""
+    a()   # warm-up: one-time costs (imports, lookup tables) are not part of either side
+    b()
     ta, tb = [], []
     for i in range(reps):
         order = (a, b) if i % 2 == 0 else (b, a)
