@@ -1,0 +1,58 @@
+"""Names and enumerations shared by properties, UI and export (no bpy here).
+
+Enum items carry explicit integer ids so that .blend files keep their values if items are
+reordered or added later.
+"""
+from __future__ import annotations
+
+# Named metals of the conductor interface (docs/materials.md, `conductor.metal`).
+METALS = (
+    ("Ag", "Silver"), ("Al", "Aluminium"), ("Au", "Gold"), ("Be", "Beryllium"), ("Co", "Cobalt"),
+    ("Cr", "Chromium"), ("Cu", "Copper"), ("Fe", "Iron"), ("Hg", "Mercury"), ("Mo", "Molybdenum"),
+    ("Ni", "Nickel"), ("Pd", "Palladium"), ("Pt", "Platinum"), ("Rh", "Rhodium"), ("Ti", "Titanium"),
+    ("V", "Vanadium"), ("W", "Tungsten"), ("Zn", "Zinc"),
+)
+
+# (identifier, label, description, icon, id)
+INTERFACE_KINDS = (
+    ("DIELECTRIC", "Dielectric", "A boundary into a transparent medium (coating, varnish, glass); "
+     "its IOR is the index of the medium below it", "MATSPHERE", 0),
+    ("CONDUCTOR", "Conductor", "A metal: named metal or complex IOR. Opaque, so it must be the "
+     "last interface", "SHADING_RENDERED", 1),
+    ("DIFFUSE", "Diffuse", "A Lambertian base. Opaque, so it must be the last interface",
+     "SHADING_SOLID", 2),
+    ("NULL", "Null", "Index-matched pass-through: separates two media without a boundary",
+     "SELECT_SUBTRACT", 3),
+    ("MATERIAL", "Nested Material", "The stack of another Lamina material, used as one interface",
+     "MATERIAL", 4),
+)
+OPAQUE_KINDS = {"conductor", "diffuse"}
+
+PHASE_KINDS = (
+    ("ISOTROPIC", "Isotropic", "Scatters equally in all directions", 0),
+    ("HG", "Henyey-Greenstein", "Forward (g > 0) or backward (g < 0) scattering", 1),
+    ("MICROFLAKE", "Microflake (fibre)", "Oriented flakes/fibres (Guo et al. 2018): anisotropic "
+     "scattering and extinction", 2),
+    ("VMF", "von Mises-Fisher", "A forward lobe of concentration κ", 3),
+    ("SGGX", "SGGX", "SGGX specular microflakes (fibres or flakes) with a roughness", 4),
+)
+
+SGGX_SHAPES = (
+    ("FIBER", "Fibres", "Fibres along the axis", 0),
+    ("FLAKE", "Flakes", "Flakes whose normal is the axis", 1),
+)
+
+DISTRIBUTIONS = (
+    ("GGX", "GGX", "GGX (Trowbridge-Reitz) microfacets, as Cycles", 0),
+    ("BECKMANN", "Beckmann", "Beckmann microfacets", 1),
+)
+
+ESTIMATORS = (
+    ("BIDIRECTIONAL", "Bidirectional", "Connections inside each slab with MIS (lower noise; default)", 0),
+    ("UNIDIRECTIONAL", "Unidirectional", "Next-event estimation through the exit interface only", 1),
+)
+
+PDF_MODES = (
+    ("APPROXIMATE", "Approximate", "Cheap approximate pdf (media removed) for MIS weights", 0),
+    ("STOCHASTIC", "Stochastic", "Unbiased stochastic pdf estimate for MIS weights (slower)", 1),
+)

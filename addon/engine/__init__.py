@@ -1,0 +1,1 @@
+"""The LAMINA render engine and the backend child-process job."""

@@ -1,0 +1,294 @@
+"""Cycles/EEVEE shader node trees → Lamina materials (for materials without a Lamina stack).
+
+Translated: Principled BSDF (dielectric base as a specular-over-diffuse stack, metallic as a
+conductor, transmission as glass, coat as one more interface on top, emission), Diffuse, Glossy,
+Metallic, Glass and Refraction BSDF, Emission; Image Texture nodes plugged into colour and
+roughness inputs. Everything else is listed in ``notes`` (one warning per export), never
+silently dropped; the value typed into the socket is used instead.
+"""
+from __future__ import annotations
+
+from ..util import f0_to_conductor_k, rgb
+from .stack import alpha
+
+CLEAR_MEDIUM = {"thickness": 1.0, "sigma_t": 0.0}
+DEFAULT_MATERIAL = {"type": "diffuse", "color": [0.8, 0.8, 0.8]}
+
+
+def _distribution(node) -> str:
+    return "beckmann" if getattr(node, "distribution", "") == "BECKMANN" else "ggx"
+
+
+def label(node) -> str:
+    """A node as users see it: its name, plus its type when renamed."""
+    return node.name if node.name == node.bl_label else f"{node.name} ({node.bl_label})"
+
+
+def _follow(socket):
+    """The node and output socket feeding ``socket`` (through reroutes), or (None, None)."""
+    while socket is not None and socket.is_linked:
+        links = [l for l in socket.links if l.is_valid and not l.is_muted]
+        if not links:
+            return None, None
+        node = links[0].from_node
+        if node.bl_idname == "NodeReroute":
+            socket = node.inputs[0]
+            continue
+        if node.mute:
+            return None, None
+        return node, links[0].from_socket
+    return None, None
+
+
+class NodeTranslator:
+    def __init__(self, images, notes: list[str]):
+        self.images = images
+        self.notes = notes
+        self._where = ""
+
+    def note(self, what: str) -> None:
+        self.notes.append(f"{self._where}: {what}" if self._where else what)
+
+    # ---------------------------------------------------------------- entry points
+
+    def material(self, mat) -> dict:
+        self._where = f"material '{mat.name}'"
+        tree = mat.node_tree if getattr(mat, "node_tree", None) is not None else None
+        if tree is None or not _uses_nodes(mat):
+            return {"type": "diffuse", "color": rgb(mat.diffuse_color)}
+        out = tree.get_output_node("CYCLES") or tree.get_output_node("ALL")
+        if out is None:
+            self.note("no Material Output node (grey diffuse used)")
+            return dict(DEFAULT_MATERIAL)
+        node, _ = _follow(out.inputs["Surface"])
+        if node is None:
+            return {"type": "diffuse", "color": [0.0, 0.0, 0.0]}   # nothing connected renders black
+        if out.inputs.get("Displacement") is not None and out.inputs["Displacement"].is_linked:
+            self.note("displacement (ignored)")
+        return self.shader(node)
+
+    def shader(self, node) -> dict:
+        kind = node.bl_idname
+        handler = {
+            "ShaderNodeBsdfPrincipled": self.principled,
+            "ShaderNodeBsdfDiffuse": self.diffuse,
+            "ShaderNodeBsdfAnisotropic": self.glossy,    # "Glossy BSDF" since 4.0
+            "ShaderNodeBsdfGlossy": self.glossy,
+            "ShaderNodeBsdfMetallic": self.metallic,
+            "ShaderNodeBsdfGlass": self.glass,
+            "ShaderNodeBsdfRefraction": self.glass,
+            "ShaderNodeEmission": self.emission,
+        }.get(kind)
+        if handler is None:
+            self.note(f"{label(node)} (not supported: grey diffuse used)")
+            return dict(DEFAULT_MATERIAL)
+        return handler(node)
+
+    # ---------------------------------------------------------------- inputs
+
+    def colour(self, node, name: str, *, multiply=None):
+        sock = node.inputs.get(name)
+        if sock is None:
+            return [0.8, 0.8, 0.8]
+        src, _ = _follow(sock)
+        if src is None:
+            return rgb(sock.default_value)
+        tex = self._image_input(node, name, src)
+        if tex is not None:
+            return tex
+        return rgb(sock.default_value)
+
+    def scalar(self, node, name: str, default: float = 0.0, *, allow_texture: bool = False,
+               squared: bool = False):
+        sock = node.inputs.get(name)
+        if sock is None:
+            return default
+        value = float(sock.default_value)
+        src, _ = _follow(sock)
+        if src is None:
+            return alpha(value) if squared else value
+        if allow_texture:
+            tex = self._image_input(node, name, src, squared=squared)
+            if tex is not None:
+                return tex
+        else:
+            self.note(f"{label(src)} → {node.name}.{name} (only constants here: value used)")
+        return alpha(value) if squared else value
+
+    def _image_input(self, node, name: str, src, squared: bool = False):
+        if src.bl_idname != "ShaderNodeTexImage":
+            self.note(f"{label(src)} → {node.name}.{name} (not supported: value used)")
+            return None
+        if src.image is None:
+            return None
+        if src.inputs["Vector"].is_linked:
+            self.note(f"{src.name}: texture mapping (ignored; the active UV map is used)")
+        if src.projection != "FLAT" or src.extension not in ("REPEAT",):
+            self.note(f"{src.name}: {src.projection.lower()} projection / {src.extension.lower()} "
+                      f"extension (rendered as flat, repeating)")
+        return self.images.texture(src.image, squared=squared)
+
+    def _unused(self, node, name: str, ok) -> None:
+        """Note an input whose value Lamina cannot represent (``ok(value)`` says it is harmless)."""
+        sock = node.inputs.get(name)
+        if sock is None:
+            return
+        if sock.is_linked:
+            self.note(f"{node.name}.{name} input (not supported)")
+        elif not ok(sock.default_value):
+            self.note(f"{node.name}.{name} (not supported)")
+
+    # ---------------------------------------------------------------- shaders
+
+    def diffuse(self, node) -> dict:
+        self._unused(node, "Roughness", lambda v: v == 0.0)
+        self._normal(node)
+        return {"type": "diffuse", "color": self.colour(node, "Color")}
+
+    def glossy(self, node) -> dict:
+        # Cycles' Glossy BSDF reflects its colour at every angle; a conductor with that
+        # normal-incidence reflectance is the closest Lamina material.
+        self._normal(node)
+        self._unused(node, "Anisotropy", lambda v: v == 0.0)
+        colour = self.colour(node, "Color")
+        out = {"type": "conductor", "roughness": self.scalar(node, "Roughness", 0.5, allow_texture=True, squared=True),
+               "distribution": _distribution(node)}
+        return self._conductor_from_f0(out, colour)
+
+    def metallic(self, node) -> dict:
+        self._normal(node)
+        self._unused(node, "Anisotropy", lambda v: v == 0.0)
+        out = {"type": "conductor", "roughness": self.scalar(node, "Roughness", 0.5, allow_texture=True, squared=True),
+               "distribution": _distribution(node)}
+        if getattr(node, "fresnel_type", "F82") == "PHYSICAL_CONDUCTOR":
+            out["eta"] = self.colour(node, "IOR")
+            out["k"] = self.colour(node, "Extinction")
+            if isinstance(out["eta"], dict) or isinstance(out["k"], dict):
+                self.note(f"{node.name}: textured IOR/Extinction (value used)")
+                out["eta"] = rgb(node.inputs["IOR"].default_value)
+                out["k"] = rgb(node.inputs["Extinction"].default_value)
+            return out
+        self._unused(node, "Edge Tint", lambda v: True)
+        return self._conductor_from_f0(out, self.colour(node, "Base Color"))
+
+    def glass(self, node) -> dict:
+        self._normal(node)
+        out = {"type": "dielectric", "ior": float(node.inputs["IOR"].default_value),
+               "roughness": self.scalar(node, "Roughness", 0.0, allow_texture=True, squared=True),
+               "distribution": _distribution(node)}
+        tint = self.colour(node, "Color")
+        if isinstance(tint, dict) or any(abs(c - 1.0) > 1e-6 for c in tint):
+            out["transmission_color"] = tint
+        if node.bl_idname == "ShaderNodeBsdfRefraction":
+            self.note(f"{node.name}: Refraction BSDF rendered as glass (with reflection)")
+        return out
+
+    def emission(self, node) -> dict:
+        colour = self.colour(node, "Color")
+        if isinstance(colour, dict):
+            self.note(f"{node.name}: textured emission colour (value used)")
+            colour = rgb(node.inputs["Color"].default_value)
+        return {"type": "emission", "color": colour,
+                "strength": float(self.scalar(node, "Strength", 1.0))}
+
+    def principled(self, node) -> dict:
+        self._normal(node)
+        self._unused(node, "Alpha", lambda v: v >= 1.0)
+        self._unused(node, "Subsurface Weight", lambda v: v == 0.0)
+        self._unused(node, "Sheen Weight", lambda v: v == 0.0)
+        self._unused(node, "Anisotropic", lambda v: v == 0.0)
+        self._unused(node, "Thin Film Thickness", lambda v: v == 0.0)
+        self._unused(node, "Diffuse Roughness", lambda v: v == 0.0)
+        self._unused(node, "Specular IOR Level", lambda v: abs(v - 0.5) < 1e-6)
+        self._unused(node, "Specular Tint", lambda v: all(abs(c - 1.0) < 1e-6 for c in v[:3]))
+        metallic = self._weight(node, "Metallic")
+        transmission = self._weight(node, "Transmission Weight")
+        base_colour = self.colour(node, "Base Color")
+        roughness = self.scalar(node, "Roughness", 0.5, allow_texture=True, squared=True)
+        ior = float(node.inputs["IOR"].default_value)
+        dist = _distribution(node)
+        if metallic >= 0.5:
+            base = self._conductor_from_f0({"type": "conductor", "roughness": roughness,
+                                            "distribution": dist}, base_colour)
+        elif transmission >= 0.5:
+            base = {"type": "dielectric", "ior": ior, "roughness": roughness, "distribution": dist}
+            if isinstance(base_colour, dict) or any(abs(c - 1.0) > 1e-6 for c in base_colour):
+                base["transmission_color"] = base_colour
+        else:
+            # Principled's dielectric base: a specular dielectric boundary over a diffuse body,
+            # with nothing (a clear, empty medium) between them.
+            base = {"type": "layered",
+                    "interfaces": [{"type": "dielectric", "ior": ior, "roughness": roughness,
+                                    "distribution": dist},
+                                   {"type": "diffuse", "color": base_colour}],
+                    "media": [dict(CLEAR_MEDIUM)]}
+        coat = self._weight(node, "Coat Weight", threshold=None)
+        if coat > 0.0:
+            if coat < 1.0:
+                self.note(f"{node.name}: Coat Weight {coat:g} (rendered as a full coat)")
+            self._unused(node, "Coat Tint", lambda v: all(abs(c - 1.0) < 1e-6 for c in v[:3]))
+            self._unused(node, "Coat Normal", lambda v: True)
+            coat_layer = {"type": "dielectric", "ior": float(node.inputs["Coat IOR"].default_value),
+                          "roughness": self.scalar(node, "Coat Roughness", 0.03, allow_texture=True, squared=True),
+                          "distribution": dist}
+            if base.get("type") == "layered":
+                base = {"type": "layered", "interfaces": [coat_layer, *base["interfaces"]],
+                        "media": [dict(CLEAR_MEDIUM), *base["media"]]}
+            else:
+                base = {"type": "layered", "interfaces": [coat_layer, base], "media": [dict(CLEAR_MEDIUM)]}
+        emission = self._emission(node)
+        if emission is not None:
+            base["emission"] = emission
+        return base
+
+    # ---------------------------------------------------------------- helpers
+
+    def _weight(self, node, name: str, threshold: float | None = 0.5) -> float:
+        sock = node.inputs.get(name)
+        if sock is None:
+            return 0.0
+        if sock.is_linked:
+            self.note(f"{node.name}.{name} is connected (not supported; value used)")
+        value = float(sock.default_value)
+        if threshold is not None and 0.0 < value < 1.0:
+            self.note(f"{node.name}.{name} {value:g} (rounded to {0 if value < threshold else 1})")
+        return value
+
+    def _emission(self, node):
+        strength = float(node.inputs["Emission Strength"].default_value)
+        if node.inputs["Emission Strength"].is_linked:
+            self.note(f"{node.name}.Emission Strength is connected (value used)")
+        if strength <= 0.0:
+            return None
+        colour = self.colour(node, "Emission Color")
+        if isinstance(colour, dict):
+            colour = dict(colour)
+            scale = colour.get("scale", 1.0)
+            colour["scale"] = [strength * s for s in (scale if isinstance(scale, list) else [scale] * 3)]
+            return colour
+        if not any(colour):
+            return None
+        return [c * strength for c in colour]
+
+    def _normal(self, node) -> None:
+        sock = node.inputs.get("Normal")
+        if sock is not None and sock.is_linked:
+            self.note(f"{node.name}.Normal is connected (normal/bump maps are not supported)")
+
+    def _conductor_from_f0(self, out: dict, colour) -> dict:
+        if isinstance(colour, dict):
+            self.note("textured metal colour (its scale used)")
+            colour = colour.get("scale", [0.8, 0.8, 0.8])
+            if not isinstance(colour, list):
+                colour = [float(colour)] * 3
+        out["eta"] = [1.0, 1.0, 1.0]
+        out["k"] = f0_to_conductor_k(colour)
+        return out
+
+
+def _uses_nodes(mat) -> bool:
+    # Material.use_nodes is deprecated in 5.0 (always on); read it quietly where it exists.
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        return bool(getattr(mat, "use_nodes", True))

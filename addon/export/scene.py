@@ -1,0 +1,259 @@
+"""Depsgraph → one scene description folder: ``scene.json`` + ``meshes/*.npz`` + ``textures/``.
+
+Meshes are extracted once per evaluated data-block (instances share them), objects are
+(mesh, transform, material slots) triples, and everything Lamina cannot represent is collected in
+``ExportResult.notes`` and reported once by the caller.
+"""
+from __future__ import annotations
+
+import json
+import re
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..util import matrix_rows
+from .camera import CameraError, camera_json, film_json, film_size
+from .images import ImageExporter, safe_name
+from .lights import light_json
+from .mesh import mesh_arrays, sanitise, write_npz
+from .nodes import DEFAULT_MATERIAL, NodeTranslator
+from .stack import StackError, stack_json
+from .world import world_json
+
+GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
+UNSUPPORTED_GEOMETRY = {"CURVES": "hair curves", "POINTCLOUD": "point clouds", "VOLUME": "volumes",
+                        "GREASEPENCIL": "grease pencil"}
+DEFAULT_SLOT = "__lamina_default"
+# Blender's material-preview scene has a checker floor that is hidden from camera rays through
+# a Light Path node; Lamina shows it to reflections only, with a plain grey diffuse material.
+PREVIEW_FLOOR = "FloorHidden"
+
+
+class ExportError(Exception):
+    """The scene cannot be exported (no camera, a broken stack...): one clear message."""
+
+
+@dataclass
+class ExportResult:
+    path: Path
+    width: int
+    height: int
+    crop: list | None
+    notes: list[str] = field(default_factory=list)
+    stats: dict = field(default_factory=dict)
+
+    def warning_text(self, limit: int = 12) -> str | None:
+        return warning_text(self.notes, limit)
+
+
+def warning_text(notes: list[str], limit: int = 12) -> str | None:
+    """All notes in one message, grouped by the data-block they are about:
+    ``Lamina ignored or approximated: material 'A' (x; y), world 'W' (z)``."""
+    if not notes:
+        return None
+    groups: dict[str, list[str]] = {}
+    for note in dict.fromkeys(notes):
+        subject, sep, what = note.partition(": ")
+        if not sep or "'" not in subject:
+            subject, what = "", note
+        groups.setdefault(subject, []).append(what)
+    parts = [f"{subject} ({'; '.join(items)})" if subject else "; ".join(items)
+             for subject, items in groups.items()]
+    shown = ", ".join(parts[:limit])
+    more = f", and {len(parts) - limit} more" if len(parts) > limit else ""
+    return f"Lamina ignored or approximated: {shown}{more}"
+
+
+def render_json(scene, *, samples: int | None = None, seed_offset: int = 0) -> dict:
+    s = scene.lamina
+    out = {"spp": int(samples if samples is not None else s.samples),
+           "max_bounces": int(s.max_bounces),
+           "rr_depth": int(s.rr_depth),
+           "seed": int(s.seed) + int(seed_offset),
+           "clamp": float(s.clamp),
+           "noise_target": float(s.noise_threshold),
+           "min_spp": int(s.min_samples),
+           "time_limit": float(s.time_limit)}
+    layered = {}
+    if s.estimator != "BIDIRECTIONAL":
+        layered["estimator"] = s.estimator.lower()
+    if s.pdf_mode != "APPROXIMATE":
+        layered["pdf"] = s.pdf_mode.lower()
+    if layered:
+        out["layered"] = layered
+    return out
+
+
+class SceneExporter:
+    def __init__(self, depsgraph, directory: Path | None, *, copy_textures: bool = False,
+                 mesh_folder: str = "meshes", preview: bool = False):
+        self.depsgraph = depsgraph
+        self.preview = preview
+        self.mesh_folder = mesh_folder
+        # The viewport depsgraph (File > Export) still includes objects hidden for rendering.
+        self.viewport = getattr(depsgraph, "mode", "RENDER") == "VIEWPORT"
+        self.scene = depsgraph.scene
+        self.directory = Path(directory) if directory is not None else None
+        self.notes: list[str] = []
+        self.images = ImageExporter(self.directory, copy_textures, self.notes)
+        self.nodes = NodeTranslator(self.images, self.notes)
+        self.materials: dict[str, dict] = {}
+        self.meshes: dict[str, dict] = {}
+        self._mesh_keys: dict = {}
+        self._mesh_names: set[str] = set()
+        self.objects: list[dict] = []
+        self.lights: list[dict] = []
+        self.stats = {"triangles": 0, "meshes": 0, "instances": 0}
+
+    # ---------------------------------------------------------------- materials
+
+    def material_name(self, mat) -> str:
+        if mat is None:
+            self.materials.setdefault(DEFAULT_SLOT, dict(DEFAULT_MATERIAL))
+            return DEFAULT_SLOT
+        name = mat.name_full
+        if self.preview and mat.name.startswith(PREVIEW_FLOOR):
+            self.materials.setdefault(name, {"type": "diffuse", "color": [0.5, 0.5, 0.5]})
+            return name
+        if name not in self.materials:
+            self.materials[name] = self.material_json(mat)
+        return name
+
+    def material_json(self, mat) -> dict:
+        settings = getattr(mat, "lamina", None)
+        if settings is not None and settings.use_stack:
+            try:
+                return stack_json(mat, self.images)
+            except StackError as exc:
+                raise ExportError(f"material '{mat.name}': {exc}") from None
+        return self.nodes.material(mat)
+
+    # ---------------------------------------------------------------- geometry
+
+    def mesh_for(self, obj) -> str | None:
+        """The mesh entry name for an evaluated object, extracting its mesh the first time."""
+        if obj.type == "MESH":
+            key = ("mesh", obj.data.as_pointer())
+        else:
+            key = ("object", obj.original.as_pointer() if obj.original else obj.as_pointer())
+        if key in self._mesh_keys:
+            return self._mesh_keys[key]
+        if obj.type == "MESH":
+            arrays = mesh_arrays(obj.data)
+        else:
+            try:
+                me = obj.to_mesh()
+            except RuntimeError:
+                me = None
+            arrays = mesh_arrays(me) if me is not None else None
+            obj.to_mesh_clear()
+        name = None
+        if arrays is not None:
+            base = safe_name(obj.data.name if obj.type == "MESH" else obj.name)
+            name = base
+            n = 1
+            while name in self._mesh_names:
+                n += 1
+                name = f"{base}_{n}"
+            self._mesh_names.add(name)
+            arrays = sanitise(arrays, name, self.notes)
+            self.stats["triangles"] += len(arrays["indices"])
+            self.stats["meshes"] += 1
+            if self.directory is not None:
+                folder = self.directory / self.mesh_folder
+                folder.mkdir(parents=True, exist_ok=True)
+                write_npz(folder / f"{name}.npz", arrays)
+            self.meshes[name] = {"file": f"{self.mesh_folder}/{name}.npz"}
+        self._mesh_keys[key] = name
+        return name
+
+    def add_instance(self, inst) -> None:
+        obj = inst.object
+        kind = obj.type
+        if self.viewport and not inst.is_instance and obj.original is not None and obj.original.hide_render:
+            return
+        if kind == "LIGHT":
+            entry = light_json(obj, inst.matrix_world.copy(), self.notes)
+            if entry is not None:
+                self.lights.append(entry)
+            return
+        if kind in UNSUPPORTED_GEOMETRY:
+            self.notes.append(f"object '{obj.name}': {UNSUPPORTED_GEOMETRY[kind]} are not supported (skipped)")
+            return
+        if kind not in GEOMETRY_TYPES:
+            return
+        if not inst.is_instance and not inst.show_self:
+            return
+        original = obj.original if obj.original is not None else obj
+        if getattr(original, "is_holdout", False) or getattr(obj, "is_holdout", False):
+            return
+        mesh = self.mesh_for(obj)
+        if mesh is None:
+            return
+        slots = [self.material_name(slot.material) for slot in obj.material_slots]
+        if not slots:
+            slots = [self.material_name(None)]
+        entry = {"_name": obj.name, "mesh": mesh, "to_world": matrix_rows(inst.matrix_world.copy()),
+                 "materials": slots}
+        hidden_floor = self.preview and any(
+            slot.material is not None and slot.material.name.startswith(PREVIEW_FLOOR) for slot in obj.material_slots)
+        if not getattr(obj, "visible_camera", True) or hidden_floor:
+            entry["visible_camera"] = False
+        self.objects.append(entry)
+        self.stats["instances"] += 1
+
+    # ---------------------------------------------------------------- whole scene
+
+    def build(self, camera_object, *, samples=None, seed_offset=0) -> dict:
+        scene = self.scene
+        if camera_object is None:
+            raise ExportError("the scene has no active camera (set one in Scene properties)")
+        width, height = film_size(scene.render)
+        try:
+            camera = camera_json(camera_object, scene)
+        except CameraError as exc:
+            raise ExportError(str(exc)) from None
+        for inst in self.depsgraph.object_instances:
+            self.add_instance(inst)
+        doc = {"format": "lamina-scene", "version": 1,
+               "_generator": "Lamina Blender add-on",
+               "film": film_json(scene, width, height),
+               "camera": camera,
+               "render": render_json(scene, samples=samples, seed_offset=seed_offset),
+               "materials": self.materials,
+               "meshes": self.meshes,
+               "objects": self.objects,
+               "lights": self.lights,
+               "world": world_json(scene.world, self.images, self.notes)}
+        return doc
+
+
+_NUMBER_LIST = re.compile(r"\[\s*(-?[\d.eE+-]+(?:,\s*-?[\d.eE+-]+)*)\s*\]")
+
+
+def dumps(doc: dict) -> str:
+    """Indented JSON with lists of numbers kept on one line (readable matrices and colours)."""
+    text = json.dumps(doc, indent=1, allow_nan=False)
+    return _NUMBER_LIST.sub(lambda m: "[" + ", ".join(v.strip() for v in m.group(1).split(",")) + "]", text)
+
+
+def export_scene(depsgraph, directory, *, camera_object=None, samples: int | None = None,
+                 copy_textures: bool = False, seed_offset: int = 0,
+                 filename: str = "scene.json", mesh_folder: str = "meshes",
+                 preview: bool = False) -> ExportResult:
+    """Write the scene of ``depsgraph`` into ``directory``; raises ExportError for fatal problems."""
+    t0 = time.perf_counter()
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    exporter = SceneExporter(depsgraph, directory, copy_textures=copy_textures, mesh_folder=mesh_folder,
+                             preview=preview)
+    camera_object = camera_object if camera_object is not None else depsgraph.scene.camera
+    doc = exporter.build(camera_object, samples=samples, seed_offset=seed_offset)
+    path = directory / filename
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(dumps(doc), encoding="utf-8")
+    tmp.replace(path)
+    stats = dict(exporter.stats, seconds=round(time.perf_counter() - t0, 4))
+    film = doc["film"]
+    return ExportResult(path, film["width"], film["height"], film.get("crop"), exporter.notes, stats)

@@ -1,0 +1,1 @@
+"""Operators: layer-stack editing, presets, scene export."""

@@ -1,0 +1,47 @@
+"""Add-on preferences (``bl_idname = __package__`` of the extension)."""
+from __future__ import annotations
+
+import bpy
+from bpy.props import BoolProperty, IntProperty, StringProperty
+
+# The top-level package: "bl_ext.<repo>.lamina" when installed, "lamina" in development.
+ADDON_ID = __package__.rpartition(".")[0]
+
+
+class LaminaPreferences(bpy.types.AddonPreferences):
+    bl_idname = ADDON_ID
+
+    python_executable: StringProperty(
+        name="Backend Python", subtype='FILE_PATH', default="",
+        description="Python interpreter for the renderer process; empty = Blender's own Python "
+                    "(recommended: it has numpy, and the bundled embreex is installed for it)")
+    keep_files: BoolProperty(
+        name="Keep Render Files", default=False,
+        description="Keep the exported scene and the backend output in the temporary folder "
+                    "(for bug reports and for rendering again with the command line)")
+
+    # Material previews render Blender's own preview scene, not the user's: a global setting.
+    preview_samples: IntProperty(
+        name="Preview Samples", default=16, min=1, soft_max=256,
+        description="Samples per pixel of material, light and world preview thumbnails")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.prop(self, "python_executable")
+        layout.prop(self, "keep_files")
+        layout.prop(self, "preview_samples")
+
+
+def get(context=None):
+    """The preferences, or None when the add-on is not registered under ADDON_ID (tests)."""
+    context = context or bpy.context
+    addon = context.preferences.addons.get(ADDON_ID)
+    return addon.preferences if addon else None
+
+
+def register():
+    bpy.utils.register_class(LaminaPreferences)
+
+
+def unregister():
+    bpy.utils.unregister_class(LaminaPreferences)

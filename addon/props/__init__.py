@@ -1,0 +1,1 @@
+"""PropertyGroups attached as ``<ID>.lamina`` (Material, Light, Scene). Data only; no drawing."""

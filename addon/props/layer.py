@@ -1,0 +1,107 @@
+"""One entry of a material's layer stack: an interface and the medium below it.
+
+A stack of N entries is N interfaces (0 = top, facing the viewer) with N−1 media: the medium of
+entry i lies between interfaces i and i+1, so the medium fields of the last entry are unused.
+Roughness is Blender's perceptual roughness r (the microfacet α = r² is written to files, as
+Cycles does); angles and colours follow Blender's conventions, colours are linear RGB.
+"""
+from __future__ import annotations
+
+import bpy
+from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty,
+                       PointerProperty, StringProperty)
+from bpy.types import PropertyGroup
+
+from ..constants import DISTRIBUTIONS, INTERFACE_KINDS, METALS, PHASE_KINDS, SGGX_SHAPES
+
+METAL_ITEMS = [(sym, f"{name} ({sym})", f"Measured complex IOR of {name.lower()}", i)
+               for i, (sym, name) in enumerate(METALS)]
+METAL_ITEMS.append(("CUSTOM", "Custom (η, k)", "Explicit complex index of refraction per RGB channel", 99))
+
+
+def _nested_poll(self, material):
+    # Only materials that have a stack can be nested; a cycle is caught by the stack checks.
+    settings = getattr(material, "lamina", None)
+    return bool(settings and settings.use_stack and len(settings.layers))
+
+
+def _image_prop(name: str, what: str):
+    return PointerProperty(name=name, type=bpy.types.Image,
+                           description=f"Image texture (UV-mapped, active UV map) for {what}")
+
+
+class LaminaLayer(PropertyGroup):
+    name: StringProperty(name="Name", description="Label of this interface in the stack")
+
+    kind: EnumProperty(name="Interface", items=INTERFACE_KINDS, default="DIELECTRIC",
+                       description="What kind of boundary this interface is")
+
+    # --- dielectric
+    ior: FloatProperty(name="IOR", default=1.5, min=0.01, max=10.0, soft_min=1.0, soft_max=3.0,
+                       precision=3, step=1,
+                       description="Index of refraction of the medium below this interface "
+                                   "(the index above is that of the interface above; 1.0 above the top)")
+
+    # --- shared microfacet parameters (dielectric, conductor)
+    roughness: FloatProperty(name="Roughness", default=0.1, min=0.0, max=1.0, subtype='FACTOR',
+                             description="Perceptual roughness r as in Blender; the microfacet "
+                                         "α = r² is exported. 0 = perfectly smooth (a delta lobe)")
+    use_anisotropy: BoolProperty(name="Anisotropic", default=False,
+                                 description="Separate roughness along the UV tangent (u) and across it (v)")
+    roughness_v: FloatProperty(name="Roughness V", default=0.1, min=0.0, max=1.0, subtype='FACTOR',
+                               description="Perceptual roughness across the UV tangent (α_v = r_v²)")
+    distribution: EnumProperty(name="Distribution", items=DISTRIBUTIONS, default="GGX")
+    roughness_texture: _image_prop("Roughness Texture", "the roughness (stores r; squared on export)")
+
+    # --- conductor
+    metal: EnumProperty(name="Metal", items=METAL_ITEMS, default="Cu",
+                        description="Named metal, or Custom for an explicit complex IOR")
+    eta: FloatVectorProperty(name="η", size=3, default=(0.2, 0.92, 1.1), min=0.0, soft_max=5.0,
+                             description="Real part of the complex IOR per RGB channel, relative to the medium above")
+    k: FloatVectorProperty(name="k", size=3, default=(3.9, 2.45, 2.14), min=0.0, soft_max=10.0,
+                           description="Imaginary part (extinction) of the complex IOR per RGB channel")
+    tint: FloatVectorProperty(name="Tint", subtype='COLOR', size=3, default=(1.0, 1.0, 1.0),
+                              min=0.0, max=1.0,
+                              description="Artistic multiplier on the metal's reflectance (white = physical)")
+
+    # --- diffuse
+    color: FloatVectorProperty(name="Color", subtype='COLOR', size=3, default=(0.8, 0.8, 0.8),
+                               min=0.0, max=1.0, description="Diffuse albedo (linear RGB)")
+    color_texture: _image_prop("Color Texture", "the diffuse colour (multiplied by Color)")
+
+    # --- nested material
+    material: PointerProperty(name="Material", type=bpy.types.Material, poll=_nested_poll,
+                              description="A material with a Lamina stack, used as this interface")
+
+    # --- medium below this interface
+    thickness: FloatProperty(name="Thickness", default=1.0, min=0.0, soft_max=10.0, precision=3,
+                             description="Thickness of the medium below, in the length unit of σt "
+                                         "(only the optical depth σt × thickness matters)")
+    sigma_t: FloatProperty(name="Density σt", default=0.0, min=0.0, soft_max=20.0, precision=3,
+                           description="Extinction coefficient per unit thickness; 0 = a clear "
+                                       "layer that neither scatters nor absorbs")
+    sigma_t_texture: _image_prop("Density Texture", "the extinction (multiplied by σt)")
+    albedo: FloatVectorProperty(name="Albedo", subtype='COLOR', size=3, default=(0.8, 0.8, 0.8),
+                                min=0.0, max=1.0,
+                                description="Single-scattering albedo of the medium (1 = no absorption)")
+    albedo_texture: _image_prop("Albedo Texture", "the medium albedo (multiplied by Albedo)")
+    phase: EnumProperty(name="Phase Function", items=PHASE_KINDS, default="ISOTROPIC")
+    hg_g: FloatProperty(name="Anisotropy g", default=0.0, min=-0.999, max=0.999, subtype='FACTOR',
+                        description="Henyey-Greenstein mean cosine: > 0 forward, < 0 backward scattering")
+    flake_stddev: FloatProperty(name="Flake Spread", default=0.05, min=0.001, max=1.0, precision=3,
+                                description="Standard deviation of the microflake/fibre orientation distribution")
+    flake_orientation: FloatVectorProperty(name="Axis", size=3, subtype='XYZ',
+                                           default=(1.0, 0.0, 0.0), soft_min=-1.0, soft_max=1.0,
+                                           description="Fibre axis (or SGGX flake normal) in the shading frame "
+                                                       "(x = UV tangent, z = normal); the renderer normalises it")
+    vmf_kappa: FloatProperty(name="Concentration κ", default=10.0, min=0.0, soft_max=1000.0,
+                             description="von Mises-Fisher concentration: 0 = isotropic, larger = narrower forward lobe")
+    sggx_shape: EnumProperty(name="Shape", items=SGGX_SHAPES, default="FIBER")
+    sggx_roughness: FloatProperty(name="Roughness", default=0.3, min=0.001, max=1.0, subtype='FACTOR',
+                                  description="SGGX roughness: 1 = isotropic, small = aligned fibres/flakes")
+
+
+CLASSES = (LaminaLayer,)
+
+
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

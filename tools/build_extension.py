@@ -1,0 +1,187 @@
+#!/usr/bin/env python3
+"""Build the Lamina Blender extension zip and validate it with Blender's own extension tool.
+
+    python tools/build_extension.py [--platform linux-x64 ...] [--python 3.11 ...]
+                                    [--split-platforms] [--no-wheels] [--output-dir build/dist]
+
+Steps: download the embreex wheels (never numpy: Blender's own numpy is used) into
+build/wheels/ with ``pip download --no-deps --only-binary=:all:``; stage the repository into
+build/stage/ filtered by the manifest's ``paths_exclude_pattern``, with the wheels and a manifest
+that lists them; build with ``blender_ext.py build`` and check with ``blender_ext.py validate``
+(the script ships inside the bpy module and Blender, and runs without a Blender binary).
+Nothing downloaded or built is committed (build/ is git-ignored).
+"""
+from __future__ import annotations
+
+import argparse
+import glob
+import importlib.util
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+BUILD = ROOT / "build"
+EMBREEX = "embreex==4.4.0.post1"
+
+# Blender platform → pip platform tag of the embreex wheels (checked 2026-11: no macOS x64
+# wheel exists for embreex 4.x, and the arm64 one needs macOS ≥ 13).
+PIP_PLATFORMS = {
+    "linux-x64": "manylinux_2_28_x86_64",
+    "windows-x64": "win_amd64",
+    "macos-arm64": "macosx_13_0_arm64",
+}
+WHEEL_PATTERNS = {
+    "linux-x64": "*linux*_x86_64.whl",
+    "windows-x64": "*win_amd64.whl",
+    "macos-arm64": "*macosx_*_arm64.whl",
+}
+PYTHONS = ("3.11", "3.13")     # Blender 4.2–5.0 bundle 3.11, Blender 5.1 bundles 3.13
+
+
+def find_blender_ext() -> Path:
+    """blender_ext.py from the installed bpy module (or $BLENDER_EXT)."""
+    import os
+    if os.environ.get("BLENDER_EXT"):
+        return Path(os.environ["BLENDER_EXT"])
+    spec = importlib.util.find_spec("bpy")
+    if spec is None or not spec.submodule_search_locations:
+        raise SystemExit("error: the bpy module is not installed here (pip install bpy), "
+                         "or set BLENDER_EXT to .../scripts/addons_core/bl_pkg/cli/blender_ext.py")
+    base = Path(list(spec.submodule_search_locations)[0])
+    hits = sorted(glob.glob(str(base / "*" / "scripts" / "addons_core" / "bl_pkg" / "cli" / "blender_ext.py")))
+    if not hits:
+        raise SystemExit(f"error: blender_ext.py not found under {base}")
+    return Path(hits[-1])
+
+
+def load_blender_ext(path: Path):
+    spec = importlib.util.spec_from_file_location("blender_ext", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["blender_ext"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def wheel_for(folder: Path, platform: str, python: str) -> Path | None:
+    tag = "cp" + python.replace(".", "")
+    hits = sorted(folder.glob(f"embreex-*-{tag}-{tag}-{WHEEL_PATTERNS[platform]}"))
+    return hits[-1] if hits else None
+
+
+def download_wheels(platforms, pythons, folder: Path, allow_missing: bool) -> list[Path]:
+    folder.mkdir(parents=True, exist_ok=True)
+    wheels = []
+    for platform in platforms:
+        for python in pythons:
+            found = wheel_for(folder, platform, python)
+            if found is None:
+                print(f"[build] downloading embreex for {platform}, Python {python}", flush=True)
+                cmd = [sys.executable, "-m", "pip", "download", EMBREEX, "--no-deps",
+                       "--only-binary=:all:", "--platform", PIP_PLATFORMS[platform],
+                       "--python-version", python, "-d", str(folder), "-q",
+                       "--disable-pip-version-check"]
+                code = subprocess.call(cmd)
+                found = wheel_for(folder, platform, python)
+                if code != 0 or found is None:
+                    message = f"no embreex wheel for {platform} / Python {python}"
+                    if not allow_missing:
+                        raise SystemExit(f"error: {message} (use --allow-missing-wheels to build without)")
+                    print(f"[build] warning: {message}; the zip will not include it", flush=True)
+                    continue
+            wheels.append(found)
+    return wheels
+
+
+def stage(blender_ext, stage_dir: Path, wheels: list[Path], platforms) -> None:
+    import tomllib
+    manifest_text = (ROOT / "blender_manifest.toml").read_text(encoding="utf-8")
+    manifest = tomllib.loads(manifest_text)
+    patterns = manifest.get("build", {}).get("paths_exclude_pattern", [])
+    matcher = blender_ext.PathPatternMatch(patterns)
+    if stage_dir.exists():
+        shutil.rmtree(stage_dir)
+    stage_dir.mkdir(parents=True)
+    for path in sorted(ROOT.rglob("*")):
+        rel = path.relative_to(ROOT).as_posix()
+        if any(part in (".git", ".venv", "build") for part in Path(rel).parts[:1]):
+            continue
+        test = rel + "/" if path.is_dir() else rel
+        if matcher.test_path(test) or any(matcher.test_path(p + "/") for p in _parents(rel)):
+            continue
+        if path.is_file():
+            target = stage_dir / rel
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(path, target)
+    wheel_dir = stage_dir / "wheels"
+    wheel_dir.mkdir()
+    for wheel in wheels:
+        shutil.copy2(wheel, wheel_dir / wheel.name)
+    lines = ", ".join(f'"./wheels/{w.name}"' for w in wheels)
+    text = re.sub(r"^platforms\s*=.*$", "platforms = [" + ", ".join(f'"{p}"' for p in platforms) + "]",
+                  manifest_text, flags=re.M)
+    if wheels:
+        text = text.replace("\n[permissions]", f"\nwheels = [{lines}]\n\n[permissions]", 1)
+    (stage_dir / "blender_manifest.toml").write_text(text, encoding="utf-8")
+
+
+def _parents(rel: str) -> list[str]:
+    parts = rel.split("/")[:-1]
+    return ["/".join(parts[:i + 1]) for i in range(len(parts))]
+
+
+def run_ext(blender_ext_path: Path, *args: str) -> None:
+    cmd = [sys.executable, str(blender_ext_path), *args]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    output = (proc.stdout + proc.stderr).strip()
+    if output:
+        print("\n".join("  " + line for line in output.splitlines()))
+    if proc.returncode != 0:
+        raise SystemExit(f"error: {' '.join(args[:1])} failed (status {proc.returncode})")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--platform", action="append", choices=sorted(PIP_PLATFORMS),
+                        help="target platform (repeatable; default: all three)")
+    parser.add_argument("--python", action="append", choices=PYTHONS,
+                        help="Python version of the target Blender (repeatable; default: 3.11 and 3.13)")
+    parser.add_argument("--split-platforms", action="store_true", help="one zip per platform")
+    parser.add_argument("--no-wheels", action="store_true", help="do not bundle embreex wheels")
+    parser.add_argument("--allow-missing-wheels", action="store_true",
+                        help="build even if a wheel cannot be downloaded (offline)")
+    parser.add_argument("--output-dir", default=str(BUILD / "dist"))
+    parser.add_argument("--build-dir", default=str(BUILD), help="staging folder (default build/)")
+    parser.add_argument("--wheel-dir", default=str(BUILD / "wheels"), help="wheel download cache")
+    args = parser.parse_args(argv)
+
+    platforms = args.platform or list(PIP_PLATFORMS)
+    pythons = args.python or list(PYTHONS)
+    ext_path = find_blender_ext()
+    blender_ext = load_blender_ext(ext_path)
+    wheels = [] if args.no_wheels else download_wheels(platforms, pythons, Path(args.wheel_dir),
+                                                       args.allow_missing_wheels)
+    stage_dir = Path(args.build_dir) / "stage" / "lamina"
+    stage(blender_ext, stage_dir, wheels, platforms)
+    out = Path(args.output_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    for old in out.glob("lamina-*.zip"):
+        old.unlink()
+    print(f"[build] building with {ext_path}", flush=True)
+    build_args = ["build", "--source-dir", str(stage_dir), "--output-dir", str(out)]
+    if args.split_platforms:
+        build_args.append("--split-platforms")
+    run_ext(ext_path, *build_args)
+    zips = sorted(out.glob("lamina-*.zip"))
+    if not zips:
+        raise SystemExit("error: the build produced no zip")
+    for z in zips:
+        run_ext(ext_path, "validate", str(z))
+        print(f"[build] {z} ({z.stat().st_size / 1e6:.1f} MB) validated", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
