@@ -1,0 +1,207 @@
+"""The layered BSDF bound to n shading points: sample / eval / pdf over arrays of lanes.
+
+Three independent stochastic quantities (never combined as eval/pdf):
+* ``sample``: a forward walk from wi; its throughput at the exit is the weight f·|cos|/p.
+* ``eval``: the bidirectional (default) or unidirectional estimator of f·|cos θo|.
+* ``pdf``: the approximate pdf (media removed, short interface paths, plus a constant) or the
+  stochastic unbiased estimate of the sampler's density; only for MIS weights, computed with
+  random numbers independent of the value's.
+
+Transport modes: the walks use importance transport, which estimates the physical flow
+wi → wo. RADIANCE (camera paths) wants the flow wo → wi, equal to it times (η_wi/η_wo)² by the
+generalised reciprocity of the whole stack (η = index outside the stack on each side); reflections
+are unchanged.
+
+Sides: a reflection-only stack (opaque bottom) is two-sided — the integrator turns the frame to
+the viewer — so queries with wi or wo below the surface return 0. A transmissive stack is
+one-sided: wi below the surface enters through the bottom interface.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import stats as global_stats
+from ..materials.base import BSDF, IMPORTANCE, RADIANCE, BSDFSample
+from .connect import bidirectional
+from .nee import unidirectional
+from .stack import BoundStack
+from .walk import RR_SAMPLE, walk
+
+CHUNK = 16384  # lanes per walk batch (bounds the memory of vertex records)
+
+
+@dataclass(frozen=True)
+class Options:
+    estimator: str = "bi"        # "bi" | "uni"
+    pdf: str = "approx"          # "approx" | "stochastic"
+    pdf_constant: float = 0.1    # added to the approximate pdf (sr⁻¹); Guo's diffusePdf
+    max_vertices: int = 1024     # hard cap per walk; hits are counted in ``stats``
+
+
+def new_stats() -> dict:
+    return {"walks": 0, "vertices": 0, "cap_hits": 0}
+
+
+class LayeredBSDF(BSDF):
+    stochastic = True
+    has_delta = True
+
+    def __init__(self, stack: BoundStack, options: Options, stats: dict | None = None):
+        self.stack = stack
+        self.n = stack.n
+        self.options = options
+        self.transmissive = stack.transmissive
+        self.stats = stats if stats is not None else new_stats()
+        k = stack.kernels
+        self._uni_blind_top = len(k) > 1 and k[0].delta_only and k[1].delta_only
+        self._uni_blind_bottom = len(k) > 1 and k[-1].delta_only and k[-2].delta_only
+
+    # ------------------------------------------------------------------ helpers
+    def _note(self, result) -> None:
+        self.stats["walks"] += result.exit_dir.shape[1]
+        self.stats["vertices"] += result.vertices
+        if result.capped:
+            self.stats["cap_hits"] += result.capped
+            global_stats.add("layered_walk_cap_hits", result.capped)
+
+    def _walk(self, stack, w, rng, **kw):
+        r = walk(stack, w, rng, max_vertices=self.options.max_vertices, **kw)
+        self._note(r)
+        return r
+
+    def _valid(self, wi, wo=None) -> np.ndarray:
+        if self.transmissive:
+            ok = wi[:, 2] != 0
+            return ok if wo is None else ok & (wo[:, 2] != 0)
+        ok = wi[:, 2] > 0
+        return ok if wo is None else ok & (wo[:, 2] > 0)
+
+    def _mode_factor(self, wi, wo, mode) -> np.ndarray:
+        if mode != RADIANCE or not self.transmissive:
+            return np.ones(wi.shape[0])
+        s = self.stack
+        ei = np.where(wi[:, 2] > 0, s.eta_top, s.eta_bottom)
+        eo = np.where(wo[:, 2] > 0, s.eta_top, s.eta_bottom)
+        return (ei / eo) ** 2
+
+    def _chunks_of(self, lanes: np.ndarray):
+        """(lane indices, stack for them) in batches of at most CHUNK lanes."""
+        if lanes.size == 0:
+            return
+        if lanes.size == self.n and self.n <= CHUNK:
+            yield lanes, self.stack
+            return
+        for start in range(0, lanes.size, CHUNK):
+            idx = lanes[start:start + CHUNK]
+            yield idx, self.stack.take(idx)
+
+    @staticmethod
+    def _single(stack: BoundStack, a, b, rng, pdf: bool):
+        """The one-vertex path: reflection at the entry interface (exact). a, b: (3, m)."""
+        m = a.shape[1]
+        out = np.zeros(m) if pdf else np.zeros((3, m))
+        same = a[2] * b[2] > 0
+        for l, side in ((0, a[2] > 0), (stack.N - 1, a[2] < 0)):
+            pos = np.flatnonzero(same & side)
+            if not pos.size or stack.kernels[l].delta_only:
+                continue
+            v, pf, _ = stack.kernels[l].take(pos).eval(a[:, pos], b[:, pos], rng, need_rev=False)
+            if pdf:
+                out[pos] = pf
+            else:
+                out[:, pos] = v
+        return out
+
+    # ------------------------------------------------------------------ queries
+    def eval(self, wi, wo, rng, mode=RADIANCE, estimator: str | None = None):
+        n = wi.shape[0]
+        out = np.zeros((n, 3))
+        est = estimator or self.options.estimator
+        valid = np.flatnonzero(self._valid(wi, wo))
+        for idx, stack in self._chunks_of(valid):
+            a, b = np.ascontiguousarray(wi[idx].T), np.ascontiguousarray(wo[idx].T)
+            f = self._single(stack, a, b, rng, pdf=False)
+            if stack.N > 1:
+                L = self._walk(stack, a, rng).records
+                uni = est == "uni"
+                if uni:
+                    f += unidirectional(stack, b, L, rng)
+                    # NEE through the exit interface needs a non-delta interface at the exit or
+                    # across the slab next to it; otherwise the paths "medium → specular → specular
+                    # exit" have no unidirectional strategy: use the bidirectional estimator.
+                    need_bi = np.flatnonzero(np.where(b[2] > 0, self._uni_blind_top, self._uni_blind_bottom))
+                    if need_bi.size:
+                        Lb = self._walk(stack.take(need_bi), a[:, need_bi], rng).records
+                        Rb = self._walk(stack.take(need_bi), b[:, need_bi], rng).records
+                        f[:, need_bi] = self._single(stack.take(need_bi), a[:, need_bi], b[:, need_bi],
+                                                     rng, pdf=False) + bidirectional(
+                            stack.take(need_bi), b[:, need_bi], Lb, Rb, rng) * np.abs(b[2, need_bi])
+                else:
+                    R = self._walk(stack, b, rng).records
+                    f += bidirectional(stack, b, L, R, rng) * np.abs(b[2])
+            out[idx] = f.T
+        return out * self._mode_factor(wi, wo, mode)[:, None]
+
+    def pdf(self, wi, wo, rng, mode=RADIANCE, kind: str | None = None):
+        n = wi.shape[0]
+        out = np.zeros(n)
+        kind = kind or self.options.pdf
+        valid = np.flatnonzero(self._valid(wi, wo))
+        approx = kind != "stochastic"
+        for idx, stack in self._chunks_of(valid):
+            a, b = np.ascontiguousarray(wi[idx].T), np.ascontiguousarray(wo[idx].T)
+            p = self._single(stack, a, b, rng, pdf=True)
+            if stack.N > 1:
+                nmax = None
+                cap = self.options.max_vertices
+                if approx:
+                    slabs = stack.N - 1
+                    nmax = np.where(a[2] * b[2] > 0, 2 * slabs + 1, slabs + 1)
+                    cap = 2 * slabs
+                L = walk(stack, a, rng, approx=approx, max_vertices=cap, purpose="pdf")
+                R = walk(stack, b, rng, approx=approx, max_vertices=cap, purpose="pdf")
+                if not approx:
+                    self._note(L)
+                    self._note(R)
+                p += bidirectional(stack, b, L.records, R.records, rng, pdf_mode=True,
+                                   approx=approx, nmax=nmax)
+            if approx:
+                p += self.options.pdf_constant
+            out[idx] = p
+        return out
+
+    def sample(self, wi, rng, mode=RADIANCE, want_pdf: bool = True) -> BSDFSample:
+        """Forward walk from wi. ``want_pdf=False`` skips the MIS pdf estimate (e.g. for albedo
+        integration), leaving ``pdf`` 0."""
+        n = wi.shape[0]
+        wo = np.zeros((n, 3))
+        weight = np.zeros((n, 3))
+        delta = np.zeros(n, dtype=bool)
+        valid = np.flatnonzero(self._valid(wi))
+        for idx, stack in self._chunks_of(valid):
+            r = self._walk(stack, np.ascontiguousarray(wi[idx].T), rng, record=False, rr=RR_SAMPLE)
+            wo[idx] = r.exit_dir.T
+            weight[idx] = r.exit_weight.T
+            delta[idx] = r.exit_delta
+        exited = np.any(weight > 0, axis=1)
+        weight *= self._mode_factor(wi, wo, mode)[:, None]
+        pdf = np.zeros(n)
+        need = np.flatnonzero(exited & ~delta) if want_pdf else np.zeros(0, dtype=np.int64)
+        if need.size:
+            sub = self if need.size == n else self.take(need)
+            pdf[need] = sub.pdf(wi[need], wo[need], rng, mode)
+        return BSDFSample(wo, weight, pdf, delta & exited)
+
+    def albedo(self):
+        """A one-sample estimate of the normal-incidence albedo per lane (for the denoising AOV:
+        averaged over the pixel's samples it converges to the directional albedo)."""
+        rng = np.random.default_rng(self.n)
+        wi = np.zeros((self.n, 3))
+        wi[:, 2] = 1.0
+        s = self.sample(wi, rng, IMPORTANCE, want_pdf=False)
+        return np.where((s.wo[:, 2] > 0)[:, None], s.weight, 0.0)
+
+    def take(self, idx) -> "LayeredBSDF":
+        return LayeredBSDF(self.stack.take(idx), self.options, self.stats)

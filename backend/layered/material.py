@@ -1,0 +1,180 @@
+"""The ``layered`` material: schema parsing, the IOR chain, estimator options, binding.
+
+Schema (docs/materials.md, "layered")::
+
+    {"type": "layered",
+     "interfaces": [<interface>, ...],       # 0 = top; N >= 1
+     "media": [<medium>, ...],               # exactly N − 1 (slab i between interfaces i, i+1)
+     "estimator": "bi" | "uni", "pdf": "approx" | "stochastic",
+     "pdf_constant": 0.1, "max_vertices": 1024, "emission": ...}
+
+Interfaces: ``dielectric``, ``conductor``, ``diffuse`` (the standard materials' schema),
+``null`` (index-matched pass-through) and a nested ``layered``. IOR chain: each dielectric's
+``ior`` is the index *below* it; the index above an interface is the index below the one above
+it (1 above the top), injected as the dielectric's ``ior_above`` / the conductor's ``eta_above``
+(so a metal's Fresnel is relative to the coating it sits under). Estimator options not given in
+the material come from the scene's ``render.layered`` object (``ctx.cache["layered_defaults"]``),
+then from the defaults in ``bsdf.Options``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..materials import REGISTRY, register
+from ..materials.base import Material, ShadingContext
+from ..scene.reader import Node
+from .bsdf import LayeredBSDF, Options, new_stats
+from .medium import parse_medium
+from .stack import EMPTY, BoundStack, NullBSDF
+
+INTERFACE_TYPES = ("dielectric", "conductor", "diffuse", "null", "layered")
+OPTION_KEYS = ("estimator", "pdf", "pdf_constant", "max_vertices")
+
+
+def parse_options(node: Node, defaults: Node | None) -> Options:
+    """Per-material estimator options over the scene-level defaults."""
+    base = Options()
+    values = {}
+    for src in (defaults, node):
+        if src is None:
+            continue
+        if src.has("estimator"):
+            values["estimator"] = src.string("estimator", choices=("bi", "uni"))
+        if src.has("pdf"):
+            values["pdf"] = src.string("pdf", choices=("approx", "stochastic"))
+        if src.has("pdf_constant"):
+            values["pdf_constant"] = src.number("pdf_constant", lo=0.0)
+        if src.has("max_vertices"):
+            values["max_vertices"] = src.integer("max_vertices", lo=2, hi=1 << 20)
+        src.ignore(*OPTION_KEYS)
+    return Options(**{**base.__dict__, **values})
+
+
+class NullMaterial(Material):
+    type_name = "null"
+    two_sided = False
+
+    def bind(self, ctx: ShadingContext):
+        return NullBSDF(ctx.n)
+
+
+class LayeredMaterial(Material):
+    type_name = "layered"
+
+    def __init__(self, interfaces: list, media: list, eta_slab: list[float], eta_bottom: float,
+                 options: Options, emission=None, eta_top: float = 1.0):
+        self.interfaces = interfaces        # Materials (bind → BSDF)
+        self.media = media                  # MediumSpecs
+        self.eta_slab = eta_slab
+        self.eta_bottom = eta_bottom
+        self.eta_top = eta_top              # index above the stack (≠ 1 when nested)
+        self.options = options
+        self.emission = emission
+        self.transmissive = _transmits(interfaces[-1])
+        self.two_sided = not self.transmissive
+        self.stats = new_stats()
+
+    @property
+    def uses_textures(self) -> bool:
+        return any(getattr(m, "uses_textures", False) for m in self.interfaces) or \
+            any(m.uses_textures for m in self.media)
+
+    def bind(self, ctx: ShadingContext):
+        if len(self.interfaces) == 1:
+            # A one-interface stack is that interface's analytic BSDF.
+            return self.interfaces[0].bind(ctx)
+        ifaces = [m.bind(ctx) for m in self.interfaces]
+        media = [m.bind(ctx.uv) for m in self.media]
+        stack = BoundStack.build(ctx.n, ifaces, media, self.eta_slab, self.eta_bottom, self.eta_top)
+        return LayeredBSDF(stack, self.options, self.stats)
+
+
+def _transmits(material) -> bool:
+    if isinstance(material, (NullMaterial, LayeredMaterial)):
+        return True if isinstance(material, NullMaterial) else material.transmissive
+    return material.type_name == "dielectric"
+
+
+def _constant_ior(material, inode: Node) -> float:
+    p = material.ior
+    if not p.is_constant:
+        raise inode.fail("inside a layered stack the index of refraction must be a number "
+                         "(it is the index of the whole slab below)", "ior")
+    return float(np.asarray(p.bind(None)).reshape(-1)[0])
+
+
+def parse_interface(inode: Node, eta_above: float):
+    """One interface; returns (material, index below it)."""
+    inode.require_object()
+    kind = inode.value.get("type")
+    if kind not in INTERFACE_TYPES:
+        raise inode.fail(f"expected one of {', '.join(map(repr, INTERFACE_TYPES))}, got {kind!r}", "type")
+    if kind == "null":
+        inode.string("type")
+        inode.finish()
+        return NullMaterial(), eta_above
+    if kind == "layered":
+        inode.string("type")
+        nested = parse_layered(inode, eta_above)
+        return nested, nested.eta_bottom if nested.transmissive else eta_above
+    implied = {"dielectric": "ior_above", "conductor": "eta_above"}.get(kind)
+    value = dict(inode.value)
+    if implied is not None:
+        if implied in value:
+            raise inode.fail("implied by the stack (the index below the interface above); "
+                             "remove it", implied)
+        value[implied] = eta_above
+    sub = Node(value, inode.path, inode.ctx)
+    sub.string("type")
+    material = REGISTRY[kind](sub)
+    sub.finish()
+    if getattr(material, "emission", None) is not None:
+        raise inode.fail("an interface of a layered stack cannot emit; put \"emission\" on the "
+                         "layered material", "emission")
+    if kind == "dielectric":
+        return material, _constant_ior(material, inode)
+    return material, eta_above
+
+
+def parse_layered(node: Node, eta_above: float = 1.0) -> LayeredMaterial:
+    from ..materials import load_all
+    load_all()
+    node.require_object()
+    inodes = node.child("interfaces").items()
+    if not inodes:
+        raise node.fail("a layered material needs at least one interface", "interfaces")
+    interfaces, etas = [], []
+    eta = eta_above
+    for i, inode in enumerate(inodes):
+        material, eta = parse_interface(inode, eta)
+        interfaces.append(material)
+        etas.append(eta)
+        if i < len(inodes) - 1 and not _transmits(material):
+            raise inode.fail(f"interface {i} is opaque ({inode.value.get('type')}): nothing reaches "
+                             f"the layers below it; it must be the last interface")
+    n_media = len(inodes) - 1
+    mnode = node.optional_child("media")
+    mnodes = mnode.items() if mnode is not None else []
+    if len(mnodes) != n_media:
+        raise node.fail(f"expected {n_media} media (one between each pair of interfaces), "
+                        f"got {len(mnodes)}", "media")
+    media = [parse_medium(m) for m in mnodes]
+    defaults_value = node.ctx.cache.get("layered_defaults")
+    defaults = Node(defaults_value, "render.layered", node.ctx) if defaults_value else None
+    options = parse_options(node, defaults)
+    if defaults is not None:
+        defaults.finish()
+    from ..materials.emission import parse_emission
+    emission = parse_emission(node)
+    node.finish()
+    eta_slab = etas[:-1] if n_media else []
+    return LayeredMaterial(interfaces, media, list(eta_slab), etas[-1], options, emission, eta_above)
+
+
+@register("layered")
+def parse(node: Node) -> LayeredMaterial:
+    return parse_layered(node, 1.0)
+
+
+# Exposed for tests and tools.
+__all__ = ["LayeredMaterial", "parse_layered", "parse", "Options", "EMPTY"]
