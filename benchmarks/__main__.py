@@ -107,9 +107,12 @@ def summary(ctx: sections.Context, stress_totals: dict | None) -> str:
         md.append(f"* **Workers**: 2 workers vs 1 on {w['scene']}: {w['speedup_at_max_spp']:.2f}× faster (wall time, shared machine).")
     ab = ctx.results.get("overhead_ab")
     if ab:
+        same = ab.get("calls", {}).get("A") == ab.get("calls", {}).get("B")
         md.append(f"* **Unused features cost nothing**: renderer without the feature modules vs with them: "
                   f"{ab['rel'] * 100:+.1f} % ± {ab['rel_ci95'] * 100:.1f} % CPU time (95 %)"
-                  f"{', within noise' if ab['within_noise'] else ', NOT within noise'}.")
+                  f"{', within noise' if ab['within_noise'] else ', NOT within noise'}; "
+                  f"Python calls during the render {'identical' if same else 'DIFFERENT'} "
+                  f"({ab.get('calls', {}).get('A', {}).get('calls', '?')}).")
     ad = ctx.results.get("adaptive", {})
     for name, v in ad.items():
         best = max((a for a in v["adaptive"] if math.isfinite(a.get("saving_relmse", float("nan")))),
