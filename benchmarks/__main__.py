@@ -102,9 +102,9 @@ def summary(ctx: sections.Context, stress_totals: dict | None) -> str:
             base = eff if base is None else base
             parts.append(f"{label} {eff / base:.2f}×" if base else label)
         md.append(f"* **Estimator efficiency** on {name} (1/(MSE·CPU), relative to the default): " + ", ".join(parts) + ".")
-    w = ctx.results.get("workers")
-    if w:
-        md.append(f"* **Workers**: 2 workers vs 1 on {w['scene']}: {w['speedup_at_max_spp']:.2f}× faster (wall time, shared machine).")
+    for name, w in ctx.results.get("workers", {}).items():
+        md.append(f"* **Workers**: 2 workers vs 1 on {name} at its largest spp: {w['speedup_at_max_spp']:.2f}× "
+                  "the speed (wall time, shared machine).")
     ab = ctx.results.get("overhead_ab")
     if ab:
         same = ab.get("calls", {}).get("A") == ab.get("calls", {}).get("B")

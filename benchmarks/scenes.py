@@ -284,15 +284,15 @@ BENCH_SCENES = [
     BenchScene("sky_spheres", "Gold, glass, white spheres under a procedural sky (environment map)",
                lambda size, cache: sky_spheres(cache, size), 128, _pow2(0, 8), 4096),
     BenchScene("validation1", "Plane under a sphere light, Validation 1 (Fig. 2 top): dielectric / HG medium / Cu",
-               lambda size, cache: validation_plane(1, size), 32, _pow2(0, 5), 256, layered=True),
+               lambda size, cache: validation_plane(1, size), 48, _pow2(1, 6), 512, layered=True),
     BenchScene("validation2", "Plane under a sphere light, Validation 2 (σt 2, g 0.9, Cu α 0.01)",
-               lambda size, cache: validation_plane(2, size), 32, _pow2(0, 5), 256, layered=True),
+               lambda size, cache: validation_plane(2, size), 48, _pow2(1, 6), 512, layered=True),
     BenchScene("validation3", "Plane under a sphere light, Validation 3 (σt 5, g 0.95, Cu α 0.01)",
-               lambda size, cache: validation_plane(3, size), 32, _pow2(0, 5), 256, layered=True),
+               lambda size, cache: validation_plane(3, size), 48, _pow2(1, 6), 512, layered=True),
     BenchScene("validation4", "Plane under a sphere light, Validation 4 (Fig. 2 bottom): 3 interfaces, 2 microflake media",
-               lambda size, cache: validation_plane(4, size), 32, _pow2(0, 5), 256, layered=True),
+               lambda size, cache: validation_plane(4, size), 48, _pow2(1, 6), 512, layered=True),
     BenchScene("env_spheres", "Spheres with the 3-layer reference stack (Validation 4) under the sky",
-               lambda size, cache: env_spheres(cache, size), 48, _pow2(0, 5), 256, layered=True),
+               lambda size, cache: env_spheres(cache, size), 64, _pow2(1, 6), 512, layered=True),
 ]
 
 
