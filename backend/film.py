@@ -61,6 +61,8 @@ class FilmAccumulator:
         self.albedo = np.zeros((n, 3))
         self.normal = np.zeros((n, 3))
         self.count = np.zeros(n, dtype=np.int64)
+        self.alpha = np.zeros(n)
+        self.transparent = False   # set from the scene: alpha = coverage instead of 1
 
     def add(self, pixels: np.ndarray, result: dict) -> None:
         self.sum[pixels] += result["sum"]
@@ -68,6 +70,7 @@ class FilmAccumulator:
         self.albedo[pixels] += result["albedo"]
         self.normal[pixels] += result["normal"]
         self.count[pixels] += result["count"]
+        self.alpha[pixels] += result["alpha"]
 
     def _mean(self, a: np.ndarray) -> np.ndarray:
         c = np.maximum(self.count, 1)[:, None]
@@ -91,6 +94,10 @@ class FilmAccumulator:
         n = self._mean(self.normal)
         length = np.linalg.norm(n, axis=2, keepdims=True)
         return np.where(length > 0, n / np.where(length > 0, length, 1), 0.0)
+
+    def coverage(self) -> np.ndarray:
+        """Fraction of camera samples that hit a surface (not the world, not a holdout)."""
+        return (self.alpha / np.maximum(self.count, 1)).reshape(self.height, self.width)
 
     def counts(self) -> np.ndarray:
         return self.count.reshape(self.height, self.width)

@@ -70,7 +70,7 @@ class PathTracer:
         self.clamp = s.clamp
         self.lights = list(scene.lights)
         # Selection ∝ power; zero-power lights are never picked (lights/selection.py).
-        self.selector = build_selector(self.lights)
+        self.selector = build_selector(self.lights, s.light_selection, scene.radius)
         self.hittable = [i for i, l in enumerate(self.lights) if l.is_hittable]
         self.infinite = [i for i, l in enumerate(self.lights) if l.is_infinite]
         self.mesh_light_index = None
@@ -83,8 +83,11 @@ class PathTracer:
         self.any_hidden = bool(self.soup.count) and not bool(self.soup.camera_visible.all())
         self.two_sided = np.array([m.two_sided for m in scene.materials] or [True])
 
-    def select_prob(self, light_index: int) -> float:
-        return float(self.selector.pmf[light_index]) if self.selector is not None else 0.0
+    def select_prob(self, light_index: int, o: np.ndarray) -> np.ndarray:
+        """Probability that next-event estimation at points o picks this light (for MIS)."""
+        if self.selector is None:
+            return np.zeros(o.shape[0])
+        return self.selector.prob_at(o, light_index)
 
     # ------------------------------------------------------------------ work item
     def render(self, pixels: np.ndarray, spp: int, rng: np.random.Generator) -> dict:
@@ -104,6 +107,7 @@ class PathTracer:
         tmax = tmax - tmin
 
         L = np.zeros((n, 3))
+        alpha = np.zeros(n)       # coverage: 1 where the camera ray hit a (non-holdout) surface
         albedo = np.zeros((n, 3))
         normal = np.zeros((n, 3))
         lane = np.arange(n)
@@ -121,9 +125,14 @@ class PathTracer:
             t_surf = np.where(prim >= 0, t, np.inf)
             self._add_light_hits(L, lane, o, d, np.minimum(t_surf, tmax), beta, prev_pdf, prev_delta, segment)
             miss = prim < 0
-            if miss.any() and self.infinite:
-                self._add_escaped(L, lane[miss], d[miss], beta[miss], prev_pdf[miss], prev_delta[miss], segment)
+            if miss.any() and self.infinite and not (camera_ray and self.scene.transparent):
+                self._add_escaped(L, lane[miss], o[miss], d[miss], beta[miss], prev_pdf[miss], prev_delta[miss], segment)
             hit = ~miss
+            if camera_ray:
+                # Holdout objects are black, transparent holes for camera rays (as in Cycles);
+                # they still cast shadows and show in reflections.
+                hit[hit] = ~self.soup.holdout[prim[hit]]
+                alpha[lane[hit]] = 1.0
             lane, o, d, beta, prev_pdf, prev_delta = lane[hit], o[hit], d[hit], beta[hit], prev_pdf[hit], prev_delta[hit]
             prim, t, b1, b2 = prim[hit], t[hit], b1[hit], b2[hit]
             if lane.size == 0:
@@ -148,6 +157,7 @@ class PathTracer:
             "albedo": albedo.reshape(P, spp, 3).sum(axis=1),
             "normal": normal.reshape(P, spp, 3).sum(axis=1),
             "count": np.full(P, spp, dtype=np.int64),
+            "alpha": alpha.reshape(P, spp).sum(axis=1),
         }
 
     # ------------------------------------------------------------------ geometry
@@ -191,14 +201,16 @@ class PathTracer:
                 "material": soup.material[prim], "prim": prim, "wi": wi}
 
     # ------------------------------------------------------------------ emission
-    def _mis_weight_for_hit(self, light_index, pdf_light_sa, prev_pdf, prev_delta):
-        p_l = self.select_prob(light_index) * pdf_light_sa
+    def _mis_weight_for_hit(self, light_index, pdf_light_sa, prev_pdf, prev_delta, o):
+        if prev_delta.all():
+            return np.ones(prev_delta.shape[0])
+        p_l = self.select_prob(light_index, o) * pdf_light_sa
         return np.where(prev_delta, 1.0, power_heuristic(prev_pdf, p_l))
 
     def _clamp(self, contrib: np.ndarray, segment: int) -> np.ndarray:
         if self.clamp > 0 and segment > 0:
             m = max3(contrib)
-            scale = np.where(m > self.clamp, self.clamp / np.where(m > 0, m, 1.0), 1.0)
+            scale = np.where(m > self.clamp, self.clamp / np.where(m > self.clamp, m, 1.0), 1.0)  # no overflow for tiny m
             return contrib * scale[:, None]
         return contrib
 
@@ -212,16 +224,16 @@ class PathTracer:
             if not m.any():
                 continue
             Le = light.eval_hit(o[m], d[m], t[m])
-            w = self._mis_weight_for_hit(li, light.pdf_hit(o[m], d[m], t[m]), prev_pdf[m], prev_delta[m])
+            w = self._mis_weight_for_hit(li, light.pdf_hit(o[m], d[m], t[m]), prev_pdf[m], prev_delta[m], o[m])
             np.add.at(L, lane[m], self._clamp(beta[m] * Le * w[:, None], segment))
 
-    def _add_escaped(self, L, lane, d, beta, prev_pdf, prev_delta, segment):
+    def _add_escaped(self, L, lane, o, d, beta, prev_pdf, prev_delta, segment):
         for li in self.infinite:
             light = self.lights[li]
             if segment == 0 and not getattr(light, "visible_camera", True):
                 continue   # e.g. a sun disk hidden from the camera (Blender's default for lights)
             Le = light.eval_escaped(d)
-            w = self._mis_weight_for_hit(li, light.pdf_escaped(d), prev_pdf, prev_delta)
+            w = self._mis_weight_for_hit(li, light.pdf_escaped(d), prev_pdf, prev_delta, o)
             L[lane] += self._clamp(beta * Le * w[:, None], segment)
 
     def _add_surface_emission(self, L, lane, o, d, t, si, beta, prev_pdf, prev_delta, segment):
@@ -245,7 +257,7 @@ class PathTracer:
             pdf = np.zeros(idx.size)
             if ok.any():
                 pdf[ok] = light.pdf_hit_triangle(o[idx[ok]], d[idx[ok]], t[idx[ok]], local[ok])
-            w = self._mis_weight_for_hit(self.mesh_light_index, pdf, prev_pdf[idx], prev_delta[idx])
+            w = self._mis_weight_for_hit(self.mesh_light_index, pdf, prev_pdf[idx], prev_delta[idx], o[idx])
         L[lane[idx]] += self._clamp(beta[idx] * Le * w[:, None], segment)
 
     # ------------------------------------------------------------------ scattering
@@ -299,10 +311,22 @@ class PathTracer:
             wi_g = wi_local[g]
             if albedo_aov is not None:
                 albedo_aov[lane[g]] = np.broadcast_to(np.asarray(bsdf.albedo(), dtype=np.float64), (b - a, 3))
-            if can_nee and not bsdf.delta_only and live[g].any():
-                f_nee[g] = bsdf.eval(wi_g, wo_nee[g], rng)
-                if any_rough_light:
-                    bsdf_pdf[g] = bsdf.pdf(wi_g, wo_nee[g], rng)
+            if can_nee and not bsdf.delta_only:
+                live_g = live[g]
+                n_live = int(np.count_nonzero(live_g))
+                if n_live == live_g.size:
+                    f_nee[g] = bsdf.eval(wi_g, wo_nee[g], rng)
+                    if any_rough_light:
+                        bsdf_pdf[g] = bsdf.pdf(wi_g, wo_nee[g], rng)
+                elif n_live:
+                    # Only lanes whose light sample carries light: dead ones (occluded side,
+                    # outside a light's cone, zero value) would cost a full (stochastic) BSDF eval.
+                    k = np.flatnonzero(live_g)
+                    sub = bsdf.take(k)
+                    rows = a + k
+                    f_nee[rows] = sub.eval(wi_g[k], wo_nee[rows], rng)
+                    if any_rough_light:
+                        bsdf_pdf[rows] = sub.pdf(wi_g[k], wo_nee[rows], rng)
             if do_continue:
                 smp = bsdf.sample(wi_g, rng)
                 d_world = Frame(frame.s[g], frame.t[g], frame.n[g]).to_world(smp.wo)
@@ -351,7 +375,7 @@ class PathTracer:
             light = self.lights[0]
             ls = light.sample(p, u_light)
             return ls.wi, ls.dist, ls.value, ls.pdf, np.full(m, light.is_delta), np.ones(m)
-        li_of, sel_p, _ = self.selector.sample(u_sel)
+        li_of, sel_p = self.selector.sample_at(p, u_sel)
         wi_w = np.zeros((m, 3))
         dist = np.zeros(m)
         value = np.zeros((m, 3))

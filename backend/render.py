@@ -167,6 +167,7 @@ class Renderer:
         ys, xs = np.mgrid[y0:y1, x0:x1]
         all_pixels = (ys * W + xs).ravel().astype(np.int64)
         film = FilmAccumulator(W, H)
+        film.transparent = scene.transparent
         spp = s.spp
         block = choose_spp_block(all_pixels.size, spp)
         rounds = math.ceil(spp / block)

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -120,12 +119,12 @@ def cmd_render(args) -> int:
             printer.emit({"event": "warning", "message": w})
         source = str(Path(args.scene).resolve())
 
-        partial_cb = None
-        if args.partial:
-            def partial_cb(film, spp_done):
-                _write_partial(Path(args.partial), film)
-                printer.emit({"event": "partial", "path": str(Path(args.partial).resolve()), "spp": spp_done})
-        renderer = Renderer(scene, source, options, printer.emit, partial_cb, args.partial_interval)
+        def write_partial(film, spp_done):
+            _write_partial(Path(args.partial), film)
+            printer.emit({"event": "partial", "path": str(Path(args.partial).resolve()), "spp": spp_done})
+
+        renderer = Renderer(scene, source, options, printer.emit, write_partial if args.partial else None,
+                            args.partial_interval)
         install_signal_handlers(renderer)
         result = renderer.run()
         write_outputs(result, output, args.png, args.half)
@@ -146,7 +145,7 @@ def write_outputs(result, output: Path, png: str | None, half: bool = False) -> 
     from .imageio import write_exr, write_preview
     film = result.film
     rgb = film.combined()
-    alpha = (film.counts() > 0).astype(np.float32)[:, :, None]
+    alpha = _alpha(film)
     layers = {"": np.concatenate([rgb, alpha], axis=2), "albedo": film.albedo_image(),
               "normal": film.normal_image(), "variance": film.variance_of_mean(),
               "samples": film.counts()[:, :, None].astype(np.float32)}
@@ -155,10 +154,17 @@ def write_outputs(result, output: Path, png: str | None, half: bool = False) -> 
         write_preview(png, rgb)
 
 
+def _alpha(film) -> np.ndarray:
+    """Alpha: coverage with a transparent film (Blender's Film > Transparent), else 1 where sampled."""
+    if getattr(film, "transparent", False):
+        return film.coverage().astype(np.float32)[:, :, None]
+    return (film.counts() > 0).astype(np.float32)[:, :, None]
+
+
 def _write_partial(path: Path, film, aovs: bool = False) -> None:
     from .imageio import write_npy
     rgb = film.combined()
-    alpha = (film.counts() > 0).astype(np.float32)[:, :, None]
+    alpha = _alpha(film)
     write_npy(path, np.concatenate([rgb, alpha], axis=2))
     if aovs:
         write_npy(path.with_suffix(".aovs.npy"), np.concatenate([film.albedo_image(), film.normal_image()], axis=2))

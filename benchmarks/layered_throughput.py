@@ -1,6 +1,7 @@
 """Throughput of the layered BSDF per core: evaluations and samples per second on large batches.
 
     python benchmarks/layered_throughput.py [--lanes 65536] [--repeat 2] [--json]
+    python benchmarks/layered_throughput.py --render [--size 64] [--spp 16]
 
 Stacks: 1 slab (Guo et al. Fig. 2 top: rough dielectric / HG medium / rough copper), 2 slabs
 (the project's reference stack: two anisotropic microflake slabs), 3 slabs (dielectric / HG /
@@ -104,12 +105,58 @@ def run(lanes: int, repeat: int):
     return results
 
 
+def render_ratio(size: int, spp: int):
+    """CPU time of a small render of a sphere with each stack vs the same scene with a diffuse
+    sphere (one worker; a point light and a constant environment; 8 bounces)."""
+    import copy
+    from backend.render import Renderer, RenderOptions
+    from backend.scene.loader import load_scene_data
+
+    def scene(material):
+        h = 0.32
+        return {"format": "lamina-scene", "version": 1, "film": {"width": size, "height": size},
+                "camera": {"type": "perspective",
+                           "to_world": [[1, 0, 0, 0], [0, 0, -1, -4.0], [0, 1, 0, 0], [0, 0, 0, 1]],
+                           "frame": [[h, h, -1], [h, -h, -1], [-h, -h, -1], [-h, h, -1]]},
+                "materials": {"m": material},
+                "meshes": {"ball": {"shape": "sphere", "radius": 1.0, "segments": 64}},
+                "objects": [{"mesh": "ball", "materials": ["m"]}],
+                "lights": [{"type": "point", "power": 600.0, "radius": 0.3,
+                            "to_world": [[1, 0, 0, 2.5], [0, 1, 0, -3.0], [0, 0, 1, 3.0], [0, 0, 0, 1]]}],
+                "world": {"type": "constant", "color": [0.25, 0.27, 0.3], "strength": 1.0},
+                "render": {"spp": spp, "max_bounces": 8, "seed": 1}}
+
+    def cpu(material):
+        data = scene(material)
+        sc = load_scene_data(copy.deepcopy(data), "<bench>")
+        opts = RenderOptions(workers=1)
+        opts.apply(sc)
+        t0 = time.process_time()
+        Renderer(sc, (copy.deepcopy(data), "<bench>", None), opts).run()
+        return time.process_time() - t0
+
+    base = cpu({"type": "diffuse", "color": 0.7})
+    out = {"diffuse_s": base}
+    for name, d in STACKS.items():
+        out[name] = cpu(d) / base
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--lanes", type=int, default=65536)
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--render", action="store_true", help="render-time ratio vs a diffuse sphere")
+    ap.add_argument("--size", type=int, default=64)
+    ap.add_argument("--spp", type=int, default=16)
     args = ap.parse_args()
+    if args.render:
+        r = render_ratio(args.size, args.spp)
+        print(f"render CPU time, {args.size}² px, {args.spp} spp, one worker: diffuse sphere {r['diffuse_s']:.2f} s")
+        for name in STACKS:
+            print(f"  {name:34s} {r[name]:6.1f} × the diffuse sphere")
+        return
     res = run(args.lanes, args.repeat)
     if args.json:
         print(json.dumps(res, indent=1))

@@ -10,7 +10,9 @@ import pytest
 
 from backend.errors import SceneError
 from backend.ies.lm63 import read_lm63
-from backend.ies.light import IESLight, spot_attenuation
+from backend.ies.light import IESEmission
+from backend.lights.point import PointLight
+from backend.lights.spot import SpotLight, spot_attenuation
 from backend.ies.profile import IESProfile
 from backend.scene.reader import LoadContext, Node, dispatch
 from ies_reference import ReferenceProfile, rotation_matrix
@@ -24,6 +26,22 @@ def _to_world(R, t, scale=(1.0, 1.0, 1.0)):
     M[:3, :3] = R @ np.diag(scale)
     M[:3, 3] = t
     return M
+
+
+def ies_light(profile, to_world, power, color=(1.0, 1.0, 1.0), spot_size_deg=None, spot_blend=0.0):
+    """A point (or spot) light carrying the IES profile, as the scene parser builds it."""
+    if spot_size_deg is None:
+        return PointLight(to_world, power, color, profile=IESEmission(profile))
+    return SpotLight(to_world, power, color, math.radians(spot_size_deg), spot_blend,
+                     profile=IESEmission(profile))
+
+
+def intensity(light, w_world):
+    """Radiant intensity (n, 3) [W/sr] along world directions w, read through sample() from
+    points at unit distance (I = E·r² with r = 1)."""
+    w = np.asarray(w_world, dtype=np.float64).reshape(-1, 3)
+    w = w / np.linalg.norm(w, axis=1, keepdims=True)
+    return light.sample(light.position + w, np.zeros((w.shape[0], 2))).value
 
 
 def _plane_points(n=41, z=0.0, half=6.0):
@@ -43,7 +61,7 @@ def test_irradiance_on_plane_matches_independent_table_evaluation(name, axis, an
     R = rotation_matrix(axis, angle)
     pos = np.array([0.3, -0.2, 3.0])
     power, color = 60.0, np.array([1.0, 0.8, 0.5])
-    light = IESLight(IESProfile(f), _to_world(R, pos), power, color)
+    light = ies_light(IESProfile(f), _to_world(R, pos), power, color)
     p = _plane_points()
     ls = light.sample(p, np.random.default_rng(0).random((p.shape[0], 2)))
     E = ls.value * ls.wi[:, 2:3]          # irradiance on the plane z = 0 (normal +Z)
@@ -66,13 +84,13 @@ def test_orientation_world_axes():
     local +Y (C180) → world −X, local +X (C270) → world +Y; −Z stays down."""
     f = read_lm63(IES_DIR / "rab_asym360_45deg_lm02.ies")
     R = rotation_matrix((0, 0, 1), 90.0)
-    light = IESLight(IESProfile(f), _to_world(R, np.zeros(3)), EFFICACY)   # 1 W/sr per cd
+    light = ies_light(IESProfile(f), _to_world(R, np.zeros(3)), EFFICACY)   # 1 W/sr per cd
     v = math.radians(60.0)
     s, c = math.sin(v), math.cos(v)
     H, V = list(f.horizontal_angles), list(f.vertical_angles)
     world = {0: [s, 0, -c], 90: [0, -s, -c], 180: [-s, 0, -c], 270: [0, s, -c]}
     for h, w in world.items():
-        I = light.intensity(np.array([w]))[0, 0]
+        I = intensity(light, np.array([w]))[0, 0]
         assert I == pytest.approx(f.candela[H.index(h), V.index(60.0)] * f.factor, rel=1e-12)
 
 
@@ -80,7 +98,7 @@ def test_power_is_integrated_flux():
     f = read_lm63(IES_DIR / "rab_arbay2_asym360_lm02.ies")
     prof = IESProfile(f)
     color = np.array([0.9, 0.5, 0.2])
-    light = IESLight(prof, _to_world(rotation_matrix((1, 1, 0), 33.0), [1, 2, 3]), 80.0, color)
+    light = ies_light(prof, _to_world(rotation_matrix((1, 1, 0), 33.0), [1, 2, 3]), 80.0, color)
     lum = 0.2126 * 0.9 + 0.7152 * 0.5 + 0.0722 * 0.2
     assert light.power() == pytest.approx(80.0 * prof.flux / EFFICACY * lum, rel=1e-12)
     # README flux for this file (bilinear, 13348 lm) → ≈ 80 W × 75 % emitted
@@ -97,7 +115,7 @@ def _world_sphere_integral(light, n_theta=720, n_phi=1440):
         t = th[k:k + 90]
         T, P = np.meshgrid(t, ph, indexing="ij")
         d = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], axis=-1).reshape(-1, 3)
-        I = light.intensity(d) @ np.array([0.2126, 0.7152, 0.0722])
+        I = intensity(light, d) @ np.array([0.2126, 0.7152, 0.0722])
         total += float((I.reshape(T.shape) * np.sin(T)).sum())
     return total * (math.pi / n_theta) * (2 * math.pi / n_phi)
 
@@ -105,25 +123,25 @@ def _world_sphere_integral(light, n_theta=720, n_phi=1440):
 def test_power_with_spot_and_nonuniform_scale():
     prof = IESProfile.from_file(IES_DIR / "hew_overhead_quad90_8lamps_lm95.ies")
     R = rotation_matrix((1, 0, 0), 30.0)
-    scaled = IESLight(prof, _to_world(R, [0, 0, 2], scale=(2.0, 0.5, 1.0)), 10.0)
+    scaled = ies_light(prof, _to_world(R, [0, 0, 2], scale=(2.0, 0.5, 1.0)), 10.0)
     brute = _world_sphere_integral(scaled)
     # midpoint rule at 0.25°: error well below 1e-3 for this smooth, wide distribution
     assert scaled.power() == pytest.approx(brute, rel=1e-3)
     # a non-uniform scale warps the distribution (Jacobian ≠ 1), so the emitted power changes:
-    assert abs(scaled.power() - IESLight(prof, _to_world(R, [0, 0, 2]), 10.0).power()) > 1e-3 * brute
-    spot = IESLight(prof, _to_world(R, [0, 0, 2]), 10.0, spot_size_deg=60.0, spot_blend=0.3)
+    assert abs(scaled.power() - ies_light(prof, _to_world(R, [0, 0, 2]), 10.0).power()) > 1e-3 * brute
+    spot = ies_light(prof, _to_world(R, [0, 0, 2]), 10.0, spot_size_deg=60.0, spot_blend=0.3)
     assert spot.power() == pytest.approx(_world_sphere_integral(spot), rel=1e-3)
-    assert spot.power() < IESLight(prof, _to_world(R, [0, 0, 2]), 10.0).power()
+    assert spot.power() < ies_light(prof, _to_world(R, [0, 0, 2]), 10.0).power()
 
 
 def test_spot_attenuation_matches_cycles_formula():
     size, blend = 50.0, 0.25
     prof = IESProfile.from_file(IES_DIR / "rab_dled6_24lamps_axial_lm02.ies")
-    light = IESLight(prof, np.eye(4), EFFICACY, spot_size_deg=size, spot_blend=blend)
-    plain = IESLight(prof, np.eye(4), EFFICACY)
+    light = ies_light(prof, np.eye(4), EFFICACY, spot_size_deg=size, spot_blend=blend)
+    plain = ies_light(prof, np.eye(4), EFFICACY)
     ang = np.radians(np.array([0.0, 10.0, 20.0, 22.0, 24.0, 24.9, 25.1, 40.0]))
     d = np.stack([np.sin(ang), np.zeros_like(ang), -np.cos(ang)], axis=1)
-    ratio = light.intensity(d)[:, 0] / plain.intensity(d)[:, 0]
+    ratio = intensity(light, d)[:, 0] / intensity(plain, d)[:, 0]
     cos_half = math.cos(math.radians(size / 2))
     t = np.clip((np.cos(ang) - cos_half) / ((1 - cos_half) * blend), 0, 1)
     np.testing.assert_allclose(ratio, t * t * (3 - 2 * t), atol=1e-12)
@@ -196,20 +214,8 @@ def test_ies_emission_factor():
     # mean over the sphere = flux / 177.83 lm (≈ 208 here: a beam concentrates, no clamp at 1)
     assert em.mean_factor() == pytest.approx(prof.flux / EFFICACY, rel=1e-12) and em.mean_factor() > 100
     R = rotation_matrix((1, 0, 0), 30.0)
-    scaled = IESLight(prof, _to_world(R, [0, 0, 2], scale=(2.0, 0.5, 1.0)), 1.0)
+    scaled = ies_light(prof, _to_world(R, [0, 0, 2], scale=(2.0, 0.5, 1.0)), 1.0)
     assert em.mean_factor(R @ np.diag([2.0, 0.5, 1.0])) == pytest.approx(scaled.power(), rel=1e-12)
-
-
-def test_radius_warning_on_the_wrapper_route(tmp_path):
-    from backend.lights import load_all
-    registry, _ = load_all()
-    if not getattr(registry["point"], "_ies_wrapper", False):
-        pytest.skip("point lights handle IES themselves (sphere lights with IES are supported)")
-    M = np.eye(4).tolist()
-    text = (IES_DIR / "erco_defined_spot_lm95.ies").read_bytes().decode("latin-1")
-    light, ctx = _load_light({"type": "point", "to_world": M, "power": 5, "radius": 0.1,
-                              "soft_falloff": True, "ies": {"data": text}}, tmp_path)
-    assert isinstance(light, IESLight) and any("radius ignored" in w for w in ctx.warnings)
 
 
 def test_scene_errors(tmp_path):

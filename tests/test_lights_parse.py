@@ -69,12 +69,6 @@ def test_each_light_type_parses_with_blender_units():
     ({"type": "laser", "to_world": M}, "lights[0].type: unknown type 'laser'"),
 ])
 def test_light_field_errors(light, message):
-    if "ies" in light:
-        try:
-            import backend.ies.light  # noqa: F401
-            pytest.skip("an IES implementation is present; its own tests cover the field")
-        except ImportError:
-            pass
     with pytest.raises(SceneError) as info:
         load(light)
     assert str(info.value).startswith(f"scene.json: {message}"), str(info.value)

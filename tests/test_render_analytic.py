@@ -171,3 +171,22 @@ def test_no_shadow_acne_at_grazing_sun(tilt_deg):
     data["camera"]["to_world"] = cam.tolist()
     result = render(data)
     assert np.allclose(result.film.combined(), rho / np.pi * E * c, rtol=1e-4)
+
+
+def test_transparent_film_and_holdout_alpha():
+    """Film > Transparent: the world seen directly is transparent; holdouts are black holes."""
+    data = furnace_scene({"type": "diffuse", "color": 0.8}, spp=4, size=32)
+    data["film"]["transparent"] = True
+    data["meshes"]["card"] = {"shape": "rectangle", "size": [0.6, 0.6]}
+    # A holdout card in front of the sphere's centre, facing the camera (−Y).
+    data["objects"].append({"mesh": "card", "holdout": True, "materials": ["m"],
+                            "to_world": [[1, 0, 0, 0], [0, 0, -1, -1.5], [0, 1, 0, 0], [0, 0, 0, 1]]})
+    result = render(data)
+    film = result.film
+    cov = film.coverage()
+    img = film.combined()
+    # corners see the world only: alpha 0 and no world radiance; the centre sees the holdout card.
+    assert cov[0, 0] == 0 and np.all(img[0, 0] == 0)
+    assert cov[16, 16] == 0 and np.all(img[16, 16] == 0)
+    # between the card and the silhouette the sphere is opaque and lit.
+    assert cov[16, 5] == 1 and img[16, 5].min() > 0

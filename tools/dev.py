@@ -5,6 +5,8 @@
     python3.11 tools/dev.py test     run the whole test suite (pytest)
     python3.11 tools/dev.py bench    run the benchmark report (benchmarks/)
     python3.11 tools/dev.py build    build the Blender extension zip into build/
+    python3.11 tools/dev.py showcase render the showcase scene to out/showcase.exr and out/showcase.png
+    python3.11 tools/dev.py thumbnails  render the preset thumbnails and the gallery (docs/presets.md)
 
 Each command first creates or updates a local virtual environment (.venv) with the pinned
 requirements, so nothing but python3.11 needs to be installed. The environment is only
@@ -75,6 +77,14 @@ def main(argv: list[str]) -> int:
         (ROOT / "out").mkdir(exist_ok=True)
         return run([str(py), "-m", "backend", "render", "demo/demo.json",
                     "-o", "out/demo.exr", "--png", "out/demo.png", *rest])
+    if command == "showcase":
+        py = ensure_venv("runtime")
+        (ROOT / "out").mkdir(exist_ok=True)
+        return run([str(py), "-m", "backend", "render", "showcase/showcase.json",
+                    "-o", "out/showcase.exr", "--png", "out/showcase.png", *rest])
+    if command == "thumbnails":
+        py = ensure_venv("runtime")
+        return run([str(py), "-m", "backend", "presets", "thumbnails", *rest])
     if command == "test":
         py = ensure_venv("dev")
         return run([str(py), "-m", "pytest", "-q", *rest])

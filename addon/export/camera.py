@@ -38,6 +38,8 @@ def film_json(scene, width: int, height: int) -> dict:
                       "width": round(float(settings.filter_width), 6)}}
     if settings.filter_type == "BOX":
         out["filter"] = {"type": "box", "width": 1.0}
+    if render.film_transparent:
+        out["transparent"] = True
     rect = border_rect(render, width, height)
     if rect is not None:
         x, y, w, h = rect

@@ -186,8 +186,7 @@ class SceneExporter:
         if not inst.is_instance and not inst.show_self:
             return
         original = obj.original if obj.original is not None else obj
-        if getattr(original, "is_holdout", False) or getattr(obj, "is_holdout", False):
-            return
+        holdout = bool(getattr(original, "is_holdout", False) or getattr(obj, "is_holdout", False))
         mesh = self.mesh_for(obj)
         if mesh is None:
             return
@@ -196,6 +195,8 @@ class SceneExporter:
             slots = [self.material_name(None)]
         entry = {"_name": obj.name, "mesh": mesh, "to_world": matrix_rows(inst.matrix_world.copy()),
                  "materials": slots}
+        if holdout:
+            entry["holdout"] = True
         hidden_floor = self.preview and any(
             slot.material is not None and slot.material.name.startswith(PREVIEW_FLOOR) for slot in obj.material_slots)
         if not getattr(obj, "visible_camera", True) or hidden_floor:

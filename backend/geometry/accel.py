@@ -33,6 +33,7 @@ class TriangleSoup:
     material: np.ndarray          # (T,) int32 global material index
     object_id: np.ndarray         # (T,) int32 index into the scene's objects
     camera_visible: np.ndarray    # (T,) bool
+    holdout: np.ndarray = None    # (T,) bool: camera rays see a transparent hole (alpha 0, black)
     geo_normal: np.ndarray = None   # (T, 3) float64 unit geometric normal (CCW winding)
     tangent: np.ndarray = None      # (T, 3) float64 unit dP/du (UV tangent), zeros where undefined
     area: np.ndarray = None         # (T,) float64
@@ -42,6 +43,8 @@ class TriangleSoup:
     uvs64: np.ndarray = None
 
     def __post_init__(self):
+        if self.holdout is None:
+            self.holdout = np.zeros(self.vertices.shape[0], dtype=bool)
         v = self.vertices.astype(np.float64)
         self.vertices64 = v
         self.normals64 = None if self.normals is None else self.normals.astype(np.float64)

@@ -29,7 +29,7 @@ from .nee import unidirectional
 from .stack import BoundStack
 from .walk import RR_SAMPLE, walk
 
-CHUNK = 16384  # lanes per walk batch (bounds the memory of vertex records)
+CHUNK = 65536  # lanes per walk batch: large batches amortise per-call overhead (measured: 16384 lanes cost 30 % more per lane); bounds record memory (~100 MB)
 
 
 @dataclass(frozen=True)
@@ -107,11 +107,14 @@ class LayeredBSDF(BSDF):
             pos = np.flatnonzero(same & side)
             if not pos.size or stack.kernels[l].delta_only:
                 continue
-            v, pf, _ = stack.kernels[l].take(pos).eval(a[:, pos], b[:, pos], rng, need_rev=False)
+            ker = stack.kernels[l].take(pos)
+            v, pf, _ = ker.eval(a[:, pos], b[:, pos], rng, need_rev=False)
             if pdf:
                 out[pos] = pf
             else:
-                out[:, pos] = v
+                # Normal map: the arrival factor of the segment from the outside (the exit one is
+                # the kernel's shading cosine times eval's 1/|cos θo|·|cos θo|).
+                out[:, pos] = v * ker.arrival(a[:, pos]) if ker.framed else v
         return out
 
     # ------------------------------------------------------------------ queries

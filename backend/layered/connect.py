@@ -43,42 +43,51 @@ def safe_div(a, b):
     return np.where(ok, a / np.where(ok, b, 1.0), 0.0)
 
 
-def eval_vertex(stack: BoundStack, rec: Records, rows: np.ndarray, w: np.ndarray,
+def eval_vertex(stack: BoundStack, rec, rows: np.ndarray, w: np.ndarray,
                 rng: np.random.Generator, need_rev: bool = True):
-    """Vertex function of records ``rows`` for the outgoing direction ``w`` ((3, m), pointing
-    away from the vertex): interface f(w_in → w)·|cos w| (importance) or phase p(−w_in → w);
-    plus the forward density of w given w_in and the reverse density of w_in given w."""
-    m = rows.size
-    kind = rec.kind[rows]
-    layer = rec.layer[rows]
-    lane = rec.lane[rows]
-    w_in = rec.w_in[:, rows]
+    """Vertex function of records ``rows`` (of a Records or ConnView) for the outgoing direction
+    ``w`` ((3, m), pointing away from the vertex): interface f(w_in → w)·|cos w| (importance) or
+    phase p(−w_in → w); plus the forward density of w given w_in and the reverse density of w_in
+    given w."""
+    return eval_at(stack, rec.kind[rows], rec.layer[rows], rec.lane[rows], rec.w_in[:, rows], w,
+                   rng, need_rev)
+
+
+def eval_at(stack: BoundStack, kind, layer, lane, w_in, w, rng, need_rev: bool = True,
+            pdf_only: bool = False):
+    m = lane.size
     N = stack.N
-    groups = [(1, l, np.flatnonzero((kind == 1) & (layer == l))) for l in range(N)]
-    if not np.all(kind == 1):
+    if np.all(kind == 1):
+        groups = [(1, l, None if N == 1 else np.flatnonzero(layer == l)) for l in range(N)]
+    else:
+        groups = [(1, l, np.flatnonzero((kind == 1) & (layer == l))) for l in range(N)]
         groups += [(0, k, np.flatnonzero((kind == 0) & (layer == k))) for k in range(N - 1)]
-    groups = [g for g in groups if g[2].size]
+    groups = [g for g in groups if g[2] is None or g[2].size]
     if len(groups) == 1:
-        return _eval_group(stack, groups[0][0], groups[0][1], lane, w_in, w, rng, need_rev)
-    val = np.zeros((3, m))
+        return _eval_group(stack, groups[0][0], groups[0][1], lane, w_in, w, rng, need_rev, pdf_only)
+    val = None if pdf_only else np.zeros((3, m))
     pf = np.zeros(m)
     pr = np.zeros(m) if need_rev else None
     for is_if, l, pos in groups:
-        v, f, r = _eval_group(stack, is_if, l, lane[pos], w_in[:, pos], w[:, pos], rng, need_rev)
-        val[:, pos] = v
+        v, f, r = _eval_group(stack, is_if, l, lane[pos], w_in[:, pos], w[:, pos], rng, need_rev,
+                              pdf_only)
+        if not pdf_only:
+            val[:, pos] = v
         pf[pos] = f
         if need_rev:
             pr[pos] = r
     return val, pf, pr
 
 
-def _eval_group(stack, is_if, l, lane, w_in, w, rng, need_rev):
+def _eval_group(stack, is_if, l, lane, w_in, w, rng, need_rev, pdf_only=False):
     if is_if:
         ker = stack.kernels[l]
         if ker.delta_only:
             m = lane.size
             return np.zeros((3, m)), np.zeros(m), np.zeros(m)
-        return ker.take(lane).eval(w_in, w, rng, need_rev)
+        if ker.generic:
+            return ker.take(lane).eval(w_in, w, rng, need_rev)
+        return ker.take(lane).eval(w_in, w, rng, need_rev, pdf_only)
     ph = stack.slabs[l].phase.take(lane)
     d_in, d_out = (-w_in).T, w.T
     p = ph.eval(d_in, d_out)
@@ -86,33 +95,8 @@ def _eval_group(stack, is_if, l, lane, w_in, w, rng, need_rev):
     return np.broadcast_to(p, (3, p.size)), p, pr
 
 
-def _A(X: Records, rows, valid, pdfrev, dens_in):
-    """Sum of π(strategy)/π(current) over the strategies that move depths/directions of X's
-    subpath to the other walk, given the connection-dependent reverse density at X_i."""
-    inner = safe_div(dens_in, X.dens_fwd[rows]) * (
-        valid + safe_div(pdfrev, X.pdf_fwd_prev[rows]) * ((~X.delta_prev[rows]) + X.P[rows]))
-    return np.where(X.k[rows] == 1, 0.0, inner)
-
-
-def _S_evaluated(X: Records, rows, pdfrev_conn, dens_in):
-    """X's side of the MIS sum when X's vertex is the evaluated one."""
-    return _A(X, rows, 1.0, pdfrev_conn, dens_in)
-
-
-def _S_sampled(X: Records, rows, pdf_other, dens_in):
-    """X's side of the MIS sum when X sampled the connecting direction itself."""
-    own = ~X.delta[rows]
-    return safe_div(pdf_other, X.pdf_fwd[rows]) * (own + _A(X, rows, own, X.pdf_rev[rows], dens_in))
-
-
-def _B(X: Records, rows, pdfrev, dens_in):
-    """Product of forward/reverse ratios from the strategy to the all-L one along X (= R)."""
-    inner = safe_div(dens_in, X.dens_fwd[rows]) * safe_div(pdfrev, X.pdf_fwd_prev[rows]) * X.Q[rows]
-    return np.where(X.k[rows] == 1, pdfrev * dens_in, inner)
-
-
-def _pairs(L: Records, R: Records, lanes: np.ndarray):
-    """All (L row, R row) pairs of the given lanes."""
+def _pairs(L, R, lanes: np.ndarray):
+    """All (L, R) pairs of the given lanes, as positions in the lane-major views."""
     cL, cR = L.count[lanes], R.count[lanes]
     npair = cL * cR
     total = int(npair.sum())
@@ -123,12 +107,12 @@ def _pairs(L: Records, R: Records, lanes: np.ndarray):
     start = np.repeat(np.cumsum(npair) - npair, npair)
     q = np.arange(total) - start
     cRp = R.count[pl]
-    iL = L.perm[L.offset[pl] + q // cRp]
-    iR = R.perm[R.offset[pl] + q % cRp]
+    iL = L.offset[pl] + q // cRp
+    iR = R.offset[pl] + q % cRp
     return pl, iL, iR
 
 
-def _lane_batches(L: Records, R: Records):
+def _lane_batches(L, R):
     npair = L.count * R.count
     csum = np.cumsum(npair)
     lanes = np.arange(L.n)
@@ -145,35 +129,31 @@ def bidirectional(stack: BoundStack, wo: np.ndarray, L: Records, R: Records, rng
     ``pdf_mode``, (n,) the pdf estimate. ``wo`` is (3, n). ``nmax`` (per lane) keeps only paths
     of at most that many vertices (approximate pdf)."""
     n = L.n
+    Lv, Rv = L.view(), R.view()
     out = np.zeros(n) if pdf_mode else np.zeros((3, n))
     N = stack.N
     exit_top = wo[2] > 0
-    for lanes in _lane_batches(L, R):
-        pl, iL, iR = _pairs(L, R, lanes)
+    for lanes in _lane_batches(Lv, Rv):
+        pl, iL, iR = _pairs(Lv, Rv, lanes)
         if not pl.size:
             continue
-        kL, kR = L.kind[iL], R.kind[iR]
-        yL, yR = L.layer[iL], R.layer[iR]
-        loL = np.where(kL == 1, yL - 1, yL)
-        loR = np.where(kR == 1, yR - 1, yR)
+        loL, loR, hiL, hiR = Lv.lo[iL], Rv.lo[iR], Lv.hi[iL], Rv.hi[iR]
         slab = np.maximum(loL, loR)
-        ok = (slab <= np.minimum(yL, yR)) & (slab >= 0) & (slab <= N - 2)
-        ok &= ~((kL == 1) & (kR == 1) & (yL == yR))
+        # Same slab (or the slab between two adjacent interfaces), not the same interface.
+        ok = (slab <= np.minimum(hiL, hiR)) & (slab >= 0) & (slab <= N - 2)
+        ok &= ~((loL == loR) & (hiL == hiR) & (hiL > loL))
         if nmax is not None:
-            ok &= (L.k[iL] + R.k[iR]) <= nmax[pl]
-        dt = R.t[iR] - L.t[iL]
+            ok &= (Lv.k[iL] + Rv.k[iR]) <= nmax[pl]
+        dt = Rv.t[iR] - Lv.t[iL]
         for u in (0, 1):
             if u == 0:
-                cz = L.w_out[2, iL]
-                src = L.pdf_fwd[iL] > 0 if pdf_mode else L.thru1[:, iL].max(axis=0) > 0
+                cz, src = Lv.w_out[2, iL], Lv.live_out[iL]
             else:
-                cz = -R.w_out[2, iR]
-                src = R.pdf_fwd[iR] > 0 if pdf_mode else R.thru1[:, iR].max(axis=0) > 0
+                cz, src = -Rv.w_out[2, iR], Rv.live_out[iR]
             sel = np.flatnonzero(ok & src & (-cz * dt > 0) & (np.abs(cz) >= GRAZING))
             if not sel.size:
                 continue
-            c = L.w_out[:, iL[sel]] if u == 0 else -R.w_out[:, iR[sel]]
-            contrib = _connect(stack, L, R, iL[sel], iR[sel], pl[sel], c, slab[sel], u,
+            contrib = _connect(stack, Lv, Rv, iL[sel], iR[sel], pl[sel], slab[sel], u,
                                exit_top, rng, pdf_mode, approx)
             if pdf_mode:
                 out += np.bincount(pl[sel], contrib, minlength=n)
@@ -183,20 +163,23 @@ def bidirectional(stack: BoundStack, wo: np.ndarray, L: Records, R: Records, rng
     return out
 
 
-def _connect(stack, L, R, iL, iR, pl, c, slab, u, exit_top, rng, pdf_mode, approx):
+def _connect(stack, L, R, iL, iR, pl, slab, u, exit_top, rng, pdf_mode, approx):
     m = iL.size
     tL, tR = L.t[iL], R.t[iR]
+    kL, kR = L.kind[iL], R.kind[iR]
     if u == 0:
         # L sampled c; evaluate R's vertex towards L (direction −c, pointing away from R_j).
-        v, pf, pr = eval_vertex(stack, R, iR, -c, rng)
+        c = np.take(L.w_out, iL, axis=1)
+        v, pf, pr = eval_at(stack, kR, R.layer[iR], pl, np.take(R.w_in, iR, axis=1), -c, rng,
+                            pdf_only=pdf_mode)
     else:
-        v, pf, pr = eval_vertex(stack, L, iL, c, rng)
+        c = -np.take(R.w_out, iR, axis=1)
+        v, pf, pr = eval_at(stack, kL, L.layer[iL], pl, np.take(L.w_in, iL, axis=1), c, rng,
+                            pdf_only=pdf_mode)
     T = np.ones(m) if pdf_mode else np.ones((3, m))
     pass_p = np.ones(m)
     dens_to_R = np.ones(m)
     dens_to_L = np.ones(m)
-    toR_med = R.kind[iR] == 0
-    toL_med = L.kind[iL] == 0
     for k in range(stack.N - 1):
         if stack.kinds[k] == 0 and not approx:
             continue  # empty slab: transmittance and densities 1
@@ -220,28 +203,30 @@ def _connect(stack, L, R, iL, iR, pl, c, slab, u, exit_top, rng, pdf_mode, appro
                 pass_p[pos] = pp
         if not approx and stack.kinds[k] == 2:
             ops = stack.slabs[k].take(lanes)
-            a = ops.depth_pdf(ck, t0 - k, t1 - k, sl(toR_med))
-            b = ops.depth_pdf(-ck, t1 - k, t0 - k, sl(toL_med))
+            a = ops.depth_pdf(ck, t0 - k, t1 - k, sl(kR) == 0)
+            b = ops.depth_pdf(-ck, t1 - k, t0 - k, sl(kL) == 0)
             if whole:
                 dens_to_R, dens_to_L = a, b
             else:
                 dens_to_R[pos], dens_to_L[pos] = a, b
     if u == 0:
-        S_L = _S_sampled(L, iL, pf, dens_to_L)       # pf = pdf at R_j of sampling towards L_i
-        S_R = _S_evaluated(R, iR, pr, dens_to_R)     # pr = pdf at R_j of R's own incoming
+        # L sampled; R_j evaluated: pf = R_j's density towards L_i, pr = of R's own incoming.
+        S_L = pf * L.inv_pf[iL] * (L.own[iL] + dens_to_L * L.b1[iL])
+        S_R = dens_to_R * R.inv_dens[iR] * (1.0 + pr * R.a[iR])
     else:
-        S_L = _S_evaluated(L, iL, pr, dens_to_L)
-        S_R = _S_sampled(R, iR, pf, dens_to_R)
+        S_L = dens_to_L * L.inv_dens[iL] * (1.0 + pr * L.a[iL])
+        S_R = pf * R.inv_pf[iR] * (R.own[iR] + dens_to_R * R.b1[iR])
     w_mis = 1.0 / (1.0 + S_L + S_R)
     if pdf_mode:
+        qb = R.qb[iR]
         if u == 0:
-            up = _B(R, iR, pr, dens_to_R)
+            up = dens_to_R * pr * qb
         else:
-            up = safe_div(pf, R.pdf_fwd[iR]) * _B(R, iR, R.pdf_rev[iR], dens_to_R)
+            up = pf * R.inv_pf[iR] * dens_to_R * R.pdf_rev[iR] * qb
         return up * L.gamma[iL] * R.gamma[iR] * w_mis * pass_p
     scale = w_mis * stack.eta_corr(slab, exit_top[pl]) / np.abs(c[2])
     if u == 0:
-        val = L.thru1[:, iL] * R.thru0[:, iR]
+        val = np.take(L.thru1, iL, axis=1) * np.take(R.thru0, iR, axis=1)
     else:
-        val = L.thru0[:, iL] * R.thru1[:, iR]
+        val = np.take(L.thru0, iL, axis=1) * np.take(R.thru1, iR, axis=1)
     return val * v * T * scale

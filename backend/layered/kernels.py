@@ -143,6 +143,10 @@ class Kernel:
     delta_only = False
     transmissive = False
     generic = False
+    framed = False     # has a shading normal (FramedKernel): walks apply ``arrival`` factors
+
+    def arrival(self, w):
+        return 1.0
 
 
 class NullKernel(Kernel):
@@ -159,13 +163,13 @@ class NullKernel(Kernel):
             return self
         return NullKernel(self.tint[:, idx])
 
-    def sample(self, wi, rng, need_rev=True):
+    def sample(self, wi, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
         ok = (wi[2] != 0) * 1.0
         w = np.broadcast_to(ok, (3, m)) if self.tint is None else ok * self.tint
         return -wi, w, np.ones(m), np.ones(m), np.ones(m, bool)
 
-    def eval(self, wi, wo, rng, need_rev=True):
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
         return np.zeros((3, m)), np.zeros(m), np.zeros(m)
 
@@ -181,7 +185,7 @@ class DiffuseKernel(Kernel):
     def take(self, idx):
         return self if self.color.shape[1] == 1 else DiffuseKernel(self.color[:, idx])
 
-    def sample(self, wi, rng, need_rev=True):
+    def sample(self, wi, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
         u = rng.random((2, m))
         r = np.sqrt(u[0])
@@ -193,7 +197,7 @@ class DiffuseKernel(Kernel):
         weight = np.where(ok, self.color, 0.0)
         return wo, weight, np.where(ok, z * INV_PI, 0.0), np.abs(wi[2]) * INV_PI, np.zeros(m, bool)
 
-    def eval(self, wi, wo, rng, need_rev=True):
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
         same = wi[2] * wo[2] > 0
         co = np.where(same, np.abs(wo[2]), 0.0)
         ci = np.where(same, np.abs(wi[2]), 0.0)
@@ -220,7 +224,7 @@ class ConductorKernel(Kernel):
     def _fresnel(self, c):
         return fresnel_conductor(c[None, :], self.eta, self.k) * self.tint
 
-    def eval(self, wi, wo, rng, need_rev=True):
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
         if self.delta_only:
             return np.zeros((3, m)), np.zeros(m), np.zeros(m)
@@ -235,8 +239,7 @@ class ConductorKernel(Kernel):
         mf = self.mf
         D = mf.D(h)
         g2, g1i, g1o = mf.masking(wis, wos, cih > 0, cih > 0)
-        val = sdiv(D * g2, 4.0 * ci)
-        value = self._fresnel(cih) * np.where(ok, val, 0.0)
+        value = None if pdf_only else self._fresnel(cih) * np.where(ok, sdiv(D * g2, 4.0 * ci), 0.0)
         if mf.ggx:
             pf = sdiv(g1i * D, 4.0 * ci)
             pr = sdiv(g1o * D, 4.0 * co)
@@ -244,7 +247,7 @@ class ConductorKernel(Kernel):
             pf = pr = sdiv(D * h[2], 4.0 * cih)
         return value, np.where(ok, pf, 0.0), np.where(ok, pr, 0.0)
 
-    def sample(self, wi, rng, need_rev=True):
+    def sample(self, wi, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
         s = np.where(wi[2] < 0, -1.0, 1.0)
         wis = np.stack([wi[0], wi[1], wi[2] * s])
@@ -255,9 +258,9 @@ class ConductorKernel(Kernel):
             c = dot3(wis, mm)
             wo_s = 2.0 * c * mm - wis
             wo = np.stack([wo_s[0], wo_s[1], wo_s[2] * s])
-            val, pf, pr = self.eval(wi, wo, rng, need_rev)
+            val, pf, pr = self.eval(wi, wo, rng, need_rev, pdf_only)
             ok = (pf > 0) & front & (c > 0)
-            weight = np.where(ok, val / np.where(ok, pf, 1.0), 0.0)
+            weight = ok * 1.0 if pdf_only else np.where(ok, val / np.where(ok, pf, 1.0), 0.0)
             pf = np.where(ok, pf, 0.0)
             delta = np.zeros(m, bool)
         else:
@@ -295,7 +298,7 @@ class DielectricKernel(Kernel):
         return DielectricKernel(lanes(self.eta, idx), lanes_rows(self.tint, idx),
                                 None if self.mf is None else self.mf.take(idx), lanes(self.smooth, idx))
 
-    def eval(self, wi, wo, rng, need_rev=True):
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
         if self.delta_only:
             return np.zeros((3, m)), np.zeros(m), np.zeros(m)
@@ -317,11 +320,14 @@ class DielectricKernel(Kernel):
         D = mf.D(h)
         g2, g1i, g1o = mf.masking(wi, wo, cih * ci > 0, coh * co > 0)
         aci, aco = np.abs(ci), np.abs(co)
-        DG = D * g2
-        fr = sdiv(F * DG, 4.0 * aci)
         den_i = cih + e * coh
-        ft = sdiv((1.0 - F) * DG * np.abs(cih * coh), aci * den_i * den_i) * (e * e)
-        value = np.where(refl, fr, 0.0) + np.where(trans, ft, 0.0) * self.tint
+        if pdf_only:
+            value = None
+        else:
+            DG = D * g2
+            fr = sdiv(F * DG, 4.0 * aci)
+            ft = sdiv((1.0 - F) * DG * np.abs(cih * coh), aci * den_i * den_i) * (e * e)
+            value = np.where(refl, fr, 0.0) + np.where(trans, ft, 0.0) * self.tint
         # Densities of the sampler from each side (visible normals of the side's direction).
         if mf.ggx:
             ph_i = sdiv(g1i * np.abs(cih) * D, aci)
@@ -343,7 +349,7 @@ class DielectricKernel(Kernel):
         pr = np.where(refl, pr_r, 0.0) + np.where(trans, pr_t, 0.0)
         return value, pf, pr
 
-    def sample(self, wi, rng, need_rev=True):
+    def sample(self, wi, rng, need_rev=True, pdf_only=False):
         m = wi.shape[1]
         u = rng.random((3, m))
         ci = wi[2]
@@ -358,14 +364,14 @@ class DielectricKernel(Kernel):
             wo_r = 2.0 * cim * mm - wi
             wo_t = -wi / e + (cim / e + cos_t) * mm
             wo = np.where(choose_r, wo_r, wo_t)
-            val, pf, pr = self.eval(wi, wo, rng, need_rev)
+            val, pf, pr = self.eval(wi, wo, rng, need_rev, pdf_only)
             if pr is None:
                 pr = pf  # not needed (a walk that records nothing); any finite placeholder
             # The chosen lobe must land on its side (a reflection below the surface, or a
             # refraction that stays above, is a failed sample), on a front-facing microfacet.
             side_ok = np.where(choose_r, wo[2] * ci > 0, (wo[2] * ci < 0) & (cos_t != 0))
             ok = live & (pf > 0) & (cim * ci > 0) & side_ok
-            weight = np.where(ok, val / np.where(ok, pf, 1.0), 0.0)
+            weight = ok * 1.0 if pdf_only else np.where(ok, val / np.where(ok, pf, 1.0), 0.0)
             pf = np.where(ok, pf, 0.0)
             delta = np.zeros(m, bool)
         else:
@@ -401,7 +407,7 @@ class GenericKernel(Kernel):
     def take(self, idx):
         return GenericKernel(self.bsdf.take(idx))
 
-    def sample(self, wi, rng, need_rev=True):
+    def sample(self, wi, rng, need_rev=True, pdf_only=False):
         a = np.ascontiguousarray(wi.T)
         s = self.bsdf.sample(a, rng, IMPORTANCE)
         delta = np.asarray(s.delta, dtype=bool)
@@ -413,7 +419,7 @@ class GenericKernel(Kernel):
             pr[nd] = b.pdf(s.wo[nd], a[nd], rng, IMPORTANCE)
         return np.ascontiguousarray(s.wo.T), np.ascontiguousarray(s.weight.T), pf, pr, delta
 
-    def eval(self, wi, wo, rng, need_rev=True):
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
         a, b = np.ascontiguousarray(wi.T), np.ascontiguousarray(wo.T)
         val = self.bsdf.eval(a, b, rng, IMPORTANCE)
         pf = self.bsdf.pdf(a, b, rng, IMPORTANCE)
@@ -436,3 +442,58 @@ def kernel_for(bsdf) -> Kernel:
     if type(bsdf) is DiffuseBSDF:
         return DiffuseKernel.of(bsdf)
     return GenericKernel(bsdf)
+
+
+class FramedKernel(Kernel):
+    """An interface with a shading normal (per-interface normal map): the inner kernel works in
+    the shading frame (z = n, x = the UV tangent made orthogonal to n), so its weights and values
+    carry |⟨n, d⟩| instead of |cos d|. Directions on different sides of the shading and the
+    geometric normal are rejected (value, density and weight 0), as in Guo et al.'s code.
+
+    ``arrival(w)``: the factor |⟨n, w⟩| / |w_z| a walk multiplies in when it reaches this
+    interface along −w: with it every segment carries Guo's symmetric term
+    τ·|⟨n_a, d⟩|·|⟨n_b, d⟩| / |cos d| (digest §2)."""
+
+    framed = True
+
+    def __init__(self, inner: Kernel, n, s=None, t=None):
+        self.inner = inner
+        self.n = n                      # (3, 1|m) unit shading normals, n_z > 0
+        self.delta_only = inner.delta_only
+        self.transmissive = inner.transmissive
+        if s is None:
+            x = np.array([[1.0], [0.0], [0.0]]) - n[0:1] * n   # tangent: x projected off n
+            ok = np.sqrt(dot3(x, x)) > 1e-6
+            x = np.where(ok, x, np.array([[0.0], [1.0], [0.0]]) - n[1:2] * n)
+            s = normalize3(x)
+            t = np.stack([n[1] * s[2] - n[2] * s[1], n[2] * s[0] - n[0] * s[2], n[0] * s[1] - n[1] * s[0]])
+        self.s, self.t = s, t
+
+    def take(self, idx):
+        if self.n.shape[1] == 1:
+            return FramedKernel(self.inner.take(idx), self.n, self.s, self.t)
+        return FramedKernel(self.inner.take(idx), self.n[:, idx], self.s[:, idx], self.t[:, idx])
+
+    def _local(self, w):
+        return np.stack([dot3(w, self.s), dot3(w, self.t), dot3(w, self.n)])
+
+    def _world(self, w):
+        return w[0] * self.s + w[1] * self.t + w[2] * self.n
+
+    def arrival(self, w):
+        c = dot3(w, self.n)
+        return np.where(c * w[2] > 0, sdiv(np.abs(c), np.abs(w[2])), 0.0)
+
+    def sample(self, wi, rng, need_rev=True, pdf_only=False):
+        li = self._local(wi)
+        lo, w, pf, pr, dl = self.inner.sample(li, rng, need_rev, pdf_only)
+        wo = self._world(lo)
+        ok = (li[2] * wi[2] > 0) & (lo[2] * wo[2] > 0)
+        return wo, np.where(ok, w, 0.0), np.where(ok, pf, 0.0), np.where(ok, pr, 0.0), dl
+
+    def eval(self, wi, wo, rng, need_rev=True, pdf_only=False):
+        li, lo = self._local(wi), self._local(wo)
+        v, pf, pr = self.inner.eval(li, lo, rng, need_rev, pdf_only)
+        ok = (li[2] * wi[2] > 0) & (lo[2] * wo[2] > 0)
+        return (None if v is None else np.where(ok, v, 0.0), np.where(ok, pf, 0.0),
+                None if pr is None else np.where(ok, pr, 0.0))

@@ -62,8 +62,9 @@ class LayeredMaterial(Material):
     type_name = "layered"
 
     def __init__(self, interfaces: list, media: list, eta_slab: list[float], eta_bottom: float,
-                 options: Options, emission=None, eta_top: float = 1.0):
+                 options: Options, emission=None, eta_top: float = 1.0, normals: list | None = None):
         self.interfaces = interfaces        # Materials (bind → BSDF)
+        self.normals = normals or [None] * len(interfaces)  # per interface: None or a NormalParam
         self.media = media                  # MediumSpecs
         self.eta_slab = eta_slab
         self.eta_bottom = eta_bottom
@@ -77,7 +78,8 @@ class LayeredMaterial(Material):
     @property
     def uses_textures(self) -> bool:
         return any(getattr(m, "uses_textures", False) for m in self.interfaces) or \
-            any(m.uses_textures for m in self.media)
+            any(m.uses_textures for m in self.media) or \
+            any(nm is not None and not nm.is_constant for nm in self.normals)
 
     def bind(self, ctx: ShadingContext):
         if len(self.interfaces) == 1:
@@ -85,7 +87,9 @@ class LayeredMaterial(Material):
             return self.interfaces[0].bind(ctx)
         ifaces = [m.bind(ctx) for m in self.interfaces]
         media = [m.bind(ctx.uv) for m in self.media]
-        stack = BoundStack.build(ctx.n, ifaces, media, self.eta_slab, self.eta_bottom, self.eta_top)
+        normals = [None if nm is None else nm.bind(ctx.uv) for nm in self.normals]
+        stack = BoundStack.build(ctx.n, ifaces, media, self.eta_slab, self.eta_bottom, self.eta_top,
+                                 normals)
         return LayeredBSDF(stack, self.options, self.stats)
 
 
@@ -103,22 +107,62 @@ def _constant_ior(material, inode: Node) -> float:
     return float(np.asarray(p.bind(None)).reshape(-1)[0])
 
 
+class NormalParam:
+    """A per-interface shading normal in the material's local frame (x = UV tangent, z = the
+    surface normal): a constant vector, or a normal-map texture (RGB · 2 − 1, tangent space).
+    ``bind`` gives unit normals as (3, 1) or (3, n); normals are kept above the surface."""
+
+    def __init__(self, param, texture: bool):
+        self.param = param
+        self.texture = texture
+        self.is_constant = param.is_constant
+
+    def bind(self, uv):
+        v = np.asarray(self.param.bind(uv), dtype=np.float64).reshape(-1, 3)
+        if self.texture:
+            v = 2.0 * v - 1.0
+        v = v.copy()
+        v[:, 2] = np.maximum(v[:, 2], 1e-3)
+        v /= np.linalg.norm(v, axis=1, keepdims=True)
+        if v.shape[0] == 1 and np.allclose(v[0], [0.0, 0.0, 1.0], atol=1e-12):
+            return None
+        return np.ascontiguousarray(v.T)
+
+
+def parse_normal(inode: Node) -> NormalParam | None:
+    if not inode.has("normal"):
+        return None
+    raw = inode.value["normal"]
+    texture = isinstance(raw, dict)
+    p = inode.param("normal", channels=3, lo=None, color=False)
+    if not texture:
+        v = np.asarray(p.bind(None)).reshape(3)
+        if v[2] <= 0 or not np.any(v):
+            raise inode.fail("expected a normal [x, y, z] pointing out of the surface (z > 0)", "normal")
+    return NormalParam(p, texture)
+
+
 def parse_interface(inode: Node, eta_above: float):
-    """One interface; returns (material, index below it)."""
+    """One interface; returns (material, index below it, shading normal or None)."""
     inode.require_object()
     kind = inode.value.get("type")
     if kind not in INTERFACE_TYPES:
         raise inode.fail(f"expected one of {', '.join(map(repr, INTERFACE_TYPES))}, got {kind!r}", "type")
     if kind == "null":
         inode.string("type")
+        normal = parse_normal(inode)
         inode.finish()
-        return NullMaterial(), eta_above
+        return NullMaterial(), eta_above, normal
     if kind == "layered":
+        if inode.has("normal"):
+            raise inode.fail("a nested stack takes normal maps on its own interfaces", "normal")
         inode.string("type")
         nested = parse_layered(inode, eta_above)
-        return nested, nested.eta_bottom if nested.transmissive else eta_above
+        return nested, (nested.eta_bottom if nested.transmissive else eta_above), None
+    normal = parse_normal(inode)
     implied = {"dielectric": "ior_above", "conductor": "eta_above"}.get(kind)
     value = dict(inode.value)
+    value.pop("normal", None)
     if implied is not None:
         if implied in value:
             raise inode.fail("implied by the stack (the index below the interface above); "
@@ -132,8 +176,8 @@ def parse_interface(inode: Node, eta_above: float):
         raise inode.fail("an interface of a layered stack cannot emit; put \"emission\" on the "
                          "layered material", "emission")
     if kind == "dielectric":
-        return material, _constant_ior(material, inode)
-    return material, eta_above
+        return material, _constant_ior(material, inode), normal
+    return material, eta_above, normal
 
 
 def parse_layered(node: Node, eta_above: float = 1.0) -> LayeredMaterial:
@@ -143,12 +187,13 @@ def parse_layered(node: Node, eta_above: float = 1.0) -> LayeredMaterial:
     inodes = node.child("interfaces").items()
     if not inodes:
         raise node.fail("a layered material needs at least one interface", "interfaces")
-    interfaces, etas = [], []
+    interfaces, etas, normals = [], [], []
     eta = eta_above
     for i, inode in enumerate(inodes):
-        material, eta = parse_interface(inode, eta)
+        material, eta, normal = parse_interface(inode, eta)
         interfaces.append(material)
         etas.append(eta)
+        normals.append(normal)
         if i < len(inodes) - 1 and not _transmits(material):
             raise inode.fail(f"interface {i} is opaque ({inode.value.get('type')}): nothing reaches "
                              f"the layers below it; it must be the last interface")
@@ -168,7 +213,11 @@ def parse_layered(node: Node, eta_above: float = 1.0) -> LayeredMaterial:
     emission = parse_emission(node)
     node.finish()
     eta_slab = etas[:-1] if n_media else []
-    return LayeredMaterial(interfaces, media, list(eta_slab), etas[-1], options, emission, eta_above)
+    if len(interfaces) == 1 and normals[0] is not None:
+        raise inodes[0].fail("a one-interface stack is that interface's BSDF: use the scene's "
+                             "normal map instead of a per-interface one", "normal")
+    return LayeredMaterial(interfaces, media, list(eta_slab), etas[-1], options, emission, eta_above,
+                           normals)
 
 
 @register("layered")

@@ -60,6 +60,13 @@ def unidirectional(stack: BoundStack, wo: np.ndarray, L: Records, rng) -> np.nda
         p_E[lanes] = pf
         delta_E[lanes] = dl
     eta_corr = stack.eta_corr(slab_E, exit_top)
+    # Normal-mapped exit interface: NEE converts E's sample weight (which carries |⟨n_E, u⟩|)
+    # into the flow u → wo, whose exit segment carries |⟨n_E, wo⟩| instead of |cos θo|.
+    exit_arr = np.ones(n)
+    for e in (0, N - 1):
+        if stack.kernels[e].framed:
+            lanes = np.flatnonzero(E == e)
+            exit_arr[lanes] = stack.kernels[e].take(lanes).arrival(wo[:, lanes])
     lane = L.lane
     eligible = ((L.kind == 0) & (L.layer == slab_E[lane])) | ((L.kind == 1) & (L.layer == face[lane]))
     rows = np.flatnonzero(eligible)
@@ -76,7 +83,8 @@ def unidirectional(stack: BoundStack, wo: np.ndarray, L: Records, rng) -> np.nda
         val, p_v, _ = eval_vertex(stack, L, r, d, rng, need_rev=False)
         T = _transmittance(stack, slab_E[l2], l2, d, t_v[nee], t_E[nee])
         w = np.where(delta_E[l2], 1.0, power(p_E[l2], p_v))
-        factor = np.abs(wo[2, l2]) * safe_div(np.ones(nee.size), np.abs(u[2, l2])) * eta_corr[l2] * w
+        factor = np.abs(wo[2, l2]) * exit_arr[l2] * safe_div(np.ones(nee.size), np.abs(u[2, l2])) \
+            * eta_corr[l2] * w
         c = L.thru0[:, r] * val * T * w_b[:, l2] * factor
         for ch in range(3):
             out[ch] += np.bincount(l2, c[ch], minlength=n)
@@ -98,8 +106,9 @@ def unidirectional(stack: BoundStack, wo: np.ndarray, L: Records, rng) -> np.nda
             if ker.delta_only:
                 continue
             # Flow −dc → wo at E; the density of E's sampler from wo towards −dc is its reverse.
-            v, _, pr = ker.take(l2[pos]).eval(-dc[:, pos], wo[:, l2[pos]], rng)
-            fE[:, pos] = v
+            kt = ker.take(l2[pos])
+            v, _, pr = kt.eval(-dc[:, pos], wo[:, l2[pos]], rng)
+            fE[:, pos] = v * kt.arrival(-dc[:, pos])
             pE[pos] = pr
         w = np.where(L.delta[r], 1.0, power(L.pdf_fwd[r], pE))
         c = L.thru1[:, r] * T * fE * w

@@ -85,13 +85,17 @@ class BoundStack:
 
     @classmethod
     def build(cls, n: int, ifaces: list, media: list, eta_slab, eta_bottom: float,
-              eta_top: float = 1.0) -> "BoundStack":
-        from .kernels import kernel_for
+              eta_top: float = 1.0, normals: list | None = None) -> "BoundStack":
+        """``normals``: per interface None or (3, 1|n) unit shading normals (normal maps)."""
+        from .kernels import FramedKernel, kernel_for
         from .slab import SlabOps
         kinds = [slab_kind(m) for m in media]
         slabs = [None if k == EMPTY else SlabOps(m) for k, m in zip(kinds, media)]
-        return cls(n, [kernel_for(b) for b in ifaces], slabs, eta_slab, eta_bottom, kinds, ifaces,
-                   eta_top)
+        kernels = [kernel_for(b) for b in ifaces]
+        for i, nrm in enumerate(normals or []):
+            if nrm is not None:
+                kernels[i] = FramedKernel(kernels[i], nrm)
+        return cls(n, kernels, slabs, eta_slab, eta_bottom, kinds, ifaces, eta_top)
 
     def take(self, idx) -> "BoundStack":
         idx = np.asarray(idx)

@@ -62,6 +62,63 @@ class Records:
         self.perm = np.empty(lane.size, dtype=np.int64)
         self.perm[self.offset[lane] + self.k - 1] = np.arange(lane.size)
         self.size = lane.size
+        self._view = None
+
+    def view(self) -> "ConnView":
+        """Lane-major arrays for the bidirectional connections (computed once)."""
+        if self._view is None:
+            self._view = ConnView(self)
+        return self._view
+
+
+def _inv(x):
+    ok = x > 0
+    return np.where(ok, 1.0 / np.where(ok, x, 1.0), 0.0)
+
+
+class ConnView:
+    """The records in lane-major order, with the MIS recurrences folded into a few coefficients
+    per vertex (connect.py): for vertex X_i with dens = dens_fwd, pf = pdf_fwd, pr = pdf_rev,
+
+        inv_dens = 1/dens (0 for the first vertex: no earlier strategies move through it)
+        a   = (¬δ_prev + P) / pdf_fwd_prev
+        own = ¬δ,  inv_pf = 1/pf,  b1 = inv_dens·(own + pr·a)
+        S_evaluated(dens_in, pdfrev) = dens_in·inv_dens·(1 + pdfrev·a)
+        S_sampled(dens_in, pdf_other) = pdf_other·inv_pf·(own + dens_in·b1)
+
+    and for the pdf estimator (Q): qb = inv_dens·Q/pdf_fwd_prev (1 for the first vertex)."""
+
+    def __init__(self, rec: "Records"):
+        p = rec.perm
+        self.count, self.offset, self.n = rec.count, rec.offset, rec.n
+        take = lambda x: x[..., p]  # noqa: E731
+        self.lane = take(rec.lane)
+        self.k = take(rec.k)
+        self.t = take(rec.t)
+        self.kind = take(rec.kind)
+        self.layer = take(rec.layer)
+        iface = self.kind == 1
+        self.lo = np.where(iface, self.layer - 1, self.layer)   # slabs the vertex can connect in
+        self.hi = self.layer
+        self.w_in = take(rec.w_in)
+        self.w_out = take(rec.w_out)
+        pf, pr = take(rec.pdf_fwd), take(rec.pdf_rev)
+        first = self.k == 1
+        self.inv_dens = np.where(first, 0.0, _inv(take(rec.dens_fwd)))
+        self.a = ((~take(rec.delta_prev)) + take(rec.P)) * _inv(take(rec.pdf_fwd_prev))
+        delta = take(rec.delta)
+        self.own = (~delta) * 1.0
+        self.inv_pf = _inv(pf)
+        self.pdf_rev = pr
+        self.b1 = self.inv_dens * (self.own + pr * self.a)
+        if hasattr(rec, "thru0"):
+            self.thru0 = take(rec.thru0)
+            self.thru1 = take(rec.thru1)
+            self.live_out = self.thru1.max(axis=0) > 0
+        else:
+            self.gamma = take(rec.gamma)
+            self.qb = np.where(first, 1.0, self.inv_dens * take(rec.Q) * _inv(take(rec.pdf_fwd_prev)))
+            self.live_out = pf > 0
 
 
 @dataclass
@@ -158,12 +215,23 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
         pdf_fwd = np.ones(m)
         pdf_rev = np.ones(m)
         delta = np.zeros(m, dtype=bool)
+        arrival = None
         for l, pos in groups_if:
             if pos is not None and not pos.size:
                 continue
             whole = single and (pos is None or pos.size == m)
             ker = stack.kernels[l].take(lane if whole else lane[pos])
-            wo, w, pf, pr, dl = ker.sample(w_in if whole else w_in[:, pos], rng, record)
+            wi_g = w_in if whole else w_in[:, pos]
+            if ker.framed:
+                # Arriving at a normal-mapped interface: |⟨n, d⟩| / |cos d| (kernels.FramedKernel).
+                if arrival is None:
+                    arrival = np.ones(m)
+                if whole:
+                    arrival = ker.arrival(wi_g)
+                else:
+                    arrival[pos] = ker.arrival(wi_g)
+            wo, w, pf, pr, dl = (ker.sample(wi_g, rng, record) if ker.generic else
+                                 ker.sample(wi_g, rng, record, approx))
             if whole:
                 d_out, wgt, pdf_fwd, pdf_rev, delta = wo, w, pf, pr, dl
             else:
@@ -180,7 +248,7 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
             pdf_fwd[pos] = ps.pdf
             if record:
                 pdf_rev[pos] = phase.pdf(-ps.d_out, -di.T)
-        beta = S["beta"]
+        beta = S["beta"] if arrival is None else S["beta"] * arrival
         thru1 = beta * wgt
         if record:
             rec = {"lane": lane, "k": np.full(m, i, dtype=np.int64), "kind": kind, "layer": layer,
@@ -210,7 +278,7 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
         S["d_in"] = d_out
         bmax = beta.max(axis=0)
         alive = (~exits) & (np.abs(d_out[2]) >= GRAZING) & (bmax > 0)
-        if i >= rr[0]:
+        if i >= rr[0] and not approx:  # approximate-pdf walks are short and carry no values
             q = np.minimum(1.0, bmax / rr[1])
             # q below 1e-300 would overflow 1/q; such lanes are (almost surely) killed anyway.
             alive &= (rng.random(m) < q) & (q > 1e-300)

@@ -18,7 +18,6 @@ MODULES = (
     "backend.lights.area",
     "backend.lights.environment",
     "backend.lights.mesh",
-    "backend.ies.light",
 )
 
 

@@ -91,6 +91,18 @@ class AreaLight(Light):
         self.emits = self.geo.area > 0 and self.watts > 0 and float(self.color.max()) > 0
         self.cone = ConeTable(self.profile) if np.isfinite(self.profile.tan_max) else None
 
+    def received_power(self, p: np.ndarray, power: float) -> np.ndarray:
+        """Light-selection weight at points p (lights/selection.py): the power over the
+        hemisphere at the point's distance, × the emitter-side cosine; 0 behind the emitter,
+        where a one-sided light cannot contribute."""
+        g = self.geo
+        rel = p - g.center
+        d2 = dot(rel, rel)
+        h = dot(rel, g.normal)
+        cos_e = np.clip(h / np.sqrt(np.maximum(d2, 1e-300)), 0.0, 1.0)
+        # Near the emitter the received scale saturates at its own area (no 1/d² blow-up).
+        return np.where(h > 0, power * np.maximum(cos_e, 0.05) / (np.pi * np.maximum(d2, g.area)), 0.0)
+
     def power(self) -> float:
         if not self.emits:
             return 0.0

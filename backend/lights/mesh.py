@@ -41,6 +41,12 @@ class MeshLight(Light):
         self.normal = n / np.where(length > 0, length, 1.0)[:, None]
         self.radiance = np.broadcast_to(np.asarray(radiance, dtype=np.float64).reshape(-1, 3), (v.shape[0], 3)).copy()
         self.two_sided = bool(two_sided)
+        # Where the emitters are, for light selection (lights/selection.py): the area-weighted
+        # centre and the radius of the sphere around it that holds every vertex.
+        centroids = v.mean(axis=1)
+        total_area = float(self.area.sum())
+        self.position = (centroids * self.area[:, None]).sum(axis=0) / total_area if total_area > 0 else centroids.mean(axis=0)
+        self.extent = float(np.linalg.norm(v.reshape(-1, 3) - self.position, axis=1).max()) if v.size else 0.0
         weight = self.area * np.maximum(luminance(self.radiance), 0.0)
         weight = np.where(np.isfinite(weight), weight, 0.0)
         self._total = float(weight.sum())

@@ -240,14 +240,10 @@ class PointLight(Light):
 # --------------------------------------------------------------------------- scene parser
 
 def parse_profile(node):
-    """The optional ``ies`` field of point/spot lights, read by backend/ies/light.py."""
+    """The optional ``ies`` field of point/spot lights (backend/ies/light.py) or None."""
     if not node.has("ies"):
         return None
-    try:
-        from ..ies.light import parse_profile as parse_ies
-    except ImportError:
-        raise node.fail("IES profiles are not supported by this build (backend/ies/light.py missing)",
-                        "ies") from None
+    from ..ies.light import parse_profile as parse_ies
     return parse_ies(node.child("ies"))
 
 

@@ -31,6 +31,7 @@ class RenderSettings:
     noise_target: float = 0.0
     min_spp: int = 16
     time_limit: float = 0.0
+    light_selection: str = "local"
 
 
 @dataclass
@@ -40,6 +41,7 @@ class Scene:
     height: int
     pixel_filter: object
     crop: tuple[int, int, int, int] | None
+    transparent: bool
     camera: object
     settings: RenderSettings
     materials: list
@@ -81,7 +83,7 @@ def load_scene_data(data, where: str = "<scene>", base_dir: Path | None = None) 
         raise root.fail(f"unsupported scene version {version} (this Lamina reads version {VERSION})", "version")
 
     settings = parse_settings(root.optional_child("render"), ctx)
-    width, height, pixel_filter, crop = parse_film(root.child("film"))
+    width, height, pixel_filter, crop, transparent = parse_film(root.child("film"))
     from ..camera import parse_camera
     camera = parse_camera(root.child("camera"))
 
@@ -116,7 +118,7 @@ def load_scene_data(data, where: str = "<scene>", base_dir: Path | None = None) 
     center, radius = scene_bounds(soup, lights, camera)
     for light in all_lights:
         light.prepare(center, radius)
-    scene = Scene(ctx.where, width, height, pixel_filter, crop, camera, settings, materials, names,
+    scene = Scene(ctx.where, width, height, pixel_filter, crop, transparent, camera, settings, materials, names,
                   soup, all_lights, world, mesh_light, ctx.warnings, center, radius)
     if not all_lights:
         ctx.warn("", "the scene has no lights and no world: the image will be black")
@@ -138,6 +140,7 @@ def parse_settings(node: Node | None, ctx: LoadContext) -> RenderSettings:
     s.noise_target = node.number("noise_target", s.noise_target, lo=0, hi=1)
     s.min_spp = node.integer("min_spp", s.min_spp, lo=1, hi=1 << 24)
     s.time_limit = node.number("time_limit", s.time_limit, lo=0)
+    s.light_selection = node.string("light_selection", s.light_selection, choices=("local", "power"))
     layered = node.optional_child("layered")
     ctx.cache["layered_defaults"] = dict(layered.require_object().value) if layered is not None else {}
     node.finish()
@@ -156,8 +159,9 @@ def parse_film(node: Node):
         if not (0 <= x0 < x1 <= width and 0 <= y0 < y1 <= height):
             raise node.fail(f"expected 0 <= x0 < x1 <= {width} and 0 <= y0 < y1 <= {height}, got {c.tolist()}", "crop")
         crop = (x0, y0, x1, y1)
+    transparent = node.boolean("transparent", False)
     node.finish()
-    return width, height, pixel_filter, crop
+    return width, height, pixel_filter, crop, transparent
 
 
 def parse_material(node: Node):
@@ -187,7 +191,7 @@ def default_material():
 
 def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list, names: list[str],
                     ctx: LoadContext) -> TriangleSoup:
-    verts, norms, uvs, mats, objs, cam = [], [], [], [], [], []
+    verts, norms, uvs, mats, objs, cam, hold = [], [], [], [], [], [], []
     any_normals = any_uvs = False
     default_index = None
     items = node.items() if node is not None else []
@@ -200,6 +204,7 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
         mesh = meshes[mesh_name]
         m = onode.matrix4("to_world", np.eye(4).tolist())
         visible = onode.boolean("visible_camera", True)
+        holdout = onode.boolean("holdout", False)
         slot_names = []
         slots_node = onode.optional_child("materials")
         if slots_node is not None:
@@ -248,6 +253,7 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
         mats.append(tri_mat)
         objs.append(np.full(mesh.triangle_count, oi, np.int32))
         cam.append(np.full(mesh.triangle_count, visible))
+        hold.append(np.full(mesh.triangle_count, holdout))
     if not verts:
         empty = np.zeros((0, 3, 3), np.float32)
         return TriangleSoup(empty, None, None, np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, bool))
@@ -259,7 +265,8 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
     if any_uvs:
         uv_all = np.concatenate([u if u is not None else np.zeros((v.shape[0], 3, 2), np.float32)
                                  for u, v in zip(uvs, verts)]).astype(np.float32)
-    return TriangleSoup(vertices, normals, uv_all, np.concatenate(mats), np.concatenate(objs), np.concatenate(cam))
+    return TriangleSoup(vertices, normals, uv_all, np.concatenate(mats), np.concatenate(objs), np.concatenate(cam),
+                        np.concatenate(hold))
 
 
 def _flat_normals(v: np.ndarray) -> np.ndarray:

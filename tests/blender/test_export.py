@@ -81,7 +81,9 @@ def test_full_scene_structure_and_values(results):
     print(f"\nfull scene export: {info['seconds'] * 1e3:.1f} ms, {info['stats']}")
 
     objects = {o["_name"]: o for o in doc["objects"]}
-    assert "HiddenPlane" not in objects and "HoldoutPlane" not in objects
+    assert "HiddenPlane" not in objects
+    assert objects["HoldoutPlane"]["holdout"] is True          # a transparent hole, still casts shadows
+    assert "holdout" not in objects["Plane"]
     np.testing.assert_allclose(objects["Plane"]["to_world"], info["matrices"]["Plane"], atol=1e-6)
     np.testing.assert_allclose(objects["Sphere"]["to_world"], info["matrices"]["Sphere"], atol=1e-6)
     assert doc["materials"][objects["Sphere"]["materials"][0]]["type"] == "layered"
