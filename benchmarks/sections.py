@@ -217,7 +217,7 @@ COMPARISONS = [
     ("uni, approx pdf", {"render": {"layered": {"estimator": "uni"}}}),
     ("bi, stochastic pdf", {"render": {"layered": {"pdf": "stochastic"}}}),
     ("uni, stochastic pdf", {"render": {"layered": {"estimator": "uni", "pdf": "stochastic"}}}),
-    ("bi, no MIS inside the BSDF", {"render": {"layered": {"mis": False}}}),
+    ("uni, no MIS inside the BSDF", {"render": {"layered": {"estimator": "uni", "mis": False}}}),
 ]
 COMPARISON_SCENES = ["validation1", "validation4"]
 WORKER_SCENES = ["cornell", "validation4"]

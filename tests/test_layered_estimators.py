@@ -254,3 +254,26 @@ def test_nested_transmissive_middle_interface_equals_explicit():
     se = np.hypot(se_e, se_n)
     assert np.all(np.abs(mu_e - mu_n) <= K * se), ((mu_n - mu_e) / se)
     assert np.median(se / mu_e) < 0.08
+
+
+@pytest.mark.parametrize("name", ["fig2-top", "transmissive"])
+def test_unidirectional_without_mis_agrees_with_bidirectional(name):
+    """``"mis": false`` (the benchmarks' no-MIS variant: NEE alone through a rough exit) is the
+    same BSDF: it agrees with the bidirectional estimator within 4 standard errors."""
+    plain = load({**STACKS[name], "estimator": "uni", "mis": False})
+    ref = load(STACKS[name])
+    wi, wo = grid_pairs(plain.transmissive)
+    rng = np.random.default_rng(43)
+    mu_u, se_u = eval_stats(plain, wi, wo, 8000, rng, estimator="uni")
+    mu_b, se_b = eval_stats(ref, wi, wo, 2500, rng, estimator="bi")
+    se = np.sqrt(se_u ** 2 + se_b ** 2)
+    z = (mu_u - mu_b) / np.where(se > 0, se, 1.0)
+    print(f"\n{name} uni without MIS: max |z| = {np.abs(z).max():.2f}")
+    assert np.all(np.abs(mu_u - mu_b) <= K * se), z
+    assert np.median(se / np.maximum(mu_b, 1e-12)) < 0.08
+
+
+def test_mis_off_needs_the_unidirectional_estimator():
+    from backend.errors import SceneError
+    with pytest.raises(SceneError, match=r"mis.*estimator.*uni"):
+        load({**STACKS["fig2-top"], "mis": False})

@@ -38,6 +38,7 @@ class Options:
     pdf: str = "approx"          # "approx" | "stochastic"
     pdf_constant: float = 0.1    # added to the approximate pdf (sr⁻¹); Guo's diffusePdf
     max_vertices: int = 1024     # hard cap per walk; hits are counted in ``stats``
+    mis: bool = True             # uni only: False = NEE alone where it applies (benchmarks)
 
 
 def new_stats() -> dict:
@@ -130,7 +131,7 @@ class LayeredBSDF(BSDF):
                 L = self._walk(stack, a, rng).records
                 uni = est == "uni"
                 if uni:
-                    f += unidirectional(stack, b, L, rng)
+                    f += unidirectional(stack, b, L, rng, mis=self.options.mis)
                     # NEE through the exit interface needs a non-delta interface at the exit or
                     # across the slab next to it; otherwise the paths "medium → specular → specular
                     # exit" have no unidirectional strategy: use the bidirectional estimator.

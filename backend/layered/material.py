@@ -6,7 +6,7 @@ Schema (docs/materials.md, "layered")::
      "interfaces": [<interface>, ...],       # 0 = top; N >= 1
      "media": [<medium>, ...],               # exactly N − 1 (slab i between interfaces i, i+1)
      "estimator": "bi" | "uni", "pdf": "approx" | "stochastic",
-     "pdf_constant": 0.1, "max_vertices": 1024, "emission": ...}
+     "pdf_constant": 0.1, "max_vertices": 1024, "mis": true, "emission": ...}
 
 Interfaces: ``dielectric``, ``conductor``, ``diffuse`` (the standard materials' schema),
 ``null`` (index-matched pass-through) and a nested ``layered``. IOR chain: each dielectric's
@@ -28,7 +28,7 @@ from .medium import parse_medium
 from .stack import EMPTY, BoundStack, NullBSDF
 
 INTERFACE_TYPES = ("dielectric", "conductor", "diffuse", "null", "layered")
-OPTION_KEYS = ("estimator", "pdf", "pdf_constant", "max_vertices")
+OPTION_KEYS = ("estimator", "pdf", "pdf_constant", "max_vertices", "mis")
 
 
 def parse_options(node: Node, defaults: Node | None) -> Options:
@@ -46,8 +46,16 @@ def parse_options(node: Node, defaults: Node | None) -> Options:
             values["pdf_constant"] = src.number("pdf_constant", lo=0.0)
         if src.has("max_vertices"):
             values["max_vertices"] = src.integer("max_vertices", lo=2, hi=1 << 20)
+        if src.has("mis"):
+            values["mis"] = src.boolean("mis")
         src.ignore(*OPTION_KEYS)
-    return Options(**{**base.__dict__, **values})
+    opts = Options(**{**base.__dict__, **values})
+    if not opts.mis and opts.estimator != "uni":
+        # The bidirectional estimator is defined by its MIS weights over all connection
+        # strategies; "without MIS" has a meaning only for the unidirectional one.
+        raise node.fail('"mis": false needs "estimator": "uni" (the bidirectional estimator '
+                        'always combines its connection strategies with MIS)', "mis")
+    return opts
 
 
 class NullMaterial(Material):

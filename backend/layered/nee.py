@@ -14,7 +14,9 @@ strategies estimate the paths ending "vertex → E → wo":
   evaluated with the transmittance to E (its expected value; the walk itself goes on).
 
 The pair is weighted with the power heuristic of the two solid-angle densities (a delta exit or a
-delta-sampled vertex leaves only one strategy). Paths are counted once: at the last vertex before
+delta-sampled vertex leaves only one strategy). With ``mis=False`` (the benchmarks' "no MIS"
+variant) NEE takes every path it can generate (weight 1 where E's sampler density is > 0) and the
+continuation only the rest (delta vertices, directions E's sampler cannot reach): still unbiased. Paths are counted once: at the last vertex before
 the exit. The single-reflection path (entry = exit interface) is added exactly by the caller.
 """
 from __future__ import annotations
@@ -32,7 +34,7 @@ def power(a, b):
     return np.where(den > 0, a2 / np.where(den > 0, den, 1.0), 0.0)
 
 
-def unidirectional(stack: BoundStack, wo: np.ndarray, L: Records, rng) -> np.ndarray:
+def unidirectional(stack: BoundStack, wo: np.ndarray, L: Records, rng, mis: bool = True) -> np.ndarray:
     """(3, n) sum of NEE and continuation terms per lane (importance transport, f·|cos θo|);
     ``wo`` is (3, n)."""
     n = L.n
@@ -82,7 +84,7 @@ def unidirectional(stack: BoundStack, wo: np.ndarray, L: Records, rng) -> np.nda
         d = -u[:, l2]  # from the vertex towards E (pointing away from the vertex)
         val, p_v, _ = eval_vertex(stack, L, r, d, rng, need_rev=False)
         T = _transmittance(stack, slab_E[l2], l2, d, t_v[nee], t_E[nee])
-        w = np.where(delta_E[l2], 1.0, power(p_E[l2], p_v))
+        w = np.where(delta_E[l2], 1.0, power(p_E[l2], p_v) if mis else 1.0)
         factor = np.abs(wo[2, l2]) * exit_arr[l2] * safe_div(np.ones(nee.size), np.abs(u[2, l2])) \
             * eta_corr[l2] * w
         c = L.thru0[:, r] * val * T * w_b[:, l2] * factor
@@ -110,7 +112,7 @@ def unidirectional(stack: BoundStack, wo: np.ndarray, L: Records, rng) -> np.nda
             v, _, pr = kt.eval(-dc[:, pos], wo[:, l2[pos]], rng)
             fE[:, pos] = v * kt.arrival(-dc[:, pos])
             pE[pos] = pr
-        w = np.where(L.delta[r], 1.0, power(L.pdf_fwd[r], pE))
+        w = np.where(L.delta[r], 1.0, power(L.pdf_fwd[r], pE) if mis else (pE <= 0) * 1.0)
         c = L.thru1[:, r] * T * fE * w
         for ch in range(3):
             out[ch] += np.bincount(l2, c[ch], minlength=n)
