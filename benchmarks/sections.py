@@ -108,6 +108,10 @@ def series_stats(runs: list) -> dict:
     # Slope over the upper half of the sample counts, where the fixed cost t0 no longer matters.
     hi = [i for i, r in enumerate(rows) if r["mean_spp"] >= max(spp) / 8]
     s_hi, _, se_hi = fit_loglog([cpu[i] for i in hi], [rmse[i] for i in hi])
+    # Against the sampling time alone (CPU − t0): the fixed cost removed, −½ expected.
+    marg = [i for i in range(len(rows)) if cpu[i] - t0 > 0]
+    s_marg, _, _ = fit_loglog([cpu[i] - t0 for i in marg], [rmse[i] for i in marg]) if len(marg) >= 3 \
+        else (float("nan"), 0.0, 0.0)
     cons = [r["consistency"] for r in rows if r["mean_spp"] >= 4 and math.isfinite(r["consistency"])]
     eff = [1.0 / (r["mse"] * r["cpu"]) for r in rows if r["mean_spp"] >= 4 and r["mse"] > 0]
     stats_tot: dict = {}
@@ -116,7 +120,7 @@ def series_stats(runs: list) -> dict:
             if k not in ("cpu_time", "master_cpu_time", "rays", "paths"):
                 stats_tot[k] = stats_tot.get(k, 0) + v
     return {"slope_cpu": s_cpu, "slope_cpu_se": se_cpu, "slope_wall": s_wall, "slope_spp": s_spp,
-            "slope_spp_se": se_spp, "t0": t0, "cost_per_spp": c, "slope_hi": s_hi, "slope_hi_se": se_hi,
+            "slope_spp_se": se_spp, "t0": t0, "cost_per_spp": c, "slope_hi": s_hi, "slope_marginal": s_marg, "slope_hi_se": se_hi,
             "consistency": statistics.median(cons) if cons else float("nan"),
             "efficiency": statistics.median(eff) if eff else float("nan"), "counters": stats_tot,
             "paths_per_s": sum(r.stats.get("paths", 0) for r in runs) / max(sum(cpu), 1e-9)}
@@ -140,7 +144,8 @@ def explain(st: dict) -> str:
         parts.append(f"steeper than −½ because of a fixed cost per render (t0 ≈ {max(st['t0'], 0):.2f} s: scene "
                      f"set-up, and NumPy call overhead that does not shrink with fewer lanes — large for the "
                      f"lock-step layered walks, whose length is set by the longest walk in a batch) in the "
-                     f"cheapest renders; over the top three octaves of spp the slope is {st['slope_hi']:+.2f}")
+                     f"cheapest renders; over the top three octaves of spp the slope is {st['slope_hi']:+.2f}, "
+                     f"against the sampling time (CPU − t0) {st['slope_marginal']:+.2f}")
     elif s > -0.42 and abs(ss + 0.5) <= 0.1:
         parts.append("flatter than −½ although error vs spp is −½: the CPU time per spp grows with spp "
                      f"(slope over the top three octaves {st['slope_hi']:+.2f})")
@@ -254,13 +259,13 @@ def comparisons(ctx: Context) -> str:
             base_eff = st["efficiency"] if base_eff is None else base_eff
             table.append(f"| {label} | {st['slope_cpu']:+.2f} | {_fmt(st['cost_per_spp'])} s | {_fmt(st['consistency'])} | "
                          f"{_fmt(st['efficiency'] / base_eff if base_eff else float('nan'))} | "
-                         f"{st['counters'].get('layered_walk_cap_hits', 0)} |")
+                         f"{st['counters'].get('layered_walk_cap_hits', 0)} | {explain(st)} |")
             ctx.results.setdefault("comparisons", {}).setdefault(name, {})[label] = {"runs": summ, "fit": st}
         fig = ctx.report_dir / f"cmp_{name}.png"
         plots.comparison_figure(fig, f"{name}: layered estimator variants",
                                 [("RMSE vs CPU time", series, "cpu", "CPU time [s]")])
-        md += [f"### {name}", "", "| variant | slope vs CPU | CPU per spp | consistency | relative efficiency | walk-cap hits |",
-               "|---|---|---|---|---|---|", *table, "", _figure_link(ctx, fig, f"{name} estimators"), ""]
+        md += [f"### {name}", "", "| variant | slope vs CPU | CPU per spp | consistency | relative efficiency | walk-cap hits | note |",
+               "|---|---|---|---|---|---|---|", *table, "", _figure_link(ctx, fig, f"{name} estimators"), ""]
     if not done_any:
         md.append("")
     md += [workers_comparison(ctx)]

@@ -7,3 +7,5 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 DATA = ROOT / "tests" / "data"  # copies of ../shared/data (IES files, slab references)
 os.environ.setdefault("LAMINA_ROOT", str(ROOT))
+import backend as _first  # before NumPy: one BLAS thread per process (backend/__init__.py)
+del _first
