@@ -90,7 +90,7 @@ def summary(ctx: sections.Context, stress_totals: dict | None) -> str:
     tve = ctx.results.get("time_vs_error", {})
     if tve:
         md.append("* **Slope of RMSE vs CPU time** (expect −½): " + ", ".join(
-            f"{name} {v['fit']['slope_cpu']:+.2f} (top 3 octaves {v['fit']['slope_hi']:+.2f}; vs CPU − t0 {v['fit']['slope_marginal']:+.2f}; vs spp {v['fit']['slope_spp']:+.2f})" for name, v in tve.items()) + ".")
+            f"{name} {v['fit']['slope_cpu']:+.2f} (top 3 octaves {v['fit']['slope_hi']:+.2f}; vs spp {v['fit']['slope_spp']:+.2f}; CPU ∝ spp^{v['fit']['time_exponent']:.2f}, predicted {v['fit']['slope_spp'] / v['fit']['time_exponent']:+.2f})" for name, v in tve.items()) + ".")
     if ctx.skipped:
         md.append("* **Not rendered** (not landed yet): " + ", ".join(ctx.skipped) + ".")
     comp = ctx.results.get("comparisons", {})
