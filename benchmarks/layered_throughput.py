@@ -155,7 +155,7 @@ def main():
         r = render_ratio(args.size, args.spp)
         print(f"render CPU time, {args.size}² px, {args.spp} spp, one worker: diffuse sphere {r['diffuse_s']:.2f} s")
         for name in STACKS:
-            print(f"  {name:34s} {r[name]:6.1f} × the diffuse sphere")
+            print(f"  {name:34s} {r[name]:6.1f} × the diffuse sphere  ({r[name] * r['diffuse_s']:.2f} s)")
         return
     res = run(args.lanes, args.repeat)
     if args.json:
