@@ -25,11 +25,17 @@ class LaminaPreferences(bpy.types.AddonPreferences):
         name="Preview Samples", default=16, min=1, soft_max=256,
         description="Samples per pixel of material, light and world preview thumbnails")
 
+    user_preset_thumbnails: BoolProperty(
+        name="Thumbnails for Saved Presets", default=True,
+        description="Render a thumbnail for each preset you save, in the background (one renderer "
+                    "process, tens of seconds per preset; the same stage as the shipped thumbnails)")
+
     def draw(self, context):
         layout = self.layout
         layout.prop(self, "python_executable")
         layout.prop(self, "keep_files")
         layout.prop(self, "preview_samples")
+        layout.prop(self, "user_preset_thumbnails")
 
 
 def get(context=None):

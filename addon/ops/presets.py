@@ -19,7 +19,8 @@ from bpy.props import BoolProperty, EnumProperty, StringProperty
 from ..export import preset_link
 from ..export.images import ImageExporter
 from ..export.stack import StackError, stack_json
-from ..presets import library, previews
+from .. import preferences
+from ..presets import library, previews, thumbnail_jobs
 from ..presets.convert import material_from_json  # noqa: F401  (re-exported for scripts and tests)
 from ..presets.library import PresetError
 
@@ -213,7 +214,13 @@ class LAMINA_OT_preset_save(bpy.types.Operator):
             return {"CANCELLED"}
         if notes:
             self.report({"WARNING"}, "Lamina: saved without: " + "; ".join(notes))
-        self.report({"INFO"}, f"Lamina: saved preset {path}")
+        prefs = preferences.get(context)
+        if prefs is None or prefs.user_preset_thumbnails:
+            thumbnail_jobs.request(path, library.python_executable(), library.backend_environment())
+            self.report({"INFO"}, f"Lamina: saved preset {path}; its thumbnail renders in the background")
+        else:
+            thumbnail_jobs.cancel(path)
+            self.report({"INFO"}, f"Lamina: saved preset {path}")
         return {"FINISHED"}
 
 
@@ -233,6 +240,7 @@ class LAMINA_OT_preset_delete(bpy.types.Operator):
         if folder is None:
             self.report({"ERROR"}, "Lamina: no user preset folder")
             return {"CANCELLED"}
+        thumbnail_jobs.cancel(folder / f"{library.slugify(self.name)}.json")
         try:
             library.delete(self.name, folder)
         except PresetError as exc:
@@ -358,6 +366,7 @@ def register():
 
 
 def unregister():
+    thumbnail_jobs.cancel()
     del bpy.types.WindowManager.lamina_preset_browser
     _unregister_classes()
     previews.unregister()

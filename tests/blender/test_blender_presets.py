@@ -17,7 +17,7 @@ from bpy_harness import ROOT, requires_bpy, result_of, run_cases
 
 pytestmark = [pytest.mark.blender, requires_bpy]
 
-CASES = ["round_trip", "shipped", "menu", "user_folder", "dropped_fields"]
+CASES = ["round_trip", "shipped", "menu", "user_folder", "dropped_fields", "user_thumbnail"]
 # Blender stores the stack's numbers as float32 and writes them with 7 significant digits; α is
 # stored as √α. A value therefore comes back within a few float32 ulps: 4 ulps (2^-21 relative)
 # bounds rounding to float32, squaring a rounded √α and the 7-digit print.
@@ -27,7 +27,7 @@ FLOAT32_RTOL = 4 * 2.0 ** -23
 @pytest.fixture(scope="module")
 def results(tmp_path_factory):
     return run_cases("preset_cases", CASES, tmp=tmp_path_factory.mktemp("presets"), dev_load="extension",
-                     timeout=300)
+                     timeout=420)
 
 
 def shipped_names() -> list[str]:
@@ -220,6 +220,20 @@ def test_user_presets_live_in_the_extension_user_directory(results):
     assert "folder-test" in r["listed_before"]
     assert r["deleted"] == ["FINISHED"]
     assert not [p for p in r["remaining"] if "folder-test" in p] and "folder-test" not in r["listed_after"]
+
+
+def test_saved_preset_gets_a_thumbnail_in_the_background(results):
+    r = result_of(results, "user_thumbnail")
+    assert r["status"] == [["FINISHED"], ["FINISHED"]]
+    assert r["returned_after"] < 5.0                 # saving does not wait for the render (≈ 8 s)
+    assert r["idle"]
+    ended = [f for f in r["finished"] if f["path"].endswith("thumb-test.json")]
+    # The second save replaced the first render: at most one was stopped, exactly one completed.
+    completed = [f for f in ended if not f["cancelled"]]
+    assert len(completed) == 1 and completed[0]["code"] == 0, ended
+    assert r["thumbnail"] == str(Path(r["user_dir"]) / "thumbnails" / "thumb-test.png")
+    assert r["size"] == [128, 128, 3]                 # the shipped thumbnails' stage and size
+    assert r["deleted"] == ["FINISHED"] and not r["thumbnail_after_delete"]
 
 
 def test_unrepresentable_fields_are_reported_and_rendered_until_edited(results):

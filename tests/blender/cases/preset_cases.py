@@ -12,6 +12,7 @@ import math
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -26,6 +27,12 @@ PACKAGE = os.environ.get("LAMINA_TEST_PACKAGE", "lamina")
 
 def mod(name: str):
     return importlib.import_module(f"{PACKAGE}.addon.{name}")
+
+
+def set_thumbnails(on: bool) -> None:
+    """Background thumbnail renders after a save (on by default); the cases that do not test
+    them turn them off so the menu and folder listings they check stay deterministic."""
+    mod("preferences").get().user_preset_thumbnails = on
 
 
 def export_dir(tmp, name) -> Path:
@@ -136,6 +143,7 @@ def rich_stacks(tmp) -> dict:
 
 def round_trip(tmp):
     """Save each material as a user preset, apply it to a new material, export both."""
+    set_thumbnails(False)
     library = mod("presets.library")
     out = {}
     for name, src in rich_stacks(tmp).items():
@@ -194,6 +202,7 @@ def _menu_entries(log) -> list[dict]:
 
 
 def menu(tmp):
+    set_thumbnails(False)
     ops = mod("ops.presets")
     previews = mod("presets.previews")
     library = mod("presets.library")
@@ -240,6 +249,7 @@ def menu(tmp):
 
 def user_folder(tmp):
     """Where user presets go, and that the backend child process finds them."""
+    set_thumbnails(False)
     library = mod("presets.library")
     engine = mod("engine.engine")
     job = mod("engine.job")
@@ -294,6 +304,37 @@ def user_folder(tmp):
             "saved": saved, "env": env, "with_env": with_env, "without_env": without_env,
             "listed_before": listed_before, "deleted": deleted, "remaining": remaining,
             "listed_after": [e.name for e in library.entries() if e.user]}
+
+
+def user_thumbnail(tmp):
+    """A saved preset gets a thumbnail rendered in the background; saving again replaces the
+    pending render; deleting the preset removes the thumbnail."""
+    set_thumbnails(True)
+    jobs = mod("presets.thumbnail_jobs")
+    library = mod("presets.library")
+    mat = bpy.data.materials.new("Thumb Test")
+    s = mat.lamina
+    coat = mod("ops.stack").add_layer(s, "DIELECTRIC", 0)
+    coat.ior, coat.roughness = 1.5, 0.1
+    mod("ops.stack").add_layer(s, "DIFFUSE", 1).color = (0.6, 0.2, 0.1)
+    s.use_stack = True
+    t0 = time.monotonic()
+    with bpy.context.temp_override(material=mat):
+        first = bpy.ops.lamina.preset_save(name="Thumb Test")
+        second = bpy.ops.lamina.preset_save(name="Thumb Test", overwrite=True)   # replaces the first render
+    returned_after = time.monotonic() - t0          # the operator does not wait for the render
+    idle = jobs.wait(timeout=240)
+    entry = next(e for e in library.entries() if e.name == "thumb-test")
+    thumb = str(entry.thumbnail) if entry.thumbnail else None
+    size = None
+    if thumb:
+        from backend.textures import read_image
+        size = list(read_image(Path(thumb))[0].shape)
+    deleted = list(bpy.ops.lamina.preset_delete(name="thumb-test"))
+    return {"status": [list(first), list(second)], "returned_after": returned_after, "idle": idle,
+            "finished": jobs.finished(), "thumbnail": thumb, "size": size,
+            "user_dir": str(library.user_dir()), "deleted": deleted,
+            "thumbnail_after_delete": bool(thumb) and Path(thumb).exists()}
 
 
 PARTIAL = {
