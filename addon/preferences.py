@@ -8,6 +8,12 @@ from bpy.props import BoolProperty, IntProperty, StringProperty
 ADDON_ID = __package__.rpartition(".")[0]
 
 
+def _thumbnails_toggled(self, context):
+    if not self.user_preset_thumbnails:
+        from .presets import thumbnail_jobs      # lazy: presets rank above preferences
+        thumbnail_jobs.cancel()
+
+
 class LaminaPreferences(bpy.types.AddonPreferences):
     bl_idname = ADDON_ID
 
@@ -26,7 +32,7 @@ class LaminaPreferences(bpy.types.AddonPreferences):
         description="Samples per pixel of material, light and world preview thumbnails")
 
     user_preset_thumbnails: BoolProperty(
-        name="Thumbnails for Saved Presets", default=True,
+        name="Thumbnails for Saved Presets", default=True, update=_thumbnails_toggled,
         description="Render a thumbnail for each preset you save, in the background (one renderer "
                     "process, tens of seconds per preset; the same stage as the shipped thumbnails)")
 
