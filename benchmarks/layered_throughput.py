@@ -131,15 +131,46 @@ def render_ratio(size: int, spp: int):
         sc = load_scene_data(copy.deepcopy(data), "<bench>")
         opts = RenderOptions(workers=1)
         opts.apply(sc)
-        t0 = time.process_time()
-        Renderer(sc, (copy.deepcopy(data), "<bench>", None), opts).run()
-        return time.process_time() - t0
+        with BSDFClock() as clock:
+            t0 = time.process_time()
+            Renderer(sc, (copy.deepcopy(data), "<bench>", None), opts).run()
+            return time.process_time() - t0, clock.seconds
 
-    base = cpu({"type": "diffuse", "color": 0.7})
+    base, _ = cpu({"type": "diffuse", "color": 0.7})
     out = {"diffuse_s": base}
     for name, d in STACKS.items():
-        out[name] = cpu(d) / base
+        total, in_bsdf = cpu(d)
+        out[name] = total / base
+        out[name + " bsdf_share"] = in_bsdf / total
     return out
+
+
+class BSDFClock:
+    """CPU time spent inside the layered BSDF's queries during a render (one worker, so in this
+    process): wraps LayeredBSDF.eval/pdf/sample/albedo, counting only the outermost call."""
+
+    def __enter__(self):
+        from backend.layered.bsdf import LayeredBSDF
+        self.cls, self.saved, self.seconds, depth = LayeredBSDF, {}, 0.0, [0]
+        for name in ("eval", "pdf", "sample", "albedo"):
+            fn = getattr(LayeredBSDF, name)
+            self.saved[name] = fn
+
+            def timed(*a, _fn=fn, **k):
+                depth[0] += 1
+                t0 = time.process_time()
+                try:
+                    return _fn(*a, **k)
+                finally:
+                    depth[0] -= 1
+                    if depth[0] == 0:
+                        self.seconds += time.process_time() - t0
+            setattr(LayeredBSDF, name, timed)
+        return self
+
+    def __exit__(self, *exc):
+        for name, fn in self.saved.items():
+            setattr(self.cls, name, fn)
 
 
 def main():
@@ -155,7 +186,8 @@ def main():
         r = render_ratio(args.size, args.spp)
         print(f"render CPU time, {args.size}² px, {args.spp} spp, one worker: diffuse sphere {r['diffuse_s']:.2f} s")
         for name in STACKS:
-            print(f"  {name:34s} {r[name]:6.1f} × the diffuse sphere  ({r[name] * r['diffuse_s']:.2f} s)")
+            print(f"  {name:34s} {r[name]:6.1f} × the diffuse sphere  ({r[name] * r['diffuse_s']:.2f} s, "
+                  f"{100 * r[name + ' bsdf_share']:.0f} % of it in the layered BSDF)")
         return
     res = run(args.lanes, args.repeat)
     if args.json:
