@@ -169,12 +169,14 @@ class LayeredBSDF(BSDF):
                 # compounds and makes the estimate heavy-tailed (measured, Fig. 2 stack: variance
                 # ÷11 at 3.3× the time without it). The vertex cap still bounds the walks.
                 L = walk(stack, a, rng, approx=approx, max_vertices=cap, purpose="pdf", rr=RR_OFF)
-                R = walk(stack, b, rng, approx=approx, max_vertices=cap, purpose="pdf", rr=RR_OFF)
+                # Chromatic extinction: both walks of a query share the hero channel (walk.walk).
+                R = walk(stack, b, rng, approx=approx, max_vertices=cap, purpose="pdf", rr=RR_OFF,
+                         hero=L.hero)
                 if not approx:
                     self._note(L)
                     self._note(R)
                 p += bidirectional(stack, b, L.records, R.records, rng, pdf_mode=True,
-                                   approx=approx, nmax=nmax)
+                                   approx=approx, nmax=nmax, hero=L.hero)
             if approx:
                 p += self.options.pdf_constant
             out[idx] = p

@@ -230,11 +230,14 @@ LANE_BLOCK = 4096  # lanes prepared and connected together (per-vertex arrays st
 
 
 def bidirectional(stack: BoundStack, wo: np.ndarray, L: Records, R: Records, rng,
-                  pdf_mode: bool = False, approx: bool = False, nmax: np.ndarray | None = None):
+                  pdf_mode: bool = False, approx: bool = False, nmax: np.ndarray | None = None,
+                  hero: np.ndarray | None = None):
     """Sum over all connections per lane: (3, n) f·|cos θo| / |cos θo| (i.e. without the final
     cosine, without the single-interface term and before any transport-mode factor) or, with
     ``pdf_mode``, (n,) the pdf estimate. ``wo`` is (3, n). ``nmax`` (per lane) keeps only paths
-    of at most that many vertices (approximate pdf)."""
+    of at most that many vertices (approximate pdf). ``hero`` (n,):
+    a stochastic pdf's shared hero channel of both walks (walk.walk), whose single-channel depth
+    densities the connections then use in chromatic media."""
     n = L.n
     out = np.zeros(n) if pdf_mode else np.zeros((3, n))
     exit_top = wo[2] > 0
@@ -244,11 +247,12 @@ def bidirectional(stack: BoundStack, wo: np.ndarray, L: Records, R: Records, rng
         o = out[..., l0:l1]
         nm = None if nmax is None else nmax[l0:l1]
         for u, src, tgt in ((0, Ls, Rs), (1, Rs, Ls)):
-            _directed(stack, src, tgt, u, exit_top[l0:l1], l0, rng, pdf_mode, approx, nm, o)
+            _directed(stack, src, tgt, u, exit_top[l0:l1], l0, rng, pdf_mode, approx, nm, o,
+                      None if hero is None else hero[l0:l1])
     return out
 
 
-def _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx):
+def _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx, hero=None):
     """Per source of bucket B in slab s: the extinction rate along its direction c (None for an
     empty slab; (m,) grey or (3, m)), sigma_scale(c) for a directional phase, and towards the
     interface ahead (depth distance ``ad_if``): transmittance (per-source factor), the depth
@@ -266,6 +270,8 @@ def _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx):
         sig = ops.phase.sigma_scale(np.ascontiguousarray(B.c.T))
         inv = inv * sig
     rate = ops.tau[0] * inv if ops.grey else ops.tau * inv
+    if hero is not None and not ops.grey and kind == SCATTERING:
+        rate = np.take_along_axis(rate, hero[B.lane][None, :], axis=0)[0]
     e = np.exp(-rate * ad_if)
     if approx:
         return rate, sig, (e.mean(axis=0) if e.ndim == 2 else e), one, one
@@ -277,14 +283,15 @@ def _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx):
     return rate, sig, e, e, e * fac
 
 
-def _directed(stack, src: Side, tgt: Side, u, exit_top, l0, rng, pdf_mode, approx, nmax, out):
+def _directed(stack, src: Side, tgt: Side, u, exit_top, l0, rng, pdf_mode, approx, nmax, out,
+              hero=None):
     """Connections with the source's sampled direction (strategy u: 0 = L samples, 1 = R)."""
     N = stack.N
     n = src.n
     for (s, going_up), B in src.sources.items():
         l_if = s if going_up else s + 1   # the interface the direction reaches
         ad_if = np.abs(l_if - B.t)
-        rate, sig, Tr_if, dens_t_if, dens_s_if = _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx)
+        rate, sig, Tr_if, dens_t_if, dens_s_if = _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx, hero)
         negc = -B.c
         ker = stack.kernels[l_if]
         mo = None if ker.generic or ker.delta_only else ker.take(B.lane + l0).mask_terms(negc)
