@@ -139,8 +139,9 @@ def _slices(code, nbins):
 
 
 class Side:
-    """One walk's vertices of the lanes [l0, l1), prepared for connections (see the module
-    docstring). Lanes are numbered from 0 inside the block.
+    """One walk's vertices of the record lanes [r0, r1), prepared for connections (see the
+    module docstring). Lanes are numbered from 0 inside the block; block lane j is the stack's
+    lane l0 + j.
 
     MIS coefficients (recorded by the walk, walk.py): as the evaluated vertex ("target", with
     density dens_in of reaching it along the connection and reverse density pr of its own
@@ -148,12 +149,12 @@ class Side:
     the sampling vertex ("source", the target's density pf of the connecting direction, dens_out
     the density of reaching the source back) S = pf·(A + dens_out·B)."""
 
-    def __init__(self, stack: BoundStack, rec: Records, l0: int, l1: int, pdf_mode: bool):
+    def __init__(self, stack: BoundStack, rec: Records, r0: int, r1: int, l0: int, pdf_mode: bool):
         N = stack.N
-        n = l1 - l0
+        n = r1 - r0
         self.n = n
-        idx = rec.perm[rec.bounds[l0]:rec.bounds[l1]]   # the block's vertices, lane-major
-        lane = rec.lane[idx] - l0
+        idx = rec.perm[rec.bounds[r0]:rec.bounds[r1]]   # the block's vertices, lane-major
+        lane = rec.lane[idx] - r0
         kind, layer, t, k = rec.kind[idx], rec.layer[idx], rec.t[idx], rec.k[idx]
         pf = rec.pdf_fwd[idx]
         is_if = kind == 1
@@ -231,19 +232,21 @@ LANE_BLOCK = 4096  # lanes prepared and connected together (per-vertex arrays st
 
 def bidirectional(stack: BoundStack, wo: np.ndarray, L: Records, R: Records, rng,
                   pdf_mode: bool = False, approx: bool = False, nmax: np.ndarray | None = None,
-                  hero: np.ndarray | None = None):
+                  L_off: int = 0, R_off: int = 0, hero: np.ndarray | None = None):
     """Sum over all connections per lane: (3, n) f·|cos θo| / |cos θo| (i.e. without the final
     cosine, without the single-interface term and before any transport-mode factor) or, with
-    ``pdf_mode``, (n,) the pdf estimate. ``wo`` is (3, n). ``nmax`` (per lane) keeps only paths
-    of at most that many vertices (approximate pdf). ``hero`` (n,):
+    ``pdf_mode``, (n,) the pdf estimate. ``wo`` is (3, n), n = stack.n; lane j's two walks are
+    lane L_off + j of L and lane R_off + j of R (one joint walk may hold both: L is R). ``nmax``
+    (per lane) keeps only paths of at most that many vertices (approximate pdf). ``hero`` (n,):
     a stochastic pdf's shared hero channel of both walks (walk.walk), whose single-channel depth
     densities the connections then use in chromatic media."""
-    n = L.n
+    n = wo.shape[1]
     out = np.zeros(n) if pdf_mode else np.zeros((3, n))
     exit_top = wo[2] > 0
     for l0 in range(0, n, LANE_BLOCK):
         l1 = min(n, l0 + LANE_BLOCK)
-        Ls, Rs = Side(stack, L, l0, l1, pdf_mode), Side(stack, R, l0, l1, pdf_mode)
+        Ls = Side(stack, L, L_off + l0, L_off + l1, l0, pdf_mode)
+        Rs = Side(stack, R, R_off + l0, R_off + l1, l0, pdf_mode)
         o = out[..., l0:l1]
         nm = None if nmax is None else nmax[l0:l1]
         for u, src, tgt in ((0, Ls, Rs), (1, Rs, Ls)):

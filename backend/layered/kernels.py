@@ -90,8 +90,12 @@ class Microfacet3:
         self._iav2 = 1.0 / (self.av * self.av)
         self._norm = INV_PI / (self.au * self.av)
 
+    @property
+    def constant(self) -> bool:
+        return self.au.ndim == 0 and self.av.ndim == 0
+
     def take(self, idx):
-        if self.au.ndim == 0 and self.av.ndim == 0:
+        if self.constant:
             return self
         return Microfacet3(GGX if self.ggx else BECKMANN, SEPARABLE if self.separable else "",
                            lanes(self.au, idx), lanes(self.av, idx))
@@ -192,6 +196,7 @@ class Kernel:
     transmissive = False
     generic = False
     framed = False     # has a shading normal (FramedKernel): walks apply ``arrival`` factors
+    constant = False   # no per-lane parameter: ``take`` returns the kernel itself
 
     def arrival(self, w):
         return 1.0
@@ -209,6 +214,7 @@ class NullKernel(Kernel):
 
     def __init__(self, tint=None):
         self.tint = tint  # (3, 1|n) or None
+        self.constant = tint is None or tint.shape[1] == 1
 
     def take(self, idx):
         if self.tint is None or self.tint.shape[1] == 1:
@@ -229,6 +235,7 @@ class NullKernel(Kernel):
 class DiffuseKernel(Kernel):
     def __init__(self, color_rows):
         self.color = color_rows  # (3, 1|n)
+        self.constant = color_rows.shape[1] == 1
 
     @classmethod
     def of(cls, bsdf: DiffuseBSDF):
@@ -262,6 +269,8 @@ class ConductorKernel(Kernel):
         self.mf = mf
         self.smooth = smooth                          # () or (n,) bool
         self.delta_only = bool(np.all(smooth))
+        self.constant = (eta.shape[1] == 1 and k.shape[1] == 1 and tint.shape[1] == 1 and
+                         np.ndim(smooth) == 0 and (mf is None or mf.constant))
 
     @classmethod
     def of(cls, b: ConductorBSDF):
@@ -269,6 +278,8 @@ class ConductorKernel(Kernel):
         return cls(rgb_rows(b.eta), rgb_rows(b.k), rgb_rows(b.tint), mf, np.asarray(b.smooth))
 
     def take(self, idx):
+        if self.constant:
+            return self
         return ConductorKernel(lanes_rows(self.eta, idx), lanes_rows(self.k, idx),
                                lanes_rows(self.tint, idx), None if self.mf is None else self.mf.take(idx),
                                lanes(self.smooth, idx))
@@ -353,6 +364,8 @@ class DielectricKernel(Kernel):
         self.mf = mf
         self.smooth = smooth
         self.delta_only = bool(np.all(smooth))
+        self.constant = (self.eta.ndim == 0 and tint.shape[1] == 1 and np.ndim(smooth) == 0 and
+                         (mf is None or mf.constant))
 
     @classmethod
     def of(cls, b: DielectricBSDF):
@@ -360,6 +373,8 @@ class DielectricKernel(Kernel):
         return cls(b.eta, rgb_rows(b.tint), mf, np.asarray(b.smooth))
 
     def take(self, idx):
+        if self.constant:
+            return self
         return DielectricKernel(lanes(self.eta, idx), lanes_rows(self.tint, idx),
                                 None if self.mf is None else self.mf.take(idx), lanes(self.smooth, idx))
 
@@ -558,8 +573,11 @@ class FramedKernel(Kernel):
             s = normalize3(x)
             t = np.stack([n[1] * s[2] - n[2] * s[1], n[2] * s[0] - n[0] * s[2], n[0] * s[1] - n[1] * s[0]])
         self.s, self.t = s, t
+        self.constant = n.shape[1] == 1 and inner.constant
 
     def take(self, idx):
+        if self.constant:
+            return self
         if self.n.shape[1] == 1:
             return FramedKernel(self.inner.take(idx), self.n, self.s, self.t)
         return FramedKernel(self.inner.take(idx), self.n[:, idx], self.s[:, idx], self.t[:, idx])

@@ -34,8 +34,13 @@ class SlabOps:
         self.tau = rgb_rows(medium.optical_depth) if tau is None else tau   # (3, 1|n)
         self.albedo = rgb_rows(medium.albedo) if albedo is None else albedo  # (3, 1|n)
 
+    @property
+    def constant(self) -> bool:
+        """No per-lane parameter (``take`` returns the operator itself)."""
+        return self.tau.shape[1] == 1 and self.albedo.shape[1] == 1 and self.phase.n is None
+
     def take(self, idx) -> "SlabOps":
-        if self.tau.shape[1] == 1 and self.albedo.shape[1] == 1 and self.phase.n is None:
+        if self.constant:
             return self
         med = self.medium.take(idx)
         return SlabOps(med, self.tau if self.tau.shape[1] == 1 else self.tau[:, idx],
