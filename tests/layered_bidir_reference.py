@@ -90,11 +90,13 @@ def _lane_batches(L, R):
 
 
 def bidirectional(stack, wo: np.ndarray, L, R, rng,
-                  pdf_mode: bool = False, approx: bool = False, nmax: np.ndarray | None = None):
+                  pdf_mode: bool = False, approx: bool = False, nmax: np.ndarray | None = None,
+                  hero: np.ndarray | None = None):
     """Sum over all connections per lane: (3, n) f·|cos θo| / |cos θo| (i.e. without the final
     cosine, without the single-interface term and before any transport-mode factor) or, with
     ``pdf_mode``, (n,) the pdf estimate. ``wo`` is (3, n). ``nmax`` (per lane) keeps only paths
-    of at most that many vertices (approximate pdf)."""
+    of at most that many vertices (approximate pdf). ``hero`` (n,): the channel whose depth
+    densities a stochastic pdf uses in chromatic media (both walks' shared hero)."""
     n = L.n
     Lv, Rv = ConnView(L), ConnView(R)
     out = np.zeros(n) if pdf_mode else np.zeros((3, n))
@@ -121,7 +123,7 @@ def bidirectional(stack, wo: np.ndarray, L, R, rng,
             if not sel.size:
                 continue
             contrib = _connect(stack, Lv, Rv, iL[sel], iR[sel], pl[sel], slab[sel], u,
-                               exit_top, rng, pdf_mode, approx)
+                               exit_top, rng, pdf_mode, approx, hero)
             if pdf_mode:
                 out += np.bincount(pl[sel], contrib, minlength=n)
             else:
@@ -130,7 +132,7 @@ def bidirectional(stack, wo: np.ndarray, L, R, rng,
     return out
 
 
-def _connect(stack, L, R, iL, iR, pl, slab, u, exit_top, rng, pdf_mode, approx):
+def _connect(stack, L, R, iL, iR, pl, slab, u, exit_top, rng, pdf_mode, approx, hero=None):
     m = iL.size
     tL, tR = L.t[iL], R.t[iR]
     kL, kR = L.kind[iL], R.kind[iR]
@@ -170,8 +172,9 @@ def _connect(stack, L, R, iL, iR, pl, slab, u, exit_top, rng, pdf_mode, approx):
                 pass_p[pos] = pp
         if not approx and stack.kinds[k] == 2:
             ops = stack.slabs[k].take(lanes)
-            a = ops.depth_pdf(ck, t0 - k, t1 - k, sl(kR) == 0)
-            b = ops.depth_pdf(-ck, t1 - k, t0 - k, sl(kL) == 0)
+            ch = None if hero is None else hero[lanes]
+            a = ops.depth_pdf(ck, t0 - k, t1 - k, sl(kR) == 0, ch)
+            b = ops.depth_pdf(-ck, t1 - k, t0 - k, sl(kL) == 0, ch)
             if whole:
                 dens_to_R, dens_to_L = a, b
             else:

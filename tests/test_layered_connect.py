@@ -71,10 +71,18 @@ def test_blocked_connections_equal_pair_list(name, monkeypatch):
     for approx in (True, False):
         slabs = stack.N - 1
         cap = 2 * slabs if approx else 1024
-        Lp = walk(stack, wi, rng, approx=approx, max_vertices=cap, purpose="pdf").records
-        Rp = walk(stack, wo, rng, approx=approx, max_vertices=cap, purpose="pdf").records
+        # The stochastic pdf's two walks share a hero channel (walk.walk); the approximate
+        # pdf's walks have none.
+        Lw = walk(stack, wi, rng, approx=approx, max_vertices=cap, purpose="pdf")
+        hero = Lw.hero
+        if name == "transmissive":
+            assert (hero is not None) == (not approx)  # the chromatic case is exercised
+        Lp = Lw.records
+        Rp = walk(stack, wo, rng, approx=approx, max_vertices=cap, purpose="pdf", hero=hero).records
         nmax = np.where(wi[2] * wo[2] > 0, 2 * slabs + 1, slabs + 1) if approx else None
-        p_ref = reference.bidirectional(stack, wo, Lp, Rp, rng, pdf_mode=True, approx=approx, nmax=nmax)
-        p_new = connect.bidirectional(stack, wo, Lp, Rp, rng, pdf_mode=True, approx=approx, nmax=nmax)
+        p_ref = reference.bidirectional(stack, wo, Lp, Rp, rng, pdf_mode=True, approx=approx, nmax=nmax,
+                                        hero=hero)
+        p_new = connect.bidirectional(stack, wo, Lp, Rp, rng, pdf_mode=True, approx=approx, nmax=nmax,
+                                      hero=hero)
         assert np.all(np.isfinite(p_new))
         assert np.all(np.abs(p_new - p_ref) <= 1e-9 * np.maximum(np.abs(p_ref), 1e-300)), approx

@@ -25,16 +25,18 @@ def _inv(x):
     return np.where(x > 0, 1.0 / np.where(x > 0, x, 1.0), 0.0)
 
 
-def _depth_density(stack, slab, lanes, d, t0, t1, to_medium):
+def _depth_density(stack, slab, lanes, d, t0, t1, to_medium, hero=None):
     """Density of producing depth t1 from t0 along d in ``slab`` (1 where no free flight is
-    sampled: empty or absorbing slabs)."""
+    sampled: empty or absorbing slabs). ``hero`` (per lane): the channel whose single-channel
+    density a stochastic-pdf walk records in chromatic media (channel mean if None)."""
     out = np.ones(d.shape[1])
     for k in range(stack.N - 1):
         pos = np.flatnonzero(slab == k)
         if not pos.size or stack.kinds[k] != SCATTERING:
             continue
         ops = stack.slabs[k].take(lanes[pos])
-        out[pos] = ops.depth_pdf(np.take(d, pos, axis=1), t0[pos] - k, t1[pos] - k, to_medium[pos])
+        out[pos] = ops.depth_pdf(np.take(d, pos, axis=1), t0[pos] - k, t1[pos] - k, to_medium[pos],
+                                 None if hero is None else hero[lanes[pos]])
     return out
 
 
@@ -50,7 +52,12 @@ def test_recorded_mis_coefficients_match_recomputation(name, purpose):
                    np.sqrt(1 - u[0])])
     if mat.transmissive:
         w0[2] *= np.where(rng.random(n) < 0.3, -1.0, 1.0)
-    rec = walk(stack, w0, rng, purpose=purpose).records
+    res = walk(stack, w0, rng, purpose=purpose)
+    rec = res.records
+    # A pdf walk records its hero channel's depth densities (walk.walk); a value walk the means.
+    hero = res.hero if purpose == "pdf" else None
+    if name == "transmissive":
+        assert (hero is not None) == (purpose == "pdf")  # the chromatic case is exercised
     p = rec.perm  # lane-major, walk order within a lane
     lane, k, kind, layer, t = rec.lane[p], rec.k[p], rec.kind[p], rec.layer[p], rec.t[p]
     w_in, w_out, delta = rec.w_in[:, p], rec.w_out[:, p], rec.delta[p]
@@ -68,8 +75,9 @@ def test_recorded_mis_coefficients_match_recomputation(name, purpose):
     prev[first] = 0
     slab_e = np.where(kind == 1, np.where(w_in[2] > 0, layer - 1, layer), layer)  # slab of the edge
     d_e = -w_in
-    dens_fwd = np.where(first, 1.0, _depth_density(stack, slab_e, lane, d_e, t[prev], t, kind == 0))
-    dens_rev = np.where(first, 1.0, _depth_density(stack, slab_e, lane, -d_e, t, t[prev], kind[prev] == 0))
+    dens_fwd = np.where(first, 1.0, _depth_density(stack, slab_e, lane, d_e, t[prev], t, kind == 0, hero))
+    dens_rev = np.where(first, 1.0, _depth_density(stack, slab_e, lane, -d_e, t, t[prev], kind[prev] == 0,
+                                                   hero))
     # The paper's recurrences, vertex by vertex along each lane.
     P = np.zeros(p.size)
     Q = np.zeros(p.size)

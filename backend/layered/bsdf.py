@@ -118,6 +118,64 @@ class LayeredBSDF(BSDF):
                 out[:, pos] = v * ker.arrival(a[:, pos]) if ker.framed else v
         return out
 
+    # ------------------------------------------------------------------ estimators
+    # One chunk's lanes as (3, m) arrays. The walks from wi and from wo of a query run as one
+    # joint walk over 2m lanes (stack.expand): a lock-step walk's cost per iteration is largely
+    # per NumPy call, not per lane, so one walk of 2m lanes costs much less than two of m.
+
+    def _joint_walk(self, stack: BoundStack, a, b, rng, **kw):
+        m = a.shape[1]
+        both = stack.expand(np.concatenate([np.arange(m), np.arange(m)]))
+        return walk(both, np.concatenate([a, b], axis=1), rng, **kw)
+
+    def _value(self, stack: BoundStack, a, b, rng, est: str):
+        """(3, m) f·|cos θo| (importance transport)."""
+        f = self._single(stack, a, b, rng, pdf=False)
+        if stack.N == 1:
+            return f
+        if est == "uni":
+            f += unidirectional(stack, b, self._walk(stack, a, rng).records, rng, mis=self.options.mis)
+            # NEE through the exit interface needs a non-delta interface at the exit or across
+            # the slab next to it; otherwise the paths "medium → specular → specular exit" have
+            # no unidirectional strategy: use the bidirectional estimator there.
+            need_bi = np.flatnonzero(np.where(b[2] > 0, self._uni_blind_top, self._uni_blind_bottom))
+            if need_bi.size:
+                f[:, need_bi] = self._value(stack.take(need_bi), a[:, need_bi], b[:, need_bi], rng, "bi")
+            return f
+        J = self._joint_walk(stack, a, b, rng, max_vertices=self.options.max_vertices)
+        self._note(J)
+        f += bidirectional(stack, b, J.records, J.records, rng, R_off=a.shape[1]) * np.abs(b[2])
+        return f
+
+    def _pdf(self, stack: BoundStack, a, b, rng, kind: str):
+        """(m,) the approximate or stochastic pdf estimate."""
+        approx = kind != "stochastic"
+        p = self._single(stack, a, b, rng, pdf=True)
+        if stack.N > 1:
+            nmax = None
+            cap = self.options.max_vertices
+            if approx:
+                slabs = stack.N - 1
+                nmax = np.where(a[2] * b[2] > 0, 2 * slabs + 1, slabs + 1)
+                cap = 2 * slabs
+            # No roulette in the stochastic pdf's walks: the sampler's density does not decay
+            # along a path (absorption only lowers sample weights), so roulette compensation
+            # compounds and makes the estimate heavy-tailed (measured, Fig. 2 stack: variance
+            # ÷11 at 3.3× the time without it). The vertex cap still bounds the walks.
+            hero = None
+            if not approx and any(sl is not None and not sl.grey for sl in stack.slabs):
+                # Chromatic extinction: the walks from both ends share a hero channel (walk.walk).
+                hero = np.minimum((rng.random(a.shape[1]) * 3.0).astype(np.int64), 2)
+            J = self._joint_walk(stack, a, b, rng, approx=approx, max_vertices=cap, purpose="pdf",
+                                 rr=RR_OFF, hero=None if hero is None else np.concatenate([hero, hero]))
+            if not approx:
+                self._note(J)
+            p += bidirectional(stack, b, J.records, J.records, rng, pdf_mode=True, approx=approx,
+                               nmax=nmax, R_off=a.shape[1], hero=None if J.hero is None else hero)
+        if approx:
+            p += self.options.pdf_constant
+        return p
+
     # ------------------------------------------------------------------ queries
     def eval(self, wi, wo, rng, mode=RADIANCE, estimator: str | None = None):
         n = wi.shape[0]
@@ -126,26 +184,7 @@ class LayeredBSDF(BSDF):
         valid = np.flatnonzero(self._valid(wi, wo))
         for idx, stack in self._chunks_of(valid):
             a, b = np.ascontiguousarray(wi[idx].T), np.ascontiguousarray(wo[idx].T)
-            f = self._single(stack, a, b, rng, pdf=False)
-            if stack.N > 1:
-                L = self._walk(stack, a, rng).records
-                uni = est == "uni"
-                if uni:
-                    f += unidirectional(stack, b, L, rng, mis=self.options.mis)
-                    # NEE through the exit interface needs a non-delta interface at the exit or
-                    # across the slab next to it; otherwise the paths "medium → specular → specular
-                    # exit" have no unidirectional strategy: use the bidirectional estimator.
-                    need_bi = np.flatnonzero(np.where(b[2] > 0, self._uni_blind_top, self._uni_blind_bottom))
-                    if need_bi.size:
-                        Lb = self._walk(stack.take(need_bi), a[:, need_bi], rng).records
-                        Rb = self._walk(stack.take(need_bi), b[:, need_bi], rng).records
-                        f[:, need_bi] = self._single(stack.take(need_bi), a[:, need_bi], b[:, need_bi],
-                                                     rng, pdf=False) + bidirectional(
-                            stack.take(need_bi), b[:, need_bi], Lb, Rb, rng) * np.abs(b[2, need_bi])
-                else:
-                    R = self._walk(stack, b, rng).records
-                    f += bidirectional(stack, b, L, R, rng) * np.abs(b[2])
-            out[idx] = f.T
+            out[idx] = self._value(stack, a, b, rng, est).T
         return out * self._mode_factor(wi, wo, mode)[:, None]
 
     def pdf(self, wi, wo, rng, mode=RADIANCE, kind: str | None = None):
@@ -153,31 +192,9 @@ class LayeredBSDF(BSDF):
         out = np.zeros(n)
         kind = kind or self.options.pdf
         valid = np.flatnonzero(self._valid(wi, wo))
-        approx = kind != "stochastic"
         for idx, stack in self._chunks_of(valid):
             a, b = np.ascontiguousarray(wi[idx].T), np.ascontiguousarray(wo[idx].T)
-            p = self._single(stack, a, b, rng, pdf=True)
-            if stack.N > 1:
-                nmax = None
-                cap = self.options.max_vertices
-                if approx:
-                    slabs = stack.N - 1
-                    nmax = np.where(a[2] * b[2] > 0, 2 * slabs + 1, slabs + 1)
-                    cap = 2 * slabs
-                # No roulette in the stochastic pdf's walks: the sampler's density does not decay
-                # along a path (absorption only lowers sample weights), so roulette compensation
-                # compounds and makes the estimate heavy-tailed (measured, Fig. 2 stack: variance
-                # ÷11 at 3.3× the time without it). The vertex cap still bounds the walks.
-                L = walk(stack, a, rng, approx=approx, max_vertices=cap, purpose="pdf", rr=RR_OFF)
-                R = walk(stack, b, rng, approx=approx, max_vertices=cap, purpose="pdf", rr=RR_OFF)
-                if not approx:
-                    self._note(L)
-                    self._note(R)
-                p += bidirectional(stack, b, L.records, R.records, rng, pdf_mode=True,
-                                   approx=approx, nmax=nmax)
-            if approx:
-                p += self.options.pdf_constant
-            out[idx] = p
+            out[idx] = self._pdf(stack, a, b, rng, kind)
         return out
 
     def sample(self, wi, rng, mode=RADIANCE, want_pdf: bool = True) -> BSDFSample:

@@ -139,8 +139,9 @@ def _slices(code, nbins):
 
 
 class Side:
-    """One walk's vertices of the lanes [l0, l1), prepared for connections (see the module
-    docstring). Lanes are numbered from 0 inside the block.
+    """One walk's vertices of the record lanes [r0, r1), prepared for connections (see the
+    module docstring). Lanes are numbered from 0 inside the block; block lane j is the stack's
+    lane l0 + j.
 
     MIS coefficients (recorded by the walk, walk.py): as the evaluated vertex ("target", with
     density dens_in of reaching it along the connection and reverse density pr of its own
@@ -148,12 +149,12 @@ class Side:
     the sampling vertex ("source", the target's density pf of the connecting direction, dens_out
     the density of reaching the source back) S = pf·(A + dens_out·B)."""
 
-    def __init__(self, stack: BoundStack, rec: Records, l0: int, l1: int, pdf_mode: bool):
+    def __init__(self, stack: BoundStack, rec: Records, r0: int, r1: int, l0: int, pdf_mode: bool):
         N = stack.N
-        n = l1 - l0
+        n = r1 - r0
         self.n = n
-        idx = rec.perm[rec.bounds[l0]:rec.bounds[l1]]   # the block's vertices, lane-major
-        lane = rec.lane[idx] - l0
+        idx = rec.perm[rec.bounds[r0]:rec.bounds[r1]]   # the block's vertices, lane-major
+        lane = rec.lane[idx] - r0
         kind, layer, t, k = rec.kind[idx], rec.layer[idx], rec.t[idx], rec.k[idx]
         pf = rec.pdf_fwd[idx]
         is_if = kind == 1
@@ -230,25 +231,31 @@ LANE_BLOCK = 4096  # lanes prepared and connected together (per-vertex arrays st
 
 
 def bidirectional(stack: BoundStack, wo: np.ndarray, L: Records, R: Records, rng,
-                  pdf_mode: bool = False, approx: bool = False, nmax: np.ndarray | None = None):
+                  pdf_mode: bool = False, approx: bool = False, nmax: np.ndarray | None = None,
+                  L_off: int = 0, R_off: int = 0, hero: np.ndarray | None = None):
     """Sum over all connections per lane: (3, n) f·|cos θo| / |cos θo| (i.e. without the final
     cosine, without the single-interface term and before any transport-mode factor) or, with
-    ``pdf_mode``, (n,) the pdf estimate. ``wo`` is (3, n). ``nmax`` (per lane) keeps only paths
-    of at most that many vertices (approximate pdf)."""
-    n = L.n
+    ``pdf_mode``, (n,) the pdf estimate. ``wo`` is (3, n), n = stack.n; lane j's two walks are
+    lane L_off + j of L and lane R_off + j of R (one joint walk may hold both: L is R). ``nmax``
+    (per lane) keeps only paths of at most that many vertices (approximate pdf). ``hero`` (n,):
+    a stochastic pdf's shared hero channel of both walks (walk.walk), whose single-channel depth
+    densities the connections then use in chromatic media."""
+    n = wo.shape[1]
     out = np.zeros(n) if pdf_mode else np.zeros((3, n))
     exit_top = wo[2] > 0
     for l0 in range(0, n, LANE_BLOCK):
         l1 = min(n, l0 + LANE_BLOCK)
-        Ls, Rs = Side(stack, L, l0, l1, pdf_mode), Side(stack, R, l0, l1, pdf_mode)
+        Ls = Side(stack, L, L_off + l0, L_off + l1, l0, pdf_mode)
+        Rs = Side(stack, R, R_off + l0, R_off + l1, l0, pdf_mode)
         o = out[..., l0:l1]
         nm = None if nmax is None else nmax[l0:l1]
         for u, src, tgt in ((0, Ls, Rs), (1, Rs, Ls)):
-            _directed(stack, src, tgt, u, exit_top[l0:l1], l0, rng, pdf_mode, approx, nm, o)
+            _directed(stack, src, tgt, u, exit_top[l0:l1], l0, rng, pdf_mode, approx, nm, o,
+                      None if hero is None else hero[l0:l1])
     return out
 
 
-def _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx):
+def _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx, hero=None):
     """Per source of bucket B in slab s: the extinction rate along its direction c (None for an
     empty slab; (m,) grey or (3, m)), sigma_scale(c) for a directional phase, and towards the
     interface ahead (depth distance ``ad_if``): transmittance (per-source factor), the depth
@@ -266,6 +273,8 @@ def _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx):
         sig = ops.phase.sigma_scale(np.ascontiguousarray(B.c.T))
         inv = inv * sig
     rate = ops.tau[0] * inv if ops.grey else ops.tau * inv
+    if hero is not None and not ops.grey and kind == SCATTERING:
+        rate = np.take_along_axis(rate, hero[B.lane][None, :], axis=0)[0]
     e = np.exp(-rate * ad_if)
     if approx:
         return rate, sig, (e.mean(axis=0) if e.ndim == 2 else e), one, one
@@ -277,14 +286,15 @@ def _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx):
     return rate, sig, e, e, e * fac
 
 
-def _directed(stack, src: Side, tgt: Side, u, exit_top, l0, rng, pdf_mode, approx, nmax, out):
+def _directed(stack, src: Side, tgt: Side, u, exit_top, l0, rng, pdf_mode, approx, nmax, out,
+              hero=None):
     """Connections with the source's sampled direction (strategy u: 0 = L samples, 1 = R)."""
     N = stack.N
     n = src.n
     for (s, going_up), B in src.sources.items():
         l_if = s if going_up else s + 1   # the interface the direction reaches
         ad_if = np.abs(l_if - B.t)
-        rate, sig, Tr_if, dens_t_if, dens_s_if = _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx)
+        rate, sig, Tr_if, dens_t_if, dens_s_if = _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx, hero)
         negc = -B.c
         ker = stack.kernels[l_if]
         mo = None if ker.generic or ker.delta_only else ker.take(B.lane + l0).mask_terms(negc)

@@ -90,8 +90,12 @@ class Microfacet3:
         self._iav2 = 1.0 / (self.av * self.av)
         self._norm = INV_PI / (self.au * self.av)
 
+    @property
+    def constant(self) -> bool:
+        return self.au.ndim == 0 and self.av.ndim == 0
+
     def take(self, idx):
-        if self.au.ndim == 0 and self.av.ndim == 0:
+        if self.constant:
             return self
         return Microfacet3(GGX if self.ggx else BECKMANN, SEPARABLE if self.separable else "",
                            lanes(self.au, idx), lanes(self.av, idx))
@@ -177,10 +181,13 @@ class Microfacet3:
             h = np.stack([sin_t * np.cos(phi) + st[0], sin_t * np.sin(phi) + st[1], z + st[2]])
             mm = normalize3(np.stack([au * h[0], av * h[1], np.maximum(h[2], 0.0)]))
         else:
+            # m ∝ (−αu r cos φ, −αv r sin φ, 1) with r = tan θm/α: always in the upper hemisphere.
             r = np.sqrt(-np.log1p(-np.minimum(u0, np.nextafter(1.0, 0.0))))
             phi = 2.0 * np.pi * u1
-            mm = normalize3(np.stack([-self.au * r * np.cos(phi) * np.ones(m),
-                                      -self.av * r * np.sin(phi) * np.ones(m), np.ones(m)]))
+            x = (-r * self.au) * np.cos(phi)
+            y = (-r * self.av) * np.sin(phi)
+            inv = 1.0 / np.sqrt(1.0 + x * x + y * y)
+            return np.stack([x * inv, y * inv, inv])
         flat = mm[2] <= 0
         if flat.any():
             mm[:, flat] = np.array([[0.0], [0.0], [1.0]])
@@ -192,6 +199,7 @@ class Kernel:
     transmissive = False
     generic = False
     framed = False     # has a shading normal (FramedKernel): walks apply ``arrival`` factors
+    constant = False   # no per-lane parameter: ``take`` returns the kernel itself
 
     def arrival(self, w):
         return 1.0
@@ -209,6 +217,7 @@ class NullKernel(Kernel):
 
     def __init__(self, tint=None):
         self.tint = tint  # (3, 1|n) or None
+        self.constant = tint is None or tint.shape[1] == 1
 
     def take(self, idx):
         if self.tint is None or self.tint.shape[1] == 1:
@@ -229,6 +238,7 @@ class NullKernel(Kernel):
 class DiffuseKernel(Kernel):
     def __init__(self, color_rows):
         self.color = color_rows  # (3, 1|n)
+        self.constant = color_rows.shape[1] == 1
 
     @classmethod
     def of(cls, bsdf: DiffuseBSDF):
@@ -262,6 +272,8 @@ class ConductorKernel(Kernel):
         self.mf = mf
         self.smooth = smooth                          # () or (n,) bool
         self.delta_only = bool(np.all(smooth))
+        self.constant = (eta.shape[1] == 1 and k.shape[1] == 1 and tint.shape[1] == 1 and
+                         np.ndim(smooth) == 0 and (mf is None or mf.constant))
 
     @classmethod
     def of(cls, b: ConductorBSDF):
@@ -269,6 +281,8 @@ class ConductorKernel(Kernel):
         return cls(rgb_rows(b.eta), rgb_rows(b.k), rgb_rows(b.tint), mf, np.asarray(b.smooth))
 
     def take(self, idx):
+        if self.constant:
+            return self
         return ConductorKernel(lanes_rows(self.eta, idx), lanes_rows(self.k, idx),
                                lanes_rows(self.tint, idx), None if self.mf is None else self.mf.take(idx),
                                lanes(self.smooth, idx))
@@ -313,20 +327,42 @@ class ConductorKernel(Kernel):
         return value, pf, pr
 
     def sample(self, wi, rng, need_rev=True, pdf_only=False):
+        """Sample a microfacet normal and reflect. The weight is formed directly (the D terms
+        of value and density cancel); the densities, for the walks' MIS records, only when
+        ``need_rev`` (they equal ``eval``'s at the sampled pair)."""
         m = wi.shape[1]
         s = np.where(wi[2] < 0, -1.0, 1.0)
-        wis = np.stack([wi[0], wi[1], wi[2] * s])
-        front = wis[2] > 0
+        ci = wi[2] * s
+        front = ci > 0
         if not self.delta_only:
+            mf = self.mf
             u = rng.random((2, m))
-            mm = self.mf.sample(wis, u[0], u[1])
-            c = dot3(wis, mm)
-            wo_s = 2.0 * c * mm - wis
-            wo = np.stack([wo_s[0], wo_s[1], wo_s[2] * s])
-            val, pf, pr = self.eval(wi, wo, rng, need_rev, pdf_only)
-            ok = (pf > 0) & front & (c > 0)
-            weight = ok * 1.0 if pdf_only else np.where(ok, val / np.where(ok, pf, 1.0), 0.0)
-            pf = np.where(ok, pf, 0.0)
+            wis = np.stack([wi[0], wi[1], ci])
+            mm = mf.sample(wis, u[0], u[1])
+            c = wi[0] * mm[0] + wi[1] * mm[1] + ci * mm[2]
+            c2 = 2.0 * c
+            wo = np.stack([c2 * mm[0] - wi[0], c2 * mm[1] - wi[1], (c2 * mm[2] - ci) * s])
+            co = wo[2] * s
+            ok = front & (c > 0) & (co > 0) & ~self.smooth
+            ti, to = mf.terms(wis), mf.terms(np.stack([wo[0], wo[1], co]))
+            g2 = mf.g2(ti, to, ok)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                if mf.ggx:
+                    w1 = g2 * (1.0 + ti)                       # G2/G1(wi)
+                else:
+                    w1 = g2 * c / (ci * mm[2])                 # G2·(wi·m)/(cos θi cos θm)
+                w1 = np.where(ok, w1, 0.0)
+                if need_rev or pdf_only:
+                    D = mf.D(mm)
+                    if mf.ggx:
+                        pf = np.where(ok, D * (0.25 / ci) / (1.0 + ti), 0.0)
+                        pr = np.where(ok, D * (0.25 / co) / (1.0 + to), 0.0)
+                    else:
+                        pf = pr = np.where(ok, D * mm[2] * (0.25 / c), 0.0)
+                    w1 = np.where(pf > 0, w1, 0.0)   # a density that underflowed: a failed sample
+                else:
+                    pf = pr = ok * 1.0
+                weight = (pf > 0) * 1.0 if pdf_only else self._fresnel(c) * w1
             delta = np.zeros(m, bool)
         else:
             wo = np.zeros((3, m))
@@ -337,7 +373,7 @@ class ConductorKernel(Kernel):
             sm = np.broadcast_to(self.smooth, (m,)) & front
             mirror = np.stack([-wi[0], -wi[1], wi[2]])
             wo = np.where(sm, mirror, wo)
-            weight = np.where(sm, self._fresnel(wis[2]), weight)
+            weight = np.where(sm, self._fresnel(ci), weight)
             pf = np.where(sm, 1.0, pf)
             pr = np.where(sm, 1.0, pr)
             delta = sm
@@ -353,6 +389,8 @@ class DielectricKernel(Kernel):
         self.mf = mf
         self.smooth = smooth
         self.delta_only = bool(np.all(smooth))
+        self.constant = (self.eta.ndim == 0 and tint.shape[1] == 1 and np.ndim(smooth) == 0 and
+                         (mf is None or mf.constant))
 
     @classmethod
     def of(cls, b: DielectricBSDF):
@@ -360,6 +398,8 @@ class DielectricKernel(Kernel):
         return cls(b.eta, rgb_rows(b.tint), mf, np.asarray(b.smooth))
 
     def take(self, idx):
+        if self.constant:
+            return self
         return DielectricKernel(lanes(self.eta, idx), lanes_rows(self.tint, idx),
                                 None if self.mf is None else self.mf.take(idx), lanes(self.smooth, idx))
 
@@ -440,29 +480,73 @@ class DielectricKernel(Kernel):
         return value, pf, pr
 
     def sample(self, wi, rng, need_rev=True, pdf_only=False):
+        """Sample a microfacet normal m (visible normals for GGX, D·cos for Beckmann), choose
+        reflection with probability F(wi·m), else refract. The half vector of the pair is m
+        itself (wi·h = wi·m, wo·h = 2(wi·m) − wi·m or cos θt), so value, densities and weight use
+        ``eval``'s formulas without recomputing h; the weight is formed directly (D cancels)."""
         m = wi.shape[1]
         u = rng.random((3, m))
         ci = wi[2]
         live = ci != 0
-        side = np.where(ci < 0, -1.0, 1.0)
         if not self.delta_only:
-            ws = wi * side
-            mm = self.mf.sample(ws, u[0], u[1])
-            cim = dot3(wi, mm)
-            F, cos_t, e = fresnel_dielectric(cim, self.eta)
+            mf, eta = self.mf, self.eta
+            side = np.where(ci < 0, -1.0, 1.0)
+            mm = mf.sample(wi * side, u[0], u[1])
+            cim = wi[0] * mm[0] + wi[1] * mm[1] + ci * mm[2]
+            # Fresnel and refraction geometry at the microfacet (materials/fresnel.py).
+            e = np.where(cim >= 0, eta, 1.0 / eta)           # n(transmitted side)/n(incident side)
+            c = np.minimum(np.abs(cim), 1.0)
+            sin2_t = (1.0 - c * c) / (e * e)
+            tir = sin2_t >= 1.0
+            ct = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
+            a, b = e * ct, e * c
+            ds, dp = c + a, b + ct
+            okd = (ds > 0) & (dp > 0)
+            ds, dp = np.where(okd, ds, 1.0), np.where(okd, dp, 1.0)
+            rs, rp = (c - a) / ds, (b - ct) / dp
+            F = np.where(~tir & okd, 0.5 * (rs * rs + rp * rp), 1.0)
+            cos_t = np.where(tir, 0.0, np.where(cim >= 0, -ct, ct))
             choose_r = u[2] < F
-            wo_r = 2.0 * cim * mm - wi
-            wo_t = -wi / e + (cim / e + cos_t) * mm
-            wo = np.where(choose_r, wo_r, wo_t)
-            val, pf, pr = self.eval(wi, wo, rng, need_rev, pdf_only)
-            if pr is None:
-                pr = pf  # not needed (a walk that records nothing); any finite placeholder
+            inv_e = 1.0 / e
+            ka = np.where(choose_r, 2.0 * cim, cim * inv_e + cos_t)
+            kb = np.where(choose_r, -1.0, -inv_e)
+            wo = np.stack([ka * mm[0] + kb * wi[0], ka * mm[1] + kb * wi[1], ka * mm[2] + kb * ci])
+            co = wo[2]
+            coh = np.where(choose_r, cim, cos_t)
             # The chosen lobe must land on its side (a reflection below the surface, or a
             # refraction that stays above, is a failed sample), on a front-facing microfacet.
-            side_ok = np.where(choose_r, wo[2] * ci > 0, (wo[2] * ci < 0) & (cos_t != 0))
-            ok = live & (pf > 0) & (cim * ci > 0) & side_ok
-            weight = ok * 1.0 if pdf_only else np.where(ok, val / np.where(ok, pf, 1.0), 0.0)
-            pf = np.where(ok, pf, 0.0)
+            cc = co * ci
+            side_ok = np.where(choose_r, cc > 0, (cc < 0) & (cos_t != 0))
+            ok = live & (cim * ci > 0) & side_ok & ~self.smooth
+            chi_o = coh * co > 0
+            ti, to = mf.terms(wi), mf.terms(wo)
+            g2 = mf.g2(ti, to, ok & chi_o)
+            aci = np.abs(ci)
+            acih = np.abs(cim)
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                if mf.ggx:
+                    w1 = g2 * (1.0 + ti)                      # G2/G1(wi)
+                else:
+                    w1 = g2 * acih / (aci * mm[2])            # G2·|wi·m|/(|cos θi| cos θm)
+                w1 = np.where(ok, w1, 0.0)
+                if need_rev or pdf_only:
+                    D = mf.D(mm)
+                    acoh = np.abs(coh)
+                    den = cim + e * coh
+                    inv_d2 = 1.0 / (den * den)
+                    Fs = np.where(choose_r, F, 1.0 - F)
+                    if mf.ggx:
+                        ph_i = acih * D / (aci * (1.0 + ti))
+                        ph_o = np.where(chi_o, acoh * D / (np.abs(co) * (1.0 + to)), 0.0)
+                    else:
+                        ph_i = D * mm[2]
+                        ph_o = np.where(chi_o, ph_i, 0.0)
+                    pf = np.where(ok, Fs * ph_i * np.where(choose_r, 0.25 / acoh, e * e * acoh * inv_d2), 0.0)
+                    pr = np.where(ok, Fs * ph_o * np.where(choose_r, 0.25 / acih, acih * inv_d2), 0.0)
+                    w1 = np.where(pf > 0, w1, 0.0)   # a density that underflowed: a failed sample
+                else:
+                    pf = pr = ok * 1.0
+                weight = (pf > 0) * 1.0 if pdf_only else w1 * np.where(choose_r, 1.0, self.tint)
             delta = np.zeros(m, bool)
         else:
             wo = np.zeros((3, m))
@@ -558,8 +642,11 @@ class FramedKernel(Kernel):
             s = normalize3(x)
             t = np.stack([n[1] * s[2] - n[2] * s[1], n[2] * s[0] - n[0] * s[2], n[0] * s[1] - n[1] * s[0]])
         self.s, self.t = s, t
+        self.constant = n.shape[1] == 1 and inner.constant
 
     def take(self, idx):
+        if self.constant:
+            return self
         if self.n.shape[1] == 1:
             return FramedKernel(self.inner.take(idx), self.n, self.s, self.t)
         return FramedKernel(self.inner.take(idx), self.n[:, idx], self.s[:, idx], self.t[:, idx])

@@ -34,8 +34,13 @@ class SlabOps:
         self.tau = rgb_rows(medium.optical_depth) if tau is None else tau   # (3, 1|n)
         self.albedo = rgb_rows(medium.albedo) if albedo is None else albedo  # (3, 1|n)
 
+    @property
+    def constant(self) -> bool:
+        """No per-lane parameter (``take`` returns the operator itself)."""
+        return self.tau.shape[1] == 1 and self.albedo.shape[1] == 1 and self.phase.n is None
+
     def take(self, idx) -> "SlabOps":
-        if self.tau.shape[1] == 1 and self.albedo.shape[1] == 1 and self.phase.n is None:
+        if self.constant:
             return self
         med = self.medium.take(idx)
         return SlabOps(med, self.tau if self.tau.shape[1] == 1 else self.tau[:, idx],
@@ -60,13 +65,17 @@ class SlabOps:
         reach = ((diff * -d[2] > 0) & alive) | (diff == 0)
         return np.where(reach, np.exp(-r * np.abs(diff)), 0.0)
 
-    def depth_pdf(self, d, s0, s1, to_medium):
+    def depth_pdf(self, d, s0, s1, to_medium, channel=None):
         """(m,) density of producing depth s1 from s0 along d by a free flight: per unit depth if
-        ``to_medium`` (a scattering vertex), else the probability of reaching the boundary."""
+        ``to_medium`` (a scattering vertex), else the probability of reaching the boundary.
+        Chromatic media: the channel mean, or channel ``channel`` (m,) alone if given (a hero
+        channel's single-channel sampler, as stochastic-pdf walks use)."""
         r, alive = self.rate(d)
+        if channel is not None and not self.grey:
+            r = np.take_along_axis(r, np.asarray(channel)[None, :], axis=0)[0]
         e = np.exp(-r * np.abs(s1 - s0))
         t = np.where(to_medium, r * e, e)
-        if not self.grey:
+        if t.ndim == 2:
             t = t.mean(axis=0)
         return np.where(alive, t, 0.0)
 

@@ -97,6 +97,20 @@ class BoundStack:
                 kernels[i] = FramedKernel(kernels[i], nrm)
         return cls(n, kernels, slabs, eta_slab, eta_bottom, kinds, ifaces, eta_top)
 
+    @property
+    def constant(self) -> bool:
+        """No per-lane parameter anywhere: every lane's stack is the same."""
+        return (all(k.constant for k in self.kernels) and
+                all(s is None or s.constant for s in self.slabs))
+
+    def expand(self, idx) -> "BoundStack":
+        """The stack for lanes ``idx``, which may repeat (a joint walk of several directions
+        per shading point); free for a constant stack."""
+        if self.constant:
+            return BoundStack(len(idx), self.kernels, self.slabs, self.eta_slab, self.eta_bottom,
+                              self.kinds, None, self.eta_top)
+        return self.take(idx)
+
     def take(self, idx) -> "BoundStack":
         idx = np.asarray(idx)
         n = int(idx.sum()) if idx.dtype == bool else idx.size

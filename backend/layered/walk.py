@@ -93,6 +93,7 @@ class WalkResult:
     records: Records | None
     vertices: int            # total vertices made
     capped: int              # walks stopped by the vertex cap (biased energy loss, reported)
+    hero: np.ndarray | None = None  # (n,) each walk's hero channel (chromatic media), else None
 
 
 def _compact(S: dict, keep: np.ndarray) -> dict:
@@ -123,11 +124,20 @@ def _groups(kind, layer, N):
 
 def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bool = True,
          approx: bool = False, max_vertices: int = 1024, rr: tuple = RR_EVAL,
-         purpose: str = "value") -> WalkResult:
+         purpose: str = "value", hero: np.ndarray | None = None) -> WalkResult:
     """Walk from direction ``w0`` ((3, n), pointing away from the surface): enter at the top if
     w0_z > 0, else at the bottom. ``approx``: media do not scatter (crossing a slab multiplies
     ``gamma`` by its pass probability), for the approximate pdf. ``purpose`` selects the recorded
-    fields: "value" (throughputs, for eval) or "pdf" (for the pdf)."""
+    fields: "value" (throughputs, for eval) or "pdf" (for the pdf).
+
+    Chromatic extinction: each walk samples its free flights with one hero channel (``hero``
+    (n,) if given, else drawn here; returned in ``WalkResult.hero``). Value walks weight the
+    channels with path-level spectral MIS (slab.py) and record channel-mean depth densities. A
+    stochastic-pdf walk ("pdf", not ``approx``) estimates the density of that sampler, which is
+    the channel average of the *path* densities of the single-channel samplers (not a product
+    of per-event channel means): it records the hero channel's depth densities, and both walks
+    of a query must share the hero (connect.bidirectional ``hero``), so that the estimate is the
+    hero channel's path density, averaged over the uniformly drawn hero."""
     want_value = purpose == "value"
     n = w0.shape[1]
     N = stack.N
@@ -154,10 +164,18 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
         S["sig"] = np.ones(m)
     chromatic = any(sl is not None and not sl.grey and k == SCATTERING
                     for sl, k in zip(stack.slabs, stack.kinds)) and not approx
+    hero_pdf = chromatic and not want_value
+    hero_all = None
     if chromatic:
         # Path-level spectral MIS (slab.py): one hero channel per walk, density ratios r.
-        S["hero"] = np.minimum((rng.random(m) * 3.0).astype(np.int64), 2)
-        S["r"] = np.ones((3, m))
+        if hero is None:
+            hero_all = np.zeros(n, dtype=np.int64)
+            hero_all[start] = np.minimum((rng.random(m) * 3.0).astype(np.int64), 2)
+        else:
+            hero_all = np.asarray(hero, dtype=np.int64)
+        S["hero"] = hero_all[start]
+        if not hero_pdf:
+            S["r"] = np.ones((3, m))
 
     vertices = 0
     capped = 0
@@ -276,14 +294,14 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
         if not S["lane"].size:
             break
         # ---------------------------------------------------------------- free flights
-        _flights(stack, S, rng, record, approx, directional)
+        _flights(stack, S, rng, record, approx, directional, hero_pdf)
         S = _compact(S, np.maximum(np.maximum(S["beta"][0], S["beta"][1]), S["beta"][2]) > 0)
         i += 1
     return WalkResult(exit_dir, exit_weight, exit_delta, Records(n, chunks) if record else None,
-                      vertices, capped)
+                      vertices, capped, hero_all)
 
 
-def _flights(stack, S, rng, record, approx, directional):
+def _flights(stack, S, rng, record, approx, directional, hero_pdf=False):
     """Move every lane through the slab its direction enters: to the interface ahead, or to a
     scattering vertex inside a scattering medium. Updates S in place (kind, layer, t, beta,
     gamma, densities of the new edge, the direction's extinction scale)."""
@@ -346,7 +364,13 @@ def _flights(stack, S, rng, record, approx, directional):
                 beta[:, pos] = beta[:, pos] * e
             continue
         pm = S["prev_medium"] if whole else S["prev_medium"][pos]
-        if ops.grey:
+        hero_flight = hero_pdf and not ops.grey
+        if hero_flight:
+            # A stochastic-pdf walk (see ``walk``): the hero channel's single-channel walk. Its
+            # throughput is not needed (pdf walks carry no values); only failures end it.
+            hero = S["hero"] if whole else S["hero"][pos]
+            rate = np.take_along_axis(rate, hero[None, :], axis=0)[0]
+        if hero_flight or ops.grey:
             u = rng.random(lk.size)
             with np.errstate(divide="ignore"):
                 step = -np.log1p(-u) / rate
@@ -354,7 +378,7 @@ def _flights(stack, S, rng, record, approx, directional):
             step = np.where(sc, step, dmax)
             ex = np.exp(-rate * step)
             dens = np.where(alive, np.where(sc, rate * ex, ex), 0.0)
-            w = np.where(alive, np.where(sc, ops.albedo, 1.0), 0.0)
+            w = alive * 1.0 if hero_flight else np.where(alive, np.where(sc, ops.albedo, 1.0), 0.0)
             drev = np.where(alive, np.where(pm, rate * ex, ex), 0.0) if record else None
         else:
             hero = S["hero"] if whole else S["hero"][pos]
