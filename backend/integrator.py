@@ -343,9 +343,10 @@ class PathTracer:
                     k = np.flatnonzero(live_g)
                     sub = bsdf.take(k)
                     rows = a + k
-                    f_nee[rows] = sub.eval(wi_g[k], wo_nee[rows], rng)
+                    wi_k, wo_k = take_rows(wi_g, k), take_rows(wo_nee, rows)
+                    f_nee[rows] = sub.eval(wi_k, wo_k, rng)
                     if any_rough_light:
-                        bsdf_pdf[rows] = sub.pdf(wi_g[k], wo_nee[rows], rng)
+                        bsdf_pdf[rows] = sub.pdf(wi_k, wo_k, rng)
             if do_continue:
                 smp = bsdf.sample(wi_g, rng)
                 d_world = Frame(frame.s[g], frame.t[g], frame.n[g]).to_world(smp.wo)

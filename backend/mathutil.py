@@ -114,7 +114,13 @@ class Frame:
         ok = length > 1e-8
         s = scale_rows(1.0 / np.where(ok, length, 1.0), s)
         if not ok.all():
-            s[~ok] = coordinate_system(n[~ok])[0]
+            # Duff's tangent of n where the UV tangent is undefined (meshes without UVs: often
+            # most lanes), selected column by column: cheaper than a masked gather and scatter.
+            sign = np.where(n[:, 2] >= 0, 1.0, -1.0)
+            a = -1.0 / (sign + n[:, 2])
+            s0 = (1.0 + sign * n[:, 0] ** 2 * a, sign * (n[:, 0] * n[:, 1] * a), -sign * n[:, 0])
+            for c in range(3):
+                s[:, c] = np.where(ok, s[:, c], s0[c])
         t = cross(n, s)
         return cls(s, t, n)
 
