@@ -21,7 +21,7 @@ from . import stats
 from .geometry.accel import offset_origin
 from .materials.base import ShadingContext
 from .lights.selection import build_selector
-from .mathutil import Frame, dot, max3, normalize, scale_rows, take_rows
+from .mathutil import Frame, abs_max3, dot, max3, normalize, scale_rows, take_rows
 
 SHADOW_EPS = 1e-4  # shorten shadow rays by this fraction so they do not hit the light's own surface
 
@@ -158,7 +158,7 @@ class PathTracer:
                 lane, si, beta, rng, segment, do_continue=not last)
             tmax = np.full(lane.size, np.inf)
 
-        bad = ~np.all(np.isfinite(L), axis=1)
+        bad = ~np.isfinite(abs_max3(L))      # NaN and ±inf in any channel
         if bad.any():
             stats.add("samples_nonfinite_dropped", int(bad.sum()))
             L[bad] = 0.0
@@ -228,7 +228,7 @@ class PathTracer:
         if self.clamp > 0 and segment > 0:
             m = max3(contrib)
             scale = np.where(m > self.clamp, self.clamp / np.where(m > self.clamp, m, 1.0), 1.0)  # no overflow for tiny m
-            return contrib * scale[:, None]
+            return scale_rows(scale, contrib)
         return contrib
 
     def _add_light_hits(self, L, lane, o, d, t_limit, beta, prev_pdf, prev_delta, segment):
@@ -237,12 +237,16 @@ class PathTracer:
             if segment == 0 and not getattr(light, "visible_camera", False):
                 continue
             t = light.intersect(o, d, t_limit)
-            m = np.isfinite(t)
-            if not m.any():
+            idx = np.flatnonzero(np.isfinite(t))
+            if idx.size == 0:
                 continue
-            Le = light.eval_hit(o[m], d[m], t[m])
-            w = self._mis_weight_for_hit(li, light.pdf_hit(o[m], d[m], t[m]), prev_pdf[m], prev_delta[m], o[m])
-            np.add.at(L, lane[m], self._clamp(beta[m] * Le * w[:, None], segment))
+            o_h, d_h, t_h = take_rows(o, idx), take_rows(d, idx), t[idx]
+            Le = light.eval_hit(o_h, d_h, t_h)
+            w = self._mis_weight_for_hit(li, light.pdf_hit(o_h, d_h, t_h), prev_pdf[idx], prev_delta[idx], o_h)
+            # One ray per lane: the lanes are unique, so a gathered sum written back is exact
+            # (and several times faster than np.add.at).
+            rows = lane[idx]
+            L[rows] = take_rows(L, rows) + self._clamp(scale_rows(w, take_rows(beta, idx) * Le), segment)
 
     def _add_escaped(self, L, lane, o, d, beta, prev_pdf, prev_delta, segment):
         for li in self.infinite:

@@ -78,6 +78,11 @@ class _Emitter:
         rel = self._local @ x.T - self._local_center[:, None]
         return rel[0], rel[1], rel[2]
 
+    def local_dir(self, d):
+        """Components of directions d (n, 3) along u, v and the normal."""
+        rel = self._local @ d.T
+        return rel[0], rel[1], rel[2]
+
     def corner_offset(self, p):
         """Coordinates of corner − p in the spherical-rectangle frame (u, v, u × v)."""
         rel = self._corner_in_rect[:, None] - self.rect_basis @ p.T
@@ -272,11 +277,10 @@ class AreaLight(Light):
     # ------------------------------------------------------------------ hits (MIS)
     def intersect(self, o, d, tmax):
         g = self.geo
-        _, _, h = g.local(o)
-        denom = dot(d, g.normal)
+        ou, ov, h = g.local(o)
+        du, dv, denom = g.local_dir(d)
         t = safe_div(h, -denom)
-        x = o + t[:, None] * d
-        lu, lv, _ = g.local(x)
+        lu, lv = ou + t * du, ov + t * dv      # emitter coordinates of o + t·d
         hit = (denom < 0) & (h > 0) & (t > 0) & (t < tmax) & g.inside(lu, lv) & self.emits
         return np.where(hit, t, np.inf)
 
