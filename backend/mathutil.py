@@ -39,6 +39,8 @@ def norm(a: np.ndarray) -> np.ndarray:
 def normalize(a: np.ndarray) -> np.ndarray:
     """Unit vectors; zero vectors stay zero (no NaN)."""
     n = norm(a)
+    if a.ndim == 2 and a.shape[1] == 3:
+        return scale_rows(1.0 / np.where(n > 0, n, 1.0), a)
     return a / np.where(n > 0, n, 1.0)[..., None]
 
 

@@ -286,7 +286,7 @@ class AreaLight(Light):
 
     def eval_hit(self, o, d, t):
         cos_out = -dot(d, self.geo.normal)
-        return np.where((cos_out > 0)[:, None], self.radiance(cos_out), 0.0)
+        return outer3(np.where(cos_out > 0, self.profile(cos_out), 0.0), self.radiance_scale)
 
     def pdf_hit(self, o, d, t):
         g = self.geo
