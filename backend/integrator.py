@@ -199,24 +199,23 @@ class PathTracer:
         return idx[np.argsort(self.material_key[prim[idx]], kind="stable")]
 
     def _surface(self, prim, b1, b2, wi):
-        tab = self.tables
-        rows = take_rows(tab.table, prim)
+        soup, tab = self.soup, self.tables
         # Hit points from barycentrics in float64 (not o + t·d): accurate to the vertex precision.
-        p = tab.interpolate(rows, "position", b1, b2)
-        ng = tab.vector(rows, "ng")
-        if tab.has("normal"):
-            ns = normalize(tab.interpolate(rows, "normal", b1, b2))
+        p = tab.interpolate(tab.position, prim, b1, b2)
+        ng = take_rows(soup.geo_normal, prim)
+        if tab.normal is not None:
+            ns = normalize(tab.interpolate(tab.normal, prim, b1, b2))
             degenerate = ns[:, 0] * ns[:, 0] + ns[:, 1] * ns[:, 1] + ns[:, 2] * ns[:, 2] == 0
             if degenerate.any():
                 ns[degenerate] = ng[degenerate]
         else:
             ns = ng.copy()
-        if tab.has("uv"):
-            uv = tab.interpolate(rows, "uv", b1, b2)
+        if tab.uv is not None:
+            uv = tab.interpolate(tab.uv, prim, b1, b2)
         else:
             uv = np.zeros((prim.size, 2))
-        return {"p": p, "ng": ng, "ns": ns, "uv": uv, "tangent": tab.vector(rows, "tangent"),
-                "material": take_rows(self.soup.material, prim), "prim": prim, "wi": wi}
+        return {"p": p, "ng": ng, "ns": ns, "uv": uv, "tangent": take_rows(soup.tangent, prim),
+                "material": take_rows(soup.material, prim), "prim": prim, "wi": wi}
 
     # ------------------------------------------------------------------ emission
     def _mis_weight_for_hit(self, light_index, pdf_light_sa, prev_pdf, prev_delta, o):
@@ -430,42 +429,28 @@ def _pixel_sums(x: np.ndarray, pixels: int, spp: int) -> np.ndarray:
 
 
 class _ShadingTables:
-    """One per-triangle float64 table of everything a hit needs, gathered with a single np.take
-    (one contiguous 240-byte row per hit instead of five scattered ones).
+    """Per-triangle float64 tables for interpolating surface attributes at hit points.
 
-    Interpolated attributes (position, shading normal, uv) are stored as the value at corner 0
-    followed by the differences to corners 1 and 2, so at barycentrics (b1, b2) an attribute is
-    row[0:k] + b1·row[k:2k] + b2·row[2k:3k]: no (n, 3, 3) temporaries (the einsum over gathered
-    corners was 4x slower). Per-triangle vectors (geometric normal, UV tangent) follow.
+    Each row holds the value at corner 0 followed by the differences to corners 1 and 2, so an
+    attribute at barycentrics (b1, b2) is row[0:k] + b1·row[k:2k] + b2·row[2k:3k]: one row
+    gather per hit and no (n, 3, 3) temporaries (the einsum over gathered corners was 4x slower).
     """
 
     def __init__(self, soup):
-        parts, self.columns, start = [], {}, 0
-        named = [("position", soup.vertices64), ("normal", soup.normals64), ("uv", soup.uvs64)]
-        for name, corners in named:
-            if corners is None:
-                continue
-            c0 = corners[:, 0]
-            parts.append(np.concatenate([c0, corners[:, 1] - c0, corners[:, 2] - c0], axis=1))
-            self.columns[name] = (start, corners.shape[2])
-            start += 3 * corners.shape[2]
-        for name, vectors in (("ng", soup.geo_normal), ("tangent", soup.tangent)):
-            parts.append(vectors)
-            self.columns[name] = (start, 3)
-            start += 3
-        self.table = np.ascontiguousarray(np.concatenate(parts, axis=1), dtype=np.float64)
+        self.position = self._table(soup.vertices64)
+        self.normal = None if soup.normals64 is None else self._table(soup.normals64)
+        self.uv = None if soup.uvs64 is None else self._table(soup.uvs64)
 
-    def has(self, name: str) -> bool:
-        return name in self.columns
+    @staticmethod
+    def _table(corners: np.ndarray) -> np.ndarray:
+        c0 = corners[:, 0]
+        return np.ascontiguousarray(np.concatenate([c0, corners[:, 1] - c0, corners[:, 2] - c0], axis=1))
 
-    def interpolate(self, rows: np.ndarray, name: str, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
-        start, k = self.columns[name]
-        out = np.empty((rows.shape[0], k))
+    @staticmethod
+    def interpolate(table: np.ndarray, prim: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
+        k = table.shape[1] // 3
+        rows = take_rows(table, prim)
+        out = np.empty((prim.size, k))
         for c in range(k):   # per component: 1-D operations, no (n, 1) broadcasting
-            j = start + c
-            out[:, c] = rows[:, j] + b1 * rows[:, j + k] + b2 * rows[:, j + 2 * k]
+            out[:, c] = rows[:, c] + b1 * rows[:, k + c] + b2 * rows[:, 2 * k + c]
         return out
-
-    def vector(self, rows: np.ndarray, name: str) -> np.ndarray:
-        start, _ = self.columns[name]
-        return np.ascontiguousarray(rows[:, start:start + 3])
