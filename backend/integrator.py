@@ -401,13 +401,12 @@ class PathTracer:
         """Pick a light per lane (∝ power) and sample it: world directions, distances,
         radiance/pdf values, solid-angle pdfs, delta flags and selection probabilities."""
         m = p.shape[0]
-        u_sel = rng.random(m)
         u_light = rng.random((m, 2))
         if len(self.lights) == 1:
             light = self.lights[0]
             ls = light.sample(p, u_light)
             return ls.wi, ls.dist, ls.value, ls.pdf, np.full(m, light.is_delta), np.ones(m)
-        li_of, sel_p = self.selector.sample_at(p, u_sel)
+        li_of, sel_p = self.selector.sample_at(p, rng.random(m))
         wi_w = np.zeros((m, 3))
         dist = np.zeros(m)
         value = np.zeros((m, 3))
