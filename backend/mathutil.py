@@ -169,6 +169,10 @@ def take_rows(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
 
 
 def outer3(s: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(n,) × (3,) → (n, 3) rows s·v. As a (n, 1) @ (1, 3) matrix product it is 2x faster than
-    s[:, None] * v (numpy's broadcast loop runs 3 elements at a time), and exact (no sums)."""
-    return s[:, None] @ np.asarray(v, dtype=np.float64)[None, :]
+    """(n,) × (3,) → (n, 3) rows s·v, column by column: s[:, None] * v runs numpy's broadcast
+    loop 3 elements at a time (measured 3x slower)."""
+    v = np.asarray(v, dtype=np.float64)
+    out = np.empty((s.shape[0], 3))
+    for c in range(3):
+        out[:, c] = s * v[c]
+    return out

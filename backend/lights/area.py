@@ -88,6 +88,16 @@ class _Emitter:
         rel = self._corner_in_rect[:, None] - self.rect_basis @ p.T
         return rel[0], rel[1], rel[2]
 
+    def rect_to_world(self, x, y, z):
+        """World vectors (n, 3) with components (x, y, z) in the frame (u, v, u × v).
+
+        Column by column: stacking then multiplying by the 3x3 basis measured 3-5x slower."""
+        b = self.rect_basis
+        out = np.empty((x.shape[0], 3))
+        for c in range(3):
+            out[:, c] = x * b[0, c] + y * b[1, c] + z * b[2, c]
+        return out
+
     def point(self, lu, lv):
         """World points at emitter coordinates (lu, lv)."""
         return np.stack([lu, lv], axis=1) @ self._local[:2] + self.center
@@ -216,7 +226,7 @@ class AreaLight(Light):
             pdf_sa = np.where(small, safe_div(t * t, cos_out * g.area), pdf_sa)
         ok = (h > 0) & (t > 0) & (cos_out > 0) & (pdf_sa > 0) & self.emits
         scale = self.profile(np.where(ok, cos_out, 0.0)) * np.where(ok, safe_div(1.0, pdf_sa), 0.0)
-        wi = np.stack([wx, wy, wz], axis=1) @ g.rect_basis
+        wi = g.rect_to_world(wx, wy, wz)
         return LightSample(wi, np.where(ok, t, 0.0), outer3(scale, self.radiance_scale), np.where(ok, pdf_sa, 0.0))
 
     def sample(self, p, u) -> LightSample:
