@@ -21,7 +21,7 @@ from . import stats
 from .geometry.accel import offset_origin
 from .materials.base import ShadingContext
 from .lights.selection import build_selector
-from .mathutil import Frame, abs_max3, dot, max3, normalize, scale_rows, take_rows
+from .mathutil import Frame, abs_max3, dot, max3, norm, normalize, scale_rows, take_rows
 
 SHADOW_EPS = 1e-4  # shorten shadow rays by this fraction so they do not hit the light's own surface
 
@@ -204,8 +204,10 @@ class PathTracer:
         p = tab.interpolate(tab.position, prim, b1, b2)
         ng = take_rows(soup.geo_normal, prim)
         if tab.normal is not None:
-            ns = normalize(tab.interpolate(tab.normal, prim, b1, b2))
-            degenerate = ns[:, 0] * ns[:, 0] + ns[:, 1] * ns[:, 1] + ns[:, 2] * ns[:, 2] == 0
+            ns = tab.interpolate(tab.normal, prim, b1, b2)
+            length = norm(ns)
+            degenerate = length == 0
+            ns = scale_rows(1.0 / np.where(degenerate, 1.0, length), ns)
             if degenerate.any():
                 ns[degenerate] = ng[degenerate]
         else:
