@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .mathutil import normalize
+from .mathutil import norm, normalize, scale_rows
 from .sampling.warp import square_to_disk_concentric
 from .scene.reader import Node
 
@@ -35,9 +35,8 @@ class Camera:
 
     def film_to_camera(self, st: np.ndarray) -> np.ndarray:
         tr, br, bl, tl = self.frame
-        s = st[:, 0:1]
-        t = st[:, 1:2]
-        return tl + s * (tr - tl) + t * (bl - tl)
+        # tl + s·(tr − tl) + t·(bl − tl) as one (n, 2) @ (2, 3) product (no (n, 1) broadcasting)
+        return st @ np.stack([tr - tl, bl - tl]) + tl
 
     def generate_rays(self, st: np.ndarray, lens_u: np.ndarray | None = None):
         """Film positions (n, 2) → world rays (o, d unit, tmin, tmax), all float64."""
@@ -57,9 +56,10 @@ class Camera:
             d_cam = normalize(focus - o_cam)
             cos_axis = np.maximum(-d_cam[:, 2], 1e-12)
         o = o_cam @ self.to_world[:3, :3].T + self._origin
-        d = normalize(d_cam @ self._rot.T)
+        d_world = d_cam @ self._rot.T
         # Clip distances are measured along the view axis, in world units along the ray.
-        axis_scale = np.linalg.norm(d_cam @ self._rot.T, axis=1)
+        axis_scale = norm(d_world)
+        d = scale_rows(1.0 / np.where(axis_scale > 0, axis_scale, 1.0), d_world)
         tmin = self.clip_start / cos_axis * axis_scale
         tmax = np.where(np.isfinite(self.clip_end), self.clip_end / cos_axis * axis_scale, np.inf)
         return o, d, tmin, tmax

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mathutil import abs_max3, cross, dot, normalize
+from ..mathutil import abs_max3, add_scaled, cross, dot, normalize
 
 # Offset in units of the coordinate magnitude: 2^-16 ≈ 1.5e-5, i.e. ~128 float32 ulps.
 OFFSET_RELATIVE = 2.0 ** -16
@@ -84,7 +84,7 @@ def offset_scale(p: np.ndarray) -> np.ndarray:
 def offset_origin(p: np.ndarray, ng: np.ndarray, d: np.ndarray) -> np.ndarray:
     """Move p off the surface along ±ng to the side direction d points to."""
     side = np.where(dot(ng, d) >= 0, 1.0, -1.0)
-    return p + ng * (side * offset_scale(p))[:, None]
+    return add_scaled(p, side * offset_scale(p), ng)
 
 
 class Accelerator:

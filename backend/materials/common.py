@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..mathutil import outer3, scale_rows
 from ..textures import ConstantParam, Param
 from .microfacet import DISTRIBUTIONS, MASKINGS
 
@@ -15,6 +16,16 @@ def as_param(value, channels: int) -> Param:
     if channels == 3 and v.size == 1:
         v = np.full(3, float(v))
     return ConstantParam(v, channels)
+
+
+def times_color(s: np.ndarray, color: np.ndarray) -> np.ndarray:
+    """(n, 3) rows s·colour for a per-lane scalar s and a constant (1, 3) or per-lane (n, 3) colour,
+    without numpy's slow (n, 1) broadcasting (mathutil.outer3 / scale_rows)."""
+    s = np.asarray(s, dtype=np.float64)
+    color = np.asarray(color, dtype=np.float64)
+    if color.ndim == 1 or color.shape[0] == 1:
+        return outer3(s, color.reshape(3))
+    return scale_rows(s, color)
 
 
 def col(x) -> np.ndarray:

@@ -6,7 +6,7 @@ import numpy as np
 from ..sampling.warp import square_to_cosine_hemisphere
 from . import register
 from .base import BSDF, BSDFSample, Material, ShadingContext, lanes
-from .common import any_textured, as_param, mirror_z, upper_side
+from .common import any_textured, as_param, times_color, upper_side
 from .emission import parse_emission
 
 INV_PI = 1.0 / np.pi
@@ -25,16 +25,17 @@ class DiffuseBSDF(BSDF):
         return np.where(same, np.abs(wo[:, 2]), 0.0)
 
     def eval(self, wi, wo, rng=None, mode=0):
-        return self.color * (INV_PI * self._cos_out(wi, wo))[:, None]
+        return times_color(INV_PI * self._cos_out(wi, wo), self.color)
 
     def pdf(self, wi, wo, rng=None, mode=0):
         return INV_PI * self._cos_out(wi, wo)
 
     def sample(self, wi, rng, mode=0):
         n = wi.shape[0]
-        wo = mirror_z(square_to_cosine_hemisphere(rng.random((n, 2))), upper_side(wi))
+        wo = square_to_cosine_hemisphere(rng.random((n, 2)))
+        wo[:, 2] *= upper_side(wi)      # our own array: mirrored in place
         ok = (wi[:, 2] != 0) & (wo[:, 2] != 0)
-        weight = np.where(ok[:, None], np.broadcast_to(self.color, (n, 3)), 0.0)
+        weight = times_color(ok, self.color)
         pdf = np.where(ok, INV_PI * np.abs(wo[:, 2]), 0.0)
         return BSDFSample(wo, weight, pdf, np.zeros(n, dtype=bool))
 

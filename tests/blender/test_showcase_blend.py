@@ -147,4 +147,8 @@ def test_blend_renders_like_the_scene_file(results, tmp_path):
     d = (blend - cli).reshape(-1, 3)
     se = np.sqrt((d * d).mean(axis=0) / d.shape[0])
     assert np.all(np.abs(d.mean(axis=0)) <= 4 * se), (d.mean(axis=0), se)
-    assert np.all(blend.reshape(-1, 3).mean(axis=0) > 4 * se)            # and not trivially zero
+    # ... and not trivially zero: the blend's mean lies 4 of *its own* standard errors above 0.
+    # Both renders have the same per-pixel variance, so that standard error is se/√2 (se is the
+    # difference's); at 2 spp a single firefly can make se/√2 a large part of the mean.
+    se_one = se / np.sqrt(2.0)
+    assert np.all(blend.reshape(-1, 3).mean(axis=0) > 4 * se_one), (blend.reshape(-1, 3).mean(axis=0), se_one)
