@@ -154,25 +154,22 @@ class Side:
         n = r1 - r0
         self.n = n
         idx = rec.perm[rec.bounds[r0]:rec.bounds[r1]]   # the block's vertices, lane-major
+        # Fields read only as targets or only as sources are gathered once, straight from the
+        # records through the composed index (idx[order]), not via a lane-major copy.
         lane = rec.lane[idx] - r0
         kind, layer, t, k = rec.kind[idx], rec.layer[idx], rec.t[idx], rec.k[idx]
-        pf = rec.pdf_fwd[idx]
         is_if = kind == 1
-        w_in, w_out = _t(rec.w_in, idx), _t(rec.w_out, idx)
-        if pdf_mode:
-            gamma, qbg, rev = rec.gamma[idx], rec.qbg[idx], rec.rev[idx]
-        else:
-            thru0, thru1 = _t(rec.thru0, idx), _t(rec.thru1, idx)
         # ------------------------------------------------------------ targets
         group = np.where(is_if, layer, N + layer)
         order, edges = _slices(group, 2 * N - 1)
         self.targets = {}
-        tl, tt, tk, tw = lane[order], t[order], k[order], _t(w_in, order)
-        c1, c2 = rec.c1[idx][order], rec.c2[idx][order]
+        it = idx[order]
+        tl, tt, tk, tw = lane[order], t[order], k[order], _t(rec.w_in, it)
+        c1, c2 = rec.c1[it], rec.c2[it]
         if pdf_mode:
-            tg, tq = gamma[order], qbg[order]
+            tg, tq = rec.gamma[it], rec.qbg[it]
         else:
-            t0 = _t(thru0, order)
+            t0 = _t(rec.thru0, it)
         for g in range(2 * N - 1):
             e0, e1 = int(edges[g]), int(edges[g + 1])
             if e1 <= e0:
@@ -196,22 +193,29 @@ class Side:
                 G.sig = ph.sigma3(G.w_in)
             self.targets[g] = G
         # ------------------------------------------------------------ sources
-        up = w_out[2] > 0
+        wz = rec.w_out[2][idx]
+        up = wz > 0
         slab = np.where(is_if, np.where(up, layer - 1, layer), layer)
-        live = (pf > 0) if pdf_mode else (np.maximum(np.maximum(thru1[0], thru1[1]), thru1[2]) > 0)
-        ok = live & (np.abs(w_out[2]) >= GRAZING) & (slab >= 0) & (slab <= N - 2)
+        if pdf_mode:
+            live = rec.pdf_fwd[idx] > 0
+        else:
+            th = _t(rec.thru1, idx)
+            live = np.maximum(np.maximum(th[0], th[1]), th[2]) > 0
+        ok = live & (np.abs(wz) >= GRAZING) & (slab >= 0) & (slab <= N - 2)
         nb = 2 * (N - 1)
         code = np.where(ok, 2 * slab + up, nb)
         order, edges = _slices(code, nb)
         e_end = int(edges[nb])
         order = order[:e_end]
-        sl, st, sk, sc = lane[order], t[order], k[order], _t(w_out, order)
+        i_s = idx[order]
+        sc = _t(rec.w_out, i_s)
+        sl, st, sk = lane[order], t[order], k[order]
         smed = ~is_if[order]
-        sA, sB = rec.A[idx][order], rec.B[idx][order]
+        sA, sB = rec.A[i_s], rec.B[i_s]
         if pdf_mode:
-            sg, srev = gamma[order], rev[order]
+            sg, srev = rec.gamma[i_s], rec.rev[i_s]
         else:
-            s1 = _t(thru1, order)
+            s1 = _t(rec.thru1, i_s)
         self.sources = {}
         for b in range(nb):
             e0, e1 = int(edges[b]), int(edges[b + 1])
