@@ -170,6 +170,8 @@ class Side:
             tg, tq = rec.gamma[it], rec.qbg[it]
         else:
             t0 = _t(rec.thru0, it)
+        # The walk's extinction scales σ(w_in) of medium vertices (directional phases).
+        tsig = rec.sig_in[it] if hasattr(rec, "sig_in") else None
         for g in range(2 * N - 1):
             e0, e1 = int(edges[g]), int(edges[g + 1])
             if e1 <= e0:
@@ -189,8 +191,10 @@ class Side:
             if g < N and not stack.kernels[g].generic:
                 G.mt = stack.kernels[g].take(G.lane + l0).mask_terms(G.w_in)
             if g >= N and stack.slabs[g - N].directional:
-                ph = stack.slabs[g - N].phase.take(G.lane + l0)
-                G.sig = ph.sigma3(G.w_in)
+                if tsig is not None:
+                    G.sig = tsig[e0:e1]
+                else:
+                    G.sig = stack.slabs[g - N].phase.take(G.lane + l0).sigma3(G.w_in)
             self.targets[g] = G
         # ------------------------------------------------------------ sources
         wz = rec.w_out[2][idx]
@@ -212,6 +216,7 @@ class Side:
         sl, st, sk = lane[order], t[order], k[order]
         smed = ~is_if[order]
         sA, sB = rec.A[i_s], rec.B[i_s]
+        ssig = rec.sig_out[i_s] if hasattr(rec, "sig_out") else None
         if pdf_mode:
             sg, srev = rec.gamma[i_s], rec.rev[i_s]
         else:
@@ -224,6 +229,7 @@ class Side:
             B = _Bucket()
             B.lane, B.t, B.k, B.c, B.medium = sl[e0:e1], st[e0:e1], sk[e0:e1], sc[:, e0:e1], smed[e0:e1]
             B.A, B.B = sA[e0:e1], sB[e0:e1]
+            B.sig = None if ssig is None else ssig[e0:e1]   # σ(c), valid at medium sources
             if pdf_mode:
                 B.gamma, B.rev = sg[e0:e1], srev[e0:e1]
             else:
@@ -274,7 +280,16 @@ def _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx, hero=None):
     sig = None
     inv = 1.0 / az
     if ops.directional:
-        sig = ops.phase.sigma_scale(np.ascontiguousarray(B.c.T))
+        if B.sig is None:
+            sig = ops.phase.sigma3(B.c)
+        else:
+            # Medium sources: the phase sampler's σ(c) (walk records); interface sources
+            # entering the slab: computed here.
+            sig = B.sig
+            fresh = np.flatnonzero(~B.medium)
+            if fresh.size:
+                sig = sig.copy()
+                sig[fresh] = stack.slabs[s].phase.take(B.lane[fresh] + l0).sigma3(_t(B.c, fresh))
         inv = inv * sig
     rate = ops.tau[0] * inv if ops.grey else ops.tau * inv
     if hero is not None and not ops.grey and kind == SCATTERING:
