@@ -391,7 +391,6 @@ def _block(stack, s, l_if, is_medium, B, G, si, ti, negc, rate, sig, dens_t_if, 
     value (3, m) without the per-source factors, or the pdf integrand ratio (m,)."""
     w = _t(negc, si)                  # from the target towards the source
     w_in = _t(G.w_in, ti)
-    lane = B.lane[si] + l0
     if is_medium:
         ad = np.abs(G.t[ti] - B.t[si])
         r = _t(rate, si)
@@ -402,14 +401,16 @@ def _block(stack, s, l_if, is_medium, B, G, si, ti, negc, rate, sig, dens_t_if, 
         else:
             dens_t = r * e
             dens_s = np.where(B.medium[si], dens_t, e)
-        ph = stack.slabs[s].phase.take(lane)
+        ph = stack.slabs[s].phase.take(B.lane[si] + l0)
         v, pr = ph.connect(w_in, w, None if G.sig is None else G.sig[ti],
                            None if sig is None else sig[si])
         pf = v
     else:
         dens_t = dens_t_if[si]
         dens_s = dens_s_if[si]
-        ker = stack.kernels[l_if].take(lane)
+        ker = stack.kernels[l_if]
+        if not ker.constant:   # a constant kernel's take is itself: no per-connection lanes
+            ker = ker.take(B.lane[si] + l0)
         if ker.generic:
             v, pf, pr = ker.eval(w_in, w, rng, True)
         elif G.mt is None or mo is None:
