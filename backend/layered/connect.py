@@ -154,25 +154,24 @@ class Side:
         n = r1 - r0
         self.n = n
         idx = rec.perm[rec.bounds[r0]:rec.bounds[r1]]   # the block's vertices, lane-major
+        # Fields read only as targets or only as sources are gathered once, straight from the
+        # records through the composed index (idx[order]), not via a lane-major copy.
         lane = rec.lane[idx] - r0
         kind, layer, t, k = rec.kind[idx], rec.layer[idx], rec.t[idx], rec.k[idx]
-        pf = rec.pdf_fwd[idx]
         is_if = kind == 1
-        w_in, w_out = _t(rec.w_in, idx), _t(rec.w_out, idx)
-        if pdf_mode:
-            gamma, qbg, rev = rec.gamma[idx], rec.qbg[idx], rec.rev[idx]
-        else:
-            thru0, thru1 = _t(rec.thru0, idx), _t(rec.thru1, idx)
         # ------------------------------------------------------------ targets
         group = np.where(is_if, layer, N + layer)
         order, edges = _slices(group, 2 * N - 1)
         self.targets = {}
-        tl, tt, tk, tw = lane[order], t[order], k[order], _t(w_in, order)
-        c1, c2 = rec.c1[idx][order], rec.c2[idx][order]
+        it = idx[order]
+        tl, tt, tk, tw = lane[order], t[order], k[order], _t(rec.w_in, it)
+        c1, c2 = rec.c1[it], rec.c2[it]
         if pdf_mode:
-            tg, tq = gamma[order], qbg[order]
+            tg, tq = rec.gamma[it], rec.qbg[it]
         else:
-            t0 = _t(thru0, order)
+            t0 = _t(rec.thru0, it)
+        # The walk's extinction scales σ(w_in) of medium vertices (directional phases).
+        tsig = rec.sig_in[it] if hasattr(rec, "sig_in") else None
         for g in range(2 * N - 1):
             e0, e1 = int(edges[g]), int(edges[g + 1])
             if e1 <= e0:
@@ -192,26 +191,36 @@ class Side:
             if g < N and not stack.kernels[g].generic:
                 G.mt = stack.kernels[g].take(G.lane + l0).mask_terms(G.w_in)
             if g >= N and stack.slabs[g - N].directional:
-                ph = stack.slabs[g - N].phase.take(G.lane + l0)
-                G.sig = ph.sigma3(G.w_in)
+                if tsig is not None:
+                    G.sig = tsig[e0:e1]
+                else:
+                    G.sig = stack.slabs[g - N].phase.take(G.lane + l0).sigma3(G.w_in)
             self.targets[g] = G
         # ------------------------------------------------------------ sources
-        up = w_out[2] > 0
+        wz = rec.w_out[2][idx]
+        up = wz > 0
         slab = np.where(is_if, np.where(up, layer - 1, layer), layer)
-        live = (pf > 0) if pdf_mode else (np.maximum(np.maximum(thru1[0], thru1[1]), thru1[2]) > 0)
-        ok = live & (np.abs(w_out[2]) >= GRAZING) & (slab >= 0) & (slab <= N - 2)
+        if pdf_mode:
+            live = rec.pdf_fwd[idx] > 0
+        else:
+            th = _t(rec.thru1, idx)
+            live = np.maximum(np.maximum(th[0], th[1]), th[2]) > 0
+        ok = live & (np.abs(wz) >= GRAZING) & (slab >= 0) & (slab <= N - 2)
         nb = 2 * (N - 1)
         code = np.where(ok, 2 * slab + up, nb)
         order, edges = _slices(code, nb)
         e_end = int(edges[nb])
         order = order[:e_end]
-        sl, st, sk, sc = lane[order], t[order], k[order], _t(w_out, order)
+        i_s = idx[order]
+        sc = _t(rec.w_out, i_s)
+        sl, st, sk = lane[order], t[order], k[order]
         smed = ~is_if[order]
-        sA, sB = rec.A[idx][order], rec.B[idx][order]
+        sA, sB = rec.A[i_s], rec.B[i_s]
+        ssig = rec.sig_out[i_s] if hasattr(rec, "sig_out") else None
         if pdf_mode:
-            sg, srev = gamma[order], rev[order]
+            sg, srev = rec.gamma[i_s], rec.rev[i_s]
         else:
-            s1 = _t(thru1, order)
+            s1 = _t(rec.thru1, i_s)
         self.sources = {}
         for b in range(nb):
             e0, e1 = int(edges[b]), int(edges[b + 1])
@@ -220,6 +229,7 @@ class Side:
             B = _Bucket()
             B.lane, B.t, B.k, B.c, B.medium = sl[e0:e1], st[e0:e1], sk[e0:e1], sc[:, e0:e1], smed[e0:e1]
             B.A, B.B = sA[e0:e1], sB[e0:e1]
+            B.sig = None if ssig is None else ssig[e0:e1]   # σ(c), valid at medium sources
             if pdf_mode:
                 B.gamma, B.rev = sg[e0:e1], srev[e0:e1]
             else:
@@ -270,7 +280,16 @@ def _slab_terms(stack, s, B, ad_if, l0, pdf_mode, approx, hero=None):
     sig = None
     inv = 1.0 / az
     if ops.directional:
-        sig = ops.phase.sigma_scale(np.ascontiguousarray(B.c.T))
+        if B.sig is None:
+            sig = ops.phase.sigma3(B.c)
+        else:
+            # Medium sources: the phase sampler's σ(c) (walk records); interface sources
+            # entering the slab: computed here.
+            sig = B.sig
+            fresh = np.flatnonzero(~B.medium)
+            if fresh.size:
+                sig = sig.copy()
+                sig[fresh] = stack.slabs[s].phase.take(B.lane[fresh] + l0).sigma3(_t(B.c, fresh))
         inv = inv * sig
     rate = ops.tau[0] * inv if ops.grey else ops.tau * inv
     if hero is not None and not ops.grey and kind == SCATTERING:
@@ -372,7 +391,6 @@ def _block(stack, s, l_if, is_medium, B, G, si, ti, negc, rate, sig, dens_t_if, 
     value (3, m) without the per-source factors, or the pdf integrand ratio (m,)."""
     w = _t(negc, si)                  # from the target towards the source
     w_in = _t(G.w_in, ti)
-    lane = B.lane[si] + l0
     if is_medium:
         ad = np.abs(G.t[ti] - B.t[si])
         r = _t(rate, si)
@@ -383,14 +401,16 @@ def _block(stack, s, l_if, is_medium, B, G, si, ti, negc, rate, sig, dens_t_if, 
         else:
             dens_t = r * e
             dens_s = np.where(B.medium[si], dens_t, e)
-        ph = stack.slabs[s].phase.take(lane)
+        ph = stack.slabs[s].phase.take(B.lane[si] + l0)
         v, pr = ph.connect(w_in, w, None if G.sig is None else G.sig[ti],
                            None if sig is None else sig[si])
         pf = v
     else:
         dens_t = dens_t_if[si]
         dens_s = dens_s_if[si]
-        ker = stack.kernels[l_if].take(lane)
+        ker = stack.kernels[l_if]
+        if not ker.constant:   # a constant kernel's take is itself: no per-connection lanes
+            ker = ker.take(B.lane[si] + l0)
         if ker.generic:
             v, pf, pr = ker.eval(w_in, w, rng, True)
         elif G.mt is None or mo is None:

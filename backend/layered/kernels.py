@@ -28,7 +28,7 @@ from ..materials.diffuse import DiffuseBSDF
 from ..materials.fresnel import conductor as fresnel_conductor
 from ..materials.fresnel import dielectric as fresnel_dielectric
 from ..materials.microfacet import ALPHA_MIN, BECKMANN, GGX, SEPARABLE
-from ..materials.specfun import SQRT_PI, erfc
+from ..materials.specfun import _NR, SQRT_PI
 
 INV_PI = 1.0 / np.pi
 TINY = 1e-300
@@ -122,10 +122,17 @@ class Microfacet3:
         s = self._s(w)
         if self.ggx:
             return s / (2.0 * (1.0 + np.sqrt(1.0 + s)))
-        a = np.maximum(1.0 / np.sqrt(np.maximum(s, 1e-200)), 1e-150)
-        small = a < 6.0
-        a_s = np.where(small, a, 1.0)
-        v = 0.5 * (np.exp(-a_s * a_s) / (a_s * SQRT_PI) - erfc(a_s))
+        # Beckmann: Λ = (e^{−a²}/(a√π) − erfc(a))/2 with a = 1/√s, 0 for a ≥ 6 (below 1e-17).
+        # erfc(a) for a > 0 is t·e^{−a² + P(t)} (specfun.erfc, Numerical Recipes' erfcc), so
+        # e^{−a²} factors out of both terms: one exp fewer, no sign branch.
+        r = np.sqrt(np.maximum(s, 1e-200))     # 1/a
+        small = r > 1.0 / 6.0
+        a = 1.0 / np.where(small, r, 1.0)
+        t = 1.0 / (1.0 + 0.5 * a)
+        poly = _NR[-1]
+        for c in _NR[-2::-1]:
+            poly = c + t * poly
+        v = (0.5 * np.exp(-a * a)) * (r * (1.0 / SQRT_PI) - t * np.exp(poly))
         return np.where(small, np.maximum(v, 0.0), 0.0)
 
     def g1_separable(self, w):

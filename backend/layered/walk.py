@@ -247,6 +247,10 @@ def walk(stack: BoundStack, w0: np.ndarray, rng: np.random.Generator, record: bo
                    "A": np.minimum(ipf * own, BIG), "B": np.minimum(ipf * b1, BIG)}
             if want_value:
                 rec["thru0"], rec["thru1"] = beta, thru1
+            if sig_new is not None:
+                # Extinction scales for the connections (read at medium vertices only, whose
+                # entries no later in-place update changes): σ(w_in) and σ(w_out).
+                rec["sig_in"], rec["sig_out"] = S["sig"], sig_new
             if not want_value or LEGACY_FIELDS:
                 qb = np.ones(m) if first else inv_dens * S["dens_r"] * S["pr_p"] * S["qb_p"] * S["ipf_p"]
                 gamma = S["gamma"]
@@ -314,7 +318,7 @@ def _flights(stack, S, rng, record, approx, directional, hero_pdf=False):
     dens_f = np.ones(m)
     dens_r = np.ones(m)
     beta, gamma = S["beta"], S["gamma"]
-    copied = False
+    copied = sig_copied = False
     for k in range(N - 1):
         kd = stack.kinds[k]
         if kd == EMPTY:
@@ -347,6 +351,10 @@ def _flights(stack, S, rng, record, approx, directional, hero_pdf=False):
             if whole:
                 S["sig"] = sig
             else:
+                if not sig_copied:
+                    # A copy: the record chunks share S["sig"] (connections read it).
+                    S["sig"] = S["sig"].copy()
+                    sig_copied = True
                 S["sig"][pos] = sig
         rate = ops.tau[0] * inv if ops.grey else ops.tau * inv
         dmax = np.maximum(np.where(dk[2] > 0, s0, 1.0 - s0), 0.0)

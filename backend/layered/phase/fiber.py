@@ -221,6 +221,19 @@ class MicroflakeFiber(Phase):
         self.axis = unit_or(vector_lanes(orientation), [1.0, 0.0, 0.0])
         self._ln_norm = ln_gauss_norm(self.stddev)
         self._row = table_row(self.stddev) if self.stddev.ndim == 0 else None
+        self._scalars()
+        self._fr = None
+
+    def _scalars(self):
+        """Per-phase constants of a constant stddev (None otherwise) for the hot paths."""
+        s = self.stddev
+        if s.ndim == 0:
+            sv = float(s)
+            self._inv_s = 1.0 / sv
+            self._q_scale = (_COLS - 1) / math.asinh(0.5 * math.pi / sv)   # q in column units
+            self._s_scalar = sv
+        else:
+            self._inv_s = self._q_scale = self._s_scalar = None
 
     @property
     def n(self):
@@ -268,13 +281,25 @@ class MicroflakeFiber(Phase):
         x = d[1] * ax[2] - d[2] * ax[1]
         y = d[2] * ax[0] - d[0] * ax[2]
         z = d[0] * ax[1] - d[1] * ax[0]
-        return 2.0 * fiber_sigma(self.stddev, c, np.sqrt(x * x + y * y + z * z), self._row)
+        sn = np.sqrt(x * x + y * y + z * z)
+        if self._row is None:
+            return 2.0 * fiber_sigma(self.stddev, c, sn, None)
+        # Constant stddev (already clamped): fiber_sigma's table read with the row and the
+        # q-scale precomputed (this runs once or twice per walk iteration and medium).
+        row, q_scale = self._row, self._q_scale
+        theta = np.arctan2(sn, np.abs(c))
+        q = np.arcsinh(theta * self._inv_s) * q_scale
+        j = np.minimum(q.astype(np.int64), _COLS - 2)   # q ≥ 0: truncation is the floor
+        wj = _lagrange4(q - j)
+        return 2.0 * (wj[0] * row[j] + wj[1] * row[j + 1] + wj[2] * row[j + 2] + wj[3] * row[j + 3])
 
     def _frame(self):
         """Unit fiber axes t and two unit vectors e1, e2 completing a frame, each (3, 1|n)."""
-        t = self.axis.T
-        e1, e2 = coordinate_system(np.ascontiguousarray(self.axis))
-        return t, np.ascontiguousarray(e1.T), np.ascontiguousarray(e2.T)
+        if self._fr is None:
+            t = self.axis.T
+            e1, e2 = coordinate_system(np.ascontiguousarray(self.axis))
+            self._fr = (t, np.ascontiguousarray(e1.T), np.ascontiguousarray(e2.T))
+        return self._fr
 
     def sample(self, d_in, rng):
         d_out, weight, pdf, _, _ = self.sample3(np.ascontiguousarray(d_in.T), rng)
@@ -288,47 +313,66 @@ class MicroflakeFiber(Phase):
         m = d_in.shape[1]
         wi = -d_in
         t, e1, e2 = self._frame()
-        s_all = np.broadcast_to(self.stddev, (m,))
+        sv = self._s_scalar
+        # A constant stddev keeps s and the proposal kind scalars (no per-lane gathers/selects).
+        s_all = sv if sv is not None else np.broadcast_to(self.stddev, (m,))
         # ωi in the fiber frame: c = ωi·t, (p1, p2) = (ωi·e1, ωi·e2), sθ = |ωi × t| = |(p1, p2)|.
         c_all = wi[0] * t[0] + wi[1] * t[1] + wi[2] * t[2]
         p1_all = wi[0] * e1[0] + wi[1] * e1[1] + wi[2] * e1[2]
         p2_all = wi[0] * e2[0] + wi[1] * e2[1] + wi[2] * e2[2]
         sn_all = np.sqrt(p1_all * p1_all + p2_all * p2_all)
-        x_acc = np.zeros(m)
-        cphi_acc = np.zeros(m)
-        sphi_acc = np.zeros(m)
+        x_acc = cphi_acc = sphi_acc = np.zeros(m)
         done = np.zeros(m, dtype=bool)
-        todo = np.arange(m)
+        todo = None if m else np.zeros(0, dtype=np.int64)   # None: every lane (round 1)
         rounds = 0
-        while todo.size and rounds < MAX_ROUNDS:
+        while (todo is None or todo.size) and rounds < MAX_ROUNDS:
             reps = 1 if rounds == 0 else EXTRA
             rounds += 1
-            lanes_k = np.tile(todo, reps) if reps > 1 else todo
-            k = lanes_k.size
-            sk, ck, snk = s_all[lanes_k], c_all[lanes_k], sn_all[lanes_k]
+            if todo is None:
+                sk, ck, snk, p1k, p2k = s_all, c_all, sn_all, p1_all, p2_all
+                k = m
+            else:
+                lanes_k = np.tile(todo, reps)
+                k = lanes_k.size
+                sk = s_all if sv is not None else s_all[lanes_k]
+                ck, snk = c_all[lanes_k], sn_all[lanes_k]
+                p1k, p2k = p1_all[lanes_k], p2_all[lanes_k]
             ack = np.abs(ck)
             u = rng.random((5, k))
-            uniform = sk > UNIFORM_ABOVE
+            uniform = (sv > UNIFORM_ABOVE) if sv is not None else sk > UNIFORM_ABOVE
             # Gaussian branch: x ∝ e^{−x²/2s²}(|c||x| + sθ) = a mixture with weights |c|·2s²
             # (Rayleigh part, |x| e^{−x²/2s²}) and sθ·s√(2π) (normal part); both drawn as
             # s·√(−2 ln(1 − u)) times a random sign or cos 2πu' (Box–Muller).
-            wa = ack * 2.0 * sk * sk
-            wb = snk * sk * math.sqrt(2.0 * math.pi)
-            pick_a = u[0] * (wa + wb) < wa
-            rho = sk * np.sqrt(-2.0 * np.log1p(-u[1]))
-            x = rho * np.where(pick_a, np.where(u[4] < 0.5, 1.0, -1.0), np.cos(2.0 * np.pi * u[4]))
-            x = np.where(uniform, 2.0 * u[1] - 1.0, x)
+            if sv is not None and uniform:
+                x = 2.0 * u[1] - 1.0
+            else:
+                wa = ack * (2.0 * sk * sk)
+                wb = snk * (sk * math.sqrt(2.0 * math.pi))
+                pick_a = u[0] * (wa + wb) < wa
+                rho = sk * np.sqrt(-2.0 * np.log1p(-u[1]))
+                x = rho * np.where(pick_a, np.where(u[4] < 0.5, 1.0, -1.0), np.cos(2.0 * np.pi * u[4]))
+                if sv is None:
+                    x = np.where(uniform, 2.0 * u[1] - 1.0, x)
             inside = np.abs(x) <= 1.0
             x = np.clip(x, -1.0, 1.0)
             r = np.sqrt(np.maximum(0.0, (1.0 - x) * (1.0 + x)))
             phi = 2.0 * np.pi * u[2]
             cph, sph = np.cos(phi), np.sin(phi)
-            vis = np.abs(x * ck + r * (cph * p1_all[lanes_k] + sph * p2_all[lanes_k]))
-            bound = np.where(uniform, ack + snk, ack * np.abs(x) + snk)  # ≥ |ωi·m|
-            lim = u[3] * bound
-            lim = lim * np.exp(np.where(uniform, x * x / (2.0 * sk * sk), 0.0))
+            vis = np.abs(x * ck + r * (cph * p1k + sph * p2k))
+            lim = u[3]
+            if sv is None:
+                bound = np.where(uniform, ack + snk, ack * np.abs(x) + snk)  # ≥ |ωi·m|
+                lim = lim * bound * np.exp(np.where(uniform, x * x / (2.0 * sk * sk), 0.0))
+            elif uniform:
+                lim = lim * (ack + snk) * np.exp(x * x / (2.0 * sv * sv))
+            else:
+                lim = lim * (ack * np.abs(x) + snk)
             ok = inside & (vis > lim)
-            if reps > 1:
+            if todo is None:
+                # Round 1 proposes for every lane in order: its arrays are the accumulators.
+                x_acc, cphi_acc, sphi_acc, done = x, cph, sph, ok
+                todo = np.flatnonzero(~ok)
+            else:
                 okr = ok.reshape(reps, -1)
                 first = np.argmax(okr, axis=0)
                 any_ok = okr[first, np.arange(todo.size)]
@@ -336,12 +380,8 @@ class MicroflakeFiber(Phase):
                 sel = pick[any_ok]
                 idx = todo[any_ok]
                 todo = todo[~any_ok]
-            else:
-                sel = np.flatnonzero(ok)
-                idx = todo[sel]
-                todo = todo[~ok]
-            x_acc[idx], cphi_acc[idx], sphi_acc[idx] = x[sel], cph[sel], sph[sel]
-            done[idx] = True
+                x_acc[idx], cphi_acc[idx], sphi_acc[idx] = x[sel], cph[sel], sph[sel]
+                done[idx] = True
         self.stats.samples += m
         self.stats.failures += int(todo.size)
         self.stats.iterations += rounds
@@ -351,14 +391,18 @@ class MicroflakeFiber(Phase):
         mz = x_acc * t[2] + r * (cphi_acc * e1[2] + sphi_acc * e2[2])
         wm2 = 2.0 * (wi[0] * mx + wi[1] * my + wi[2] * mz)
         d_out = np.stack([wm2 * mx - wi[0], wm2 * my - wi[1], wm2 * mz - wi[2]])
-        d_out = np.where(done, d_out, d_in)
+        all_done = not todo.size
+        if not all_done:
+            d_out = np.where(done, d_out, d_in)
         s = self.stddev
         D = np.exp(-x_acc * x_acc / (2.0 * s * s) - self._ln_norm) * (0.5 / np.pi)
         s_in = self.sigma3(d_in) if s_in is None else s_in
         s_out = self.sigma3(d_out)
-        pdf = np.where(done, D / np.maximum(s_in, 1e-300), 0.0)
-        rev = np.where(done, D / np.maximum(s_out, 1e-300), 0.0)
-        return d_out, done * 1.0, pdf, rev, s_out
+        pdf = D / np.maximum(s_in, 1e-300)
+        rev = D / np.maximum(s_out, 1e-300)
+        if all_done:
+            return d_out, np.ones(m), pdf, rev, s_out
+        return d_out, done * 1.0, np.where(done, pdf, 0.0), np.where(done, rev, 0.0), s_out
 
     def take(self, idx):
         other = MicroflakeFiber.__new__(MicroflakeFiber)
@@ -366,4 +410,7 @@ class MicroflakeFiber(Phase):
         other.axis = lanes(self.axis, idx)
         other._ln_norm = lanes(self._ln_norm, idx)
         other._row = self._row
+        other._inv_s, other._q_scale, other._s_scalar = self._inv_s, self._q_scale, self._s_scalar
+        # The frame depends on the axis only: shared when the axis is one constant row.
+        other._fr = self._fr if other.axis.shape[0] == 1 else None
         return self._child(other)
