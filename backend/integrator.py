@@ -336,25 +336,17 @@ class PathTracer:
             albedo_from_sample = albedo_aov is not None and do_continue and getattr(bsdf, "stochastic", False)
             if albedo_aov is not None and not albedo_from_sample:
                 albedo_aov[lane[g]] = np.broadcast_to(np.asarray(bsdf.albedo(), dtype=np.float64), (b - a, 3))
+            smp = None
             if can_nee and not bsdf.delta_only:
-                live_g = live[g]
-                n_live = int(np.count_nonzero(live_g))
-                if n_live == live_g.size:
-                    f_nee[g] = bsdf.eval(wi_g, wo_nee[g], rng)
-                    if any_rough_light:
-                        bsdf_pdf[g] = bsdf.pdf(wi_g, wo_nee[g], rng)
-                elif n_live:
-                    # Only lanes whose light sample carries light: dead ones (occluded side,
-                    # outside a light's cone, zero value) would cost a full (stochastic) BSDF eval.
-                    k = np.flatnonzero(live_g)
-                    sub = bsdf.take(k)
-                    rows = a + k
-                    wi_k, wo_k = take_rows(wi_g, k), take_rows(wo_nee, rows)
-                    f_nee[rows] = sub.eval(wi_k, wo_k, rng)
-                    if any_rough_light:
-                        bsdf_pdf[rows] = sub.pdf(wi_k, wo_k, rng)
+                # The light connection (on lanes whose light sample carries light) and, if the
+                # path goes on, the continuation sample in one call: stochastic BSDFs share walks.
+                f_nee[g], pdf_g, smp = bsdf.nee_and_sample(wi_g, wo_nee[g], live[g], rng,
+                                                           any_rough_light, do_continue)
+                if any_rough_light:
+                    bsdf_pdf[g] = pdf_g
             if do_continue:
-                smp = bsdf.sample(wi_g, rng)
+                if smp is None:
+                    smp = bsdf.sample(wi_g, rng)
                 d_world = Frame(frame.s[g], frame.t[g], frame.n[g]).to_world(smp.wo)
                 new_dir[g] = d_world
                 # Leak guard: the sampled side must agree for the shading and the geometric normal.

@@ -147,12 +147,12 @@ def render_ratio(size: int, spp: int):
 
 class BSDFClock:
     """CPU time spent inside the layered BSDF's queries during a render (one worker, so in this
-    process): wraps LayeredBSDF.eval/pdf/sample/albedo, counting only the outermost call."""
+    process): wraps LayeredBSDF.eval/pdf/sample/albedo/nee_and_sample, counting only the outermost call."""
 
     def __enter__(self):
         from backend.layered.bsdf import LayeredBSDF
         self.cls, self.saved, self.seconds, depth = LayeredBSDF, {}, 0.0, [0]
-        for name in ("eval", "pdf", "sample", "albedo"):
+        for name in ("eval", "pdf", "sample", "albedo", "nee_and_sample"):
             fn = getattr(LayeredBSDF, name)
             self.saved[name] = fn
 

@@ -219,6 +219,72 @@ class LayeredBSDF(BSDF):
             pdf[need] = sub.pdf(wi[need], wo[need], rng, mode)
         return BSDFSample(wo, weight, pdf, delta & exited)
 
+    def nee_and_sample(self, wi, wo, nee, rng, nee_pdf: bool = True, want_sample: bool = True):
+        """The light connection and the continuation sample of one path vertex from one joint
+        walk: the walk from wi that the bidirectional eval connects is a forward walk from wi,
+        so its exit is also a sample of the BSDF (walk.walk records it either way). This saves
+        the separate sample walk and its per-call overhead (measured on the render benchmark of
+        benchmarks/layered_throughput.py, 128², 16 spp: render time −5 % (one slab), −21 % (two
+        microflake slabs), −14 % (three slabs), image variance unchanged within its ±5 %).
+
+        Both results stay unbiased: the eval estimate is unchanged, and the exit of a forward
+        walk is the sampler whatever else the walk is used for; they are correlated, which only
+        affects variance. The continuation walk uses eval's roulette (walk.RR_EVAL): its weight
+        alone is noisier than sample()'s (RR_SAMPLE; variance 1.1–2.2× per direction cell), but
+        the image noise per unit time is lower. Giving the wi half of the walk RR_SAMPLE instead
+        (tried) keeps the weight's variance but lengthens the walks the connections run over:
+        render time back to that of separate queries.
+        The sampled direction's MIS pdf and the light direction's pdf run as one pdf query."""
+        if not want_sample or self.options.estimator != "bi" or self.stack.N == 1:
+            return super().nee_and_sample(wi, wo, nee, rng, nee_pdf, want_sample)
+        n = wi.shape[0]
+        f = np.zeros((n, 3))
+        wo_s = np.zeros((n, 3))
+        weight = np.zeros((n, 3))
+        delta = np.zeros(n, dtype=bool)
+        can_sample = self._valid(wi)
+        conn = np.asarray(nee, dtype=bool) & self._valid(wi, wo)
+        conn_lanes = np.flatnonzero(conn)
+        # Lanes with a light connection first: each batch then connects a prefix of its walks.
+        order = np.concatenate([conn_lanes, np.flatnonzero(can_sample & ~conn)])
+        identity = order.size == n and bool(np.all(order == np.arange(n)))
+        for start in range(0, order.size, CHUNK):
+            idx = order[start:start + CHUNK]
+            m = idx.size
+            me = int(min(max(conn_lanes.size - start, 0), m))
+            stack = self.stack if identity and n <= CHUNK else self.stack.take(idx)
+            a = np.ascontiguousarray(wi[idx].T)
+            b = np.ascontiguousarray(wo[idx[:me]].T)
+            both = stack.expand(np.concatenate([np.arange(m), np.arange(me)]))
+            J = walk(both, np.concatenate([a, b], axis=1), rng, max_vertices=self.options.max_vertices)
+            self._note(J)
+            wo_s[idx] = J.exit_dir[:, :m].T
+            weight[idx] = J.exit_weight[:, :m].T
+            delta[idx] = J.exit_delta[:m]
+            if me:
+                se = stack if me == m else stack.expand(np.arange(me))
+                fe = self._single(se, a[:, :me], b, rng, pdf=False)
+                fe += bidirectional(se, b, J.records, J.records, rng, R_off=m) * np.abs(b[2])
+                f[idx[:me]] = fe.T
+        f *= self._mode_factor(wi, wo, RADIANCE)[:, None]
+        exited = np.any(weight > 0, axis=1)
+        weight *= self._mode_factor(wi, wo_s, RADIANCE)[:, None]
+        # Both MIS pdfs (light direction, sampled direction) in one query.
+        need = np.flatnonzero(exited & ~delta)
+        rows = np.concatenate([conn_lanes, need]) if nee_pdf else need
+        p_all = np.zeros(rows.size)
+        if rows.size:
+            sub = self if rows.size == n and bool(np.all(rows == np.arange(n))) else self.take(rows)
+            dirs = np.concatenate([wo[conn_lanes], wo_s[need]]) if nee_pdf else wo_s[need]
+            p_all = sub.pdf(wi[rows], dirs, rng, RADIANCE)
+        pdf_nee = np.zeros(n)
+        pdf_s = np.zeros(n)
+        k = conn_lanes.size if nee_pdf else 0
+        if nee_pdf:
+            pdf_nee[conn_lanes] = p_all[:k]
+        pdf_s[need] = p_all[k:]
+        return f, pdf_nee, BSDFSample(wo_s, weight, pdf_s, delta & exited)
+
     def albedo(self):
         """A one-sample estimate of the normal-incidence albedo per lane (for the denoising AOV:
         averaged over the pixel's samples it converges to the directional albedo)."""

@@ -84,6 +84,34 @@ class BSDF:
                mode: int = RADIANCE) -> BSDFSample:
         raise NotImplementedError
 
+    def nee_and_sample(self, wi: np.ndarray, wo: np.ndarray, nee: np.ndarray,
+                       rng: np.random.Generator, nee_pdf: bool = True, want_sample: bool = True):
+        """One scattering event of a path (RADIANCE transport): ``eval(wi, wo)`` on the lanes
+        where ``nee`` (bool (n,)) is set and 0 elsewhere; ``pdf(wi, wo)`` on those lanes if
+        ``nee_pdf`` (else zeros), for the light sample's MIS weight; and, if ``want_sample``,
+        ``sample(wi)`` for every lane. Returns (f (n, 3), pdf (n,), BSDFSample or None).
+
+        Stochastic BSDFs override this to share random walks between the light connection and
+        the continuation sample; the two stay unbiased estimates each (they may be correlated).
+        """
+        n = wi.shape[0]
+        f = np.zeros((n, 3))
+        pdf = np.zeros(n)
+        k = np.flatnonzero(nee)
+        if k.size == n:
+            f = self.eval(wi, wo, rng)
+            if nee_pdf:
+                pdf = self.pdf(wi, wo, rng)
+        elif k.size:
+            # Only the lanes asked for: the others (occluded side, outside a light's cone, zero
+            # value) would cost a full (possibly stochastic) evaluation for nothing.
+            sub = self.take(k)
+            wi_k, wo_k = np.take(wi, k, axis=0), np.take(wo, k, axis=0)
+            f[k] = sub.eval(wi_k, wo_k, rng)
+            if nee_pdf:
+                pdf[k] = sub.pdf(wi_k, wo_k, rng)
+        return f, pdf, (self.sample(wi, rng) if want_sample else None)
+
     def albedo(self) -> np.ndarray:
         """(n, 3) or (1, 3): an RGB estimate of the reflectance, for the albedo AOV (denoising)."""
         raise NotImplementedError
