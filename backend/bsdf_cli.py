@@ -29,10 +29,12 @@ def resolve_material(name_or_path: str, name: str | None = None, defaults: dict 
 
     path = Path(name_or_path)
     if not path.is_file():
-        from .presets import find_preset
+        from .presets import find_preset, unknown_preset_message
         found = find_preset(name_or_path) if not path.suffix else None
         if found is None:
-            raise LaminaError(f"{name_or_path}: no such material file or preset")
+            if path.suffix:
+                raise LaminaError(f"{name_or_path}: no such material file")
+            raise LaminaError(f"{name_or_path}: no such material file, and {unknown_preset_message(name_or_path)}")
         path = found
     try:
         data = json.loads(path.read_text(encoding="utf-8"))

@@ -23,6 +23,7 @@ and ``check_preset()`` (the ``presets`` CLI), and the bpy-free API for the add-o
 """
 from __future__ import annotations
 
+import difflib
 import json
 import os
 import re
@@ -283,9 +284,21 @@ def check_preset(path: Path):
 
 # --------------------------------------------------------------------------- resolution
 
-def _unknown(name: str) -> str:
+def close_preset_names(name: str, names: list[str], most: int = 5) -> list[str]:
+    """Preset names a mistyped ``name`` probably meant: substrings either way, then names sharing
+    a word ("lamina-reference" → the reference stacks), then difflib's close spellings."""
+    key = name.lower()
+    words = {w for w in key.replace("_", "-").split("-") if len(w) > 2}
+    spelled = set(difflib.get_close_matches(key, names, n=most, cutoff=0.6))
+    out = [n for n in names if key in n or n in key or words & set(n.split("-")) or n in spelled]
+    # Substring matches first, then by similarity of the whole name.
+    out.sort(key=lambda n: (not (key in n or n in key), -difflib.SequenceMatcher(None, key, n).ratio()))
+    return out[:most]
+
+
+def unknown_preset_message(name: str) -> str:
     names = [p.stem for p in list_presets()]
-    close = [n for n in names if name.lower() in n or n in name.lower()][:5]
+    close = close_preset_names(name, names)
     hint = f" (did you mean: {', '.join(close)}?)" if close else (
         f" (known: {', '.join(names[:12])}{', ...' if len(names) > 12 else ''}; "
         "`python -m backend presets list`)" if names else "")
@@ -296,7 +309,7 @@ def resolve_preset(name: str, node):
     """Parse preset ``name`` as a material (scene loader hook); errors name the preset file and field."""
     path = find_preset(name)
     if path is None:
-        raise node.fail(_unknown(name))
+        raise node.fail(unknown_preset_message(name))
     doc = load_preset_document(path)
     material, warnings = parse_material_document(doc["material"], str(path), path.parent,
                                                  node.ctx.cache.get("layered_defaults", {}))
@@ -327,7 +340,7 @@ def material_source(name_or_path: str) -> tuple[dict, str, Path, str]:
         return data, str(p), p.resolve().parent, ""
     path = find_preset(text)
     if path is None:
-        raise LaminaError(_unknown(text))
+        raise LaminaError(unknown_preset_message(text))
     return load_preset_document(path)["material"], str(path), path.parent, "material"
 
 
@@ -437,7 +450,7 @@ def load_user_preset(name: str, folder: str | Path | None = None) -> dict:
         return load_preset_document(target)
     path = find_preset(name)
     if path is None:
-        raise LaminaError(_unknown(name))
+        raise LaminaError(unknown_preset_message(name))
     return load_preset_document(path)
 
 

@@ -56,7 +56,7 @@ def register(sub) -> None:
 
 
 def _info(name_or_path: str):
-    from .presets import find_preset, read_preset, _unknown
+    from .presets import find_preset, read_preset, unknown_preset_message
     p = Path(name_or_path)
     if p.suffix.lower() == ".json" or "/" in name_or_path:
         if not p.is_file():
@@ -64,7 +64,7 @@ def _info(name_or_path: str):
         return read_preset(p)
     path = find_preset(name_or_path)
     if path is None:
-        raise LaminaError(_unknown(name_or_path))
+        raise LaminaError(unknown_preset_message(name_or_path))
     return read_preset(path)
 
 
@@ -118,7 +118,7 @@ def cmd_show(args) -> int:
 
 def validate_all(names: list[str], thumbnails: bool = False) -> list[dict]:
     """One record per preset: {"name", "path", "ok", "error", "warnings"}; also reports shadowed names."""
-    from .presets import _preset_files, check_preset, find_preset, list_presets, preset_dirs, _unknown
+    from .presets import _preset_files, check_preset, find_preset, list_presets, preset_dirs, unknown_preset_message
     if names:
         paths = []
         for n in names:
@@ -128,7 +128,7 @@ def validate_all(names: list[str], thumbnails: bool = False) -> list[dict]:
             else:
                 found = find_preset(n)
                 if found is None:
-                    raise LaminaError(_unknown(n))
+                    raise LaminaError(unknown_preset_message(n))
                 paths.append(found)
     else:
         paths = list_presets()

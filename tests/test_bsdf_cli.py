@@ -75,8 +75,12 @@ def test_plot_writes_a_png(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv,message", [
-    (["bsdf", "albedo", "no-such-material", "--theta", "10"], "no such material file or preset"),
-    (["bsdf", "eval", "{bad}", "--wi", "10", "--wo", "10"], "no such material file or preset"),
+    (["bsdf", "albedo", "no-such-material", "--theta", "10"], "no such material file, and unknown material preset"),
+    (["bsdf", "eval", "{bad}", "--wi", "10", "--wo", "10"], "no such material file, and unknown material preset"),
+    (["bsdf", "albedo", "missing.json", "--theta", "10"], "missing.json: no such material file"),
+    # a mistyped preset name gets the presets it probably meant
+    (["bsdf", "albedo", "carpaint-red", "--theta", "10"], "did you mean: car-paint-red"),
+    (["bsdf", "albedo", "lamina-reference", "--theta", "10"], "did you mean: reference-microflake-3layer"),
 ])
 def test_errors_are_one_line(argv, message, capsys):
     assert main(argv) == 2
