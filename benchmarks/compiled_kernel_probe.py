@@ -245,6 +245,11 @@ def compile_walk(lam):
                     on_iface = True
                     layer = 0 if dz > 0 else 1
 
+    @numba.njit(cache=False)
+    def seed(value):
+        np.random.seed(value)      # Numba's own generator: seeded inside compiled code
+
+    seed(12345)
     return walk
 
 
