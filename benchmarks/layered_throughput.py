@@ -2,6 +2,7 @@
 
     python benchmarks/layered_throughput.py [--lanes 65536] [--repeat 2] [--json]
     python benchmarks/layered_throughput.py --render [--size 64] [--spp 16]
+    python benchmarks/layered_throughput.py --demo-scene [--spp 16] [--repeat 3]
 
 Stacks: 1 slab (Guo et al. Fig. 2 top: rough dielectric / HG medium / rough copper), 2 slabs
 (the project's reference stack: two anisotropic microflake slabs), 3 slabs (dielectric / HG /
@@ -145,6 +146,57 @@ def render_ratio(size: int, spp: int):
     return out
 
 
+def trivial_counterpart(material: dict) -> dict:
+    """The paper's "trivial" BSDF for a layered material (Guo et al. Table 2: the same scene with
+    analytic, non-stochastic BSDFs): its opaque base interface, or for a transmissive stack its
+    top interface. Other materials stay as they are."""
+    if not isinstance(material, dict) or material.get("type") != "layered":
+        return material
+    interfaces = material["interfaces"]
+    base = interfaces[-1]
+    if base.get("type") in ("conductor", "diffuse"):
+        return trivial_counterpart(base)
+    return trivial_counterpart(interfaces[0])
+
+
+def demo_scene_ratio(scale: float, spp: int, repeat: int = 3):
+    """CPU time of the demo scene (two layered spheres, glass, a diffuse floor; demo/demo.json)
+    against the same scene with every layered material replaced by ``trivial_counterpart``:
+    one worker, best of ``repeat`` interleaved runs each."""
+    import copy
+    from pathlib import Path
+    from backend.presets import find_preset
+    from backend.render import Renderer, RenderOptions
+    from backend.scene.loader import load_scene_data
+
+    root = Path(__file__).resolve().parent.parent
+    data = json.loads((root / "demo" / "demo.json").read_text())
+    data["film"]["width"] = int(round(data["film"]["width"] * scale))
+    data["film"]["height"] = int(round(data["film"]["height"] * scale))
+    data["render"].update({"spp": spp, "seed": 1})
+    trivial = copy.deepcopy(data)
+    for name, m in trivial["materials"].items():
+        if isinstance(m, str):   # a preset name: its material document
+            m = json.loads(find_preset(m).read_text())["material"]
+        trivial["materials"][name] = trivial_counterpart(m)
+
+    where, base = str(root / "demo" / "demo.json"), root / "demo"
+
+    def cpu(d):
+        sc = load_scene_data(copy.deepcopy(d), where, base)
+        opts = RenderOptions(workers=1)
+        opts.apply(sc)
+        t0 = time.process_time()
+        Renderer(sc, (copy.deepcopy(d), where, base), opts).run()
+        return time.process_time() - t0
+
+    best = {"layered": np.inf, "trivial": np.inf}
+    for _ in range(repeat):
+        best["layered"] = min(best["layered"], cpu(data))
+        best["trivial"] = min(best["trivial"], cpu(trivial))
+    return data["film"]["width"], data["film"]["height"], best
+
+
 class BSDFClock:
     """CPU time spent inside the layered BSDF's queries during a render (one worker, so in this
     process): wraps LayeredBSDF.eval/pdf/sample/albedo/nee_and_sample, counting only the outermost call."""
@@ -181,7 +233,15 @@ def main():
     ap.add_argument("--render", action="store_true", help="render-time ratio vs a diffuse sphere")
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--demo-scene", action="store_true",
+                    help="render-time ratio of the demo scene vs the same scene with trivial BSDFs")
     args = ap.parse_args()
+    if args.demo_scene:
+        w, h, best = demo_scene_ratio(0.5, args.spp, args.repeat)
+        print(f"demo scene {w}x{h}, {args.spp} spp, one worker, best CPU time of {args.repeat}: "
+              f"layered {best['layered']:.2f} s, trivial BSDFs {best['trivial']:.2f} s, "
+              f"ratio {best['layered'] / best['trivial']:.2f}x")
+        return
     if args.render:
         r = render_ratio(args.size, args.spp)
         print(f"render CPU time, {args.size}² px, {args.spp} spp, one worker: diffuse sphere {r['diffuse_s']:.2f} s")
