@@ -262,6 +262,38 @@ def test_fiber_sigma_table_vs_direct_quadrature():
         assert abs(val / ref - 1) < 1e-5, (s, theta, val, ref)
 
 
+def test_shipped_fiber_table_is_current():
+    """The renderer reads the σ table from backend/layered/phase/fiber_sigma_table.npz instead of
+    computing it per process: the file must hold what the quadrature gives for the current grid
+    (after changing the grid or the quadrature: python tools/gen_fiber_table.py)."""
+    with np.load(fiber_mod.TABLE_FILE) as f:
+        assert np.array_equal(f["grid"], fiber_mod.table_grid()), "stale table: run tools/gen_fiber_table.py"
+        shipped_sigma, shipped_ln = f["sigma"], f["ln_norm"]
+    sigma, ln_norm = fiber_mod.compute_table()
+    np.testing.assert_allclose(shipped_sigma, sigma, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(shipped_ln, ln_norm, rtol=1e-12, atol=1e-15)
+    # ... and the renderer uses the file, not a recomputation.
+    fiber_mod._table.cache_clear()
+    assert np.array_equal(fiber_mod._table()[0], shipped_sigma)
+
+
+def test_fiber_table_is_computed_when_the_file_is_missing_or_stale(tmp_path, monkeypatch):
+    fiber_mod._table.cache_clear()
+    try:
+        monkeypatch.setattr(fiber_mod, "TABLE_FILE", tmp_path / "missing.npz")
+        sigma, ln_norm = fiber_mod._table()
+        ref_sigma, ref_ln = fiber_mod.compute_table()
+        assert np.array_equal(sigma, ref_sigma) and np.array_equal(ln_norm, ref_ln)
+        # A file for another grid is not used.
+        stale = tmp_path / "stale.npz"
+        np.savez(stale, grid=fiber_mod.table_grid() + 1, sigma=np.zeros_like(ref_sigma), ln_norm=ref_ln)
+        monkeypatch.setattr(fiber_mod, "TABLE_FILE", stale)
+        fiber_mod._table.cache_clear()
+        assert np.array_equal(fiber_mod._table()[0], ref_sigma)
+    finally:
+        fiber_mod._table.cache_clear()
+
+
 def test_fiber_sigma_table_accuracy_dense():
     """The tabulated σ against the module's own high-order quadrature on random (s, θ):
     checks the interpolation, which must stay below 1e-5 relative."""
