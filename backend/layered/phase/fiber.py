@@ -26,9 +26,11 @@ Like every microflake phase with direction-dependent σ it is *not* reciprocal b
 σ_fiber is computed here, not copied: for a given (s, θ) the φ integral of |A + B cos φ| has the
 closed form (2/π)(A asin(A/B) + √(B² − A²)) for |A| < B (and |A| otherwise), leaving one integral
 over the flake elevation, done with Gauss–Legendre panels split at the kink (α = θ) and at multiples
-of s. The values are tabulated once per process over (ln s, q) with q = asinh(θ/s)/asinh(π/(2s))
+of s. The values are tabulated over (ln s, q) with q = asinh(θ/s)/asinh(π/(2s))
 (which resolves the width-s transition near θ = 0 for small s) and read back with 4×4-point
 Lagrange interpolation (relative error ≲ 3e-6 against the quadrature, see tests/test_phase.py).
+The table ships as fiber_sigma_table.npz (tools/gen_fiber_table.py); it is computed only if that
+file is missing or was made for another grid.
 
 Sampling (exact, no tables). The reflected direction is exact when h is drawn from the visible-
 normal density D(m)|ωi·m|/σ_fiber(ωi). Write m = x t + √(1 − x²)(cos φ e1 + sin φ e2) and
