@@ -51,7 +51,9 @@ def describe() -> dict:
         load = os.getloadavg()
     except OSError:
         load = (float("nan"),) * 3
-    dirty = _git("status", "--porcelain", "--untracked-files=no", "--", "backend", "benchmarks")
+    # The report's own outputs (rewritten by this very run) do not make the code dirty.
+    dirty = _git("status", "--porcelain", "--untracked-files=no", "--", "backend", "benchmarks",
+                 ":(exclude)benchmarks/report", ":(exclude)benchmarks/REPORT.md")
     return {
         "cpu": cpu.get("model name", platform.processor() or platform.machine()),
         "cpu_mhz": cpu.get("cpu MHz", "?"),
