@@ -367,6 +367,7 @@ def register():
 
 def unregister():
     thumbnail_jobs.cancel()
+    thumbnail_jobs.stop_ticking()
     del bpy.types.WindowManager.lamina_preset_browser
     _unregister_classes()
     previews.unregister()

@@ -1,6 +1,7 @@
 """Child-process side of bpy_harness: load the add-on, run case functions, print results."""
 from __future__ import annotations
 
+import faulthandler
 import importlib
 import json
 import os
@@ -11,6 +12,9 @@ DEV_REPO = "lamina_dev"      # repository module name of an extension-mode devel
 
 
 def main() -> int:
+    # A crash in Blender's C code kills the runner with no Python error: print the Python stack of
+    # every thread on SIGSEGV/SIGABRT so the failure says where it happened.
+    faulthandler.enable(all_threads=True)
     payload = json.loads(sys.argv[1])
     import bpy  # noqa: F401  (imported first: it sets up Blender's own paths)
     if payload["dev"]:

@@ -17,7 +17,7 @@ from bpy_harness import ROOT, requires_bpy, result_of, run_cases
 
 pytestmark = [pytest.mark.blender, requires_bpy]
 
-CASES = ["round_trip", "shipped", "menu", "user_folder", "dropped_fields", "user_thumbnail"]
+CASES = ["round_trip", "shipped", "menu", "user_folder", "dropped_fields", "user_thumbnail", "repeated_saves"]
 # Blender stores the stack's numbers as float32 and writes them with 7 significant digits; α is
 # stored as √α. A value therefore comes back within a few float32 ulps: 4 ulps (2^-21 relative)
 # bounds rounding to float32, squaring a rounded √α and the 7-digit print.
@@ -235,6 +235,14 @@ def test_saved_preset_gets_a_thumbnail_in_the_background(results):
     assert r["size"] == [128, 128, 3]                 # the shipped thumbnails' stage and size
     assert r["deleted"] == ["FINISHED"] and not r["thumbnail_after_delete"]
 
+
+def test_saving_repeatedly_while_thumbnails_render_does_not_crash(results):
+    r = result_of(results, "repeated_saves")            # a crash would have failed the fixture
+    assert r["status"] == ["FINISHED"] and r["idle"]
+    completed = [f for f in r["ended"] if not f["cancelled"]]
+    assert len(completed) == 1 and completed[0]["code"] == 0, r["ended"]
+    assert len(r["ended"]) <= 40                       # every save that started a render was stopped
+    assert r["deleted"] == ["FINISHED"]
 
 def test_unrepresentable_fields_are_reported_and_rendered_until_edited(results):
     from cases.preset_cases import PARTIAL

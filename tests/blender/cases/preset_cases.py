@@ -337,6 +337,30 @@ def user_thumbnail(tmp):
             "thumbnail_after_delete": bool(thumb) and Path(thumb).exists()}
 
 
+def repeated_saves(tmp, count: int = 40):
+    """Saving over and over while thumbnail renders start and stop: each save cancels the running
+    render and queues a new one. A background Python thread once crashed Blender here (SIGSEGV
+    inside that thread while the main thread ran ``bpy.ops``); the run must survive every save
+    and end with exactly one completed render."""
+    set_thumbnails(True)
+    jobs = mod("presets.thumbnail_jobs")
+    mat = bpy.data.materials.new("Churn")
+    s = mat.lamina
+    mod("ops.stack").add_layer(s, "DIELECTRIC", 0).roughness = 0.2
+    mod("ops.stack").add_layer(s, "DIFFUSE", 1).color = (0.2, 0.4, 0.6)
+    s.use_stack = True
+    before = len(jobs.finished())
+    status = set()
+    with bpy.context.temp_override(material=mat):
+        for i in range(count):
+            status.update(bpy.ops.lamina.preset_save(name="Churn", overwrite=True))
+            time.sleep(0.005 * (i % 7))          # vary where in the child's start-up the next save lands
+    idle = jobs.wait(timeout=240)
+    ended = [f for f in jobs.finished()[before:] if f["path"].endswith("churn.json")]
+    deleted = list(bpy.ops.lamina.preset_delete(name="churn"))
+    return {"status": sorted(status), "idle": idle, "ended": ended, "deleted": deleted}
+
+
 PARTIAL = {
     "type": "layered", "estimator": "uni", "_comment": "comments are not fields",
     "interfaces": [

@@ -1,0 +1,110 @@
+"""The user-preset thumbnail queue (addon/presets/thumbnail_jobs.py, no bpy needed): one render at
+a time in order, each started when the previous one ended, cancel, and the failure message.
+
+The renderer is replaced by a fake ``backend`` package on PYTHONPATH that logs when it starts and
+ends, so the order and overlap of renders are observed, not assumed."""
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from conftest import ROOT
+
+FAKE_MAIN = textwrap.dedent('''
+    import json, os, sys, time
+    preset = sys.argv[3]
+    log = os.environ["FAKE_LOG"]
+    with open(log, "a") as f:
+        f.write(json.dumps({"preset": preset, "at": "start", "t": time.time()}) + "\\n")
+    if preset.endswith("bad.json"):
+        print("traceback noise", file=sys.stderr)
+        print("error: bad.json: ior: must be > 1", file=sys.stderr)
+        sys.exit(2)
+    time.sleep(float(os.environ.get("FAKE_SECONDS", "0.3")))
+    with open(log, "a") as f:
+        f.write(json.dumps({"preset": preset, "at": "end", "t": time.time()}) + "\\n")
+''')
+
+
+@pytest.fixture
+def jobs(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)        # ``python -m`` looks in the working directory first
+    spec = importlib.util.spec_from_file_location("thumbnail_jobs_under_test",
+                                                  ROOT / "addon" / "presets" / "thumbnail_jobs.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    module._forget_entries = lambda: None            # the preset list lives in the bpy layer
+    fake = tmp_path / "fake" / "backend"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text("")
+    (fake / "__main__.py").write_text(FAKE_MAIN)
+    log = tmp_path / "log.jsonl"
+    env = dict(os.environ, PYTHONPATH=str(tmp_path / "fake"), FAKE_LOG=str(log))
+    yield module, env, log
+    module.cancel()
+
+
+def events(log: Path) -> list[dict]:
+    return [json.loads(l) for l in log.read_text().splitlines()] if log.exists() else []
+
+
+def test_renders_run_one_at_a_time_in_request_order(jobs, tmp_path):
+    module, env, log = jobs
+    presets = [tmp_path / f"p{i}.json" for i in range(3)]
+    t0 = time.monotonic()
+    for p in presets:
+        module.request(p, sys.executable, env)
+    assert time.monotonic() - t0 < 2.0                   # requesting does not wait for a render
+    assert module.wait(60)
+    ev = events(log)
+    assert [(Path(e["preset"]).name, e["at"]) for e in ev] == [
+        ("p0.json", "start"), ("p0.json", "end"), ("p1.json", "start"), ("p1.json", "end"),
+        ("p2.json", "start"), ("p2.json", "end")]
+    done = module.finished()
+    assert [Path(f["path"]).name for f in done] == ["p0.json", "p1.json", "p2.json"]
+    assert all(f["code"] == 0 and not f["cancelled"] for f in done)
+
+
+def test_requesting_again_replaces_the_running_render(jobs, tmp_path):
+    module, env, log = jobs
+    env["FAKE_SECONDS"] = "30"
+    p = tmp_path / "same.json"
+    module.request(p, sys.executable, env)
+    deadline = time.monotonic() + 20
+    while not events(log) and time.monotonic() < deadline:   # the first render is running
+        time.sleep(0.02)
+    env["FAKE_SECONDS"] = "0.2"
+    t0 = time.monotonic()
+    module.request(p, sys.executable, env)
+    assert module.wait(60) and time.monotonic() - t0 < 15    # not the 30 s of the first
+    done = module.finished()
+    assert [f["cancelled"] for f in done] == [True, False] and done[1]["code"] == 0
+
+
+def test_cancel_everything_stops_the_running_render_and_drops_the_queue(jobs, tmp_path):
+    module, env, log = jobs
+    env["FAKE_SECONDS"] = "30"
+    for i in range(3):
+        module.request(tmp_path / f"q{i}.json", sys.executable, env)
+    t0 = time.monotonic()
+    module.cancel()
+    assert time.monotonic() - t0 < 10 and not module.busy()
+    assert [f["cancelled"] for f in module.finished()] == [True]   # q1, q2 never started
+    assert {Path(e["preset"]).name for e in events(log)} <= {"q0.json"}
+
+
+def test_a_failed_render_reports_the_last_line_of_its_error_output(jobs, tmp_path, capsys):
+    module, env, log = jobs
+    module.request(tmp_path / "bad.json", sys.executable, env)
+    assert module.wait(60)
+    (f,) = module.finished()
+    assert f["code"] == 2 and not f["cancelled"]
+    assert f["message"] == "error: bad.json: ior: must be > 1"
+    assert "thumbnail of bad.json failed: error: bad.json: ior: must be > 1" in capsys.readouterr().err
