@@ -108,3 +108,54 @@ def test_a_failed_render_reports_the_last_line_of_its_error_output(jobs, tmp_pat
     assert f["code"] == 2 and not f["cancelled"]
     assert f["message"] == "error: bad.json: ior: must be > 1"
     assert "thumbnail of bad.json failed: error: bad.json: ior: must be > 1" in capsys.readouterr().err
+
+
+class FakeTimers:
+    """Stands in for ``bpy.app.timers`` (headless Blender never runs timers): records the
+    registration and lets the test fire the callback the way Blender's event loop would."""
+
+    def __init__(self):
+        self.registered = []
+
+    def register(self, fn, first_interval=0.0, persistent=False):
+        self.registered.append({"fn": fn, "first_interval": first_interval, "persistent": persistent})
+
+    def is_registered(self, fn):
+        return any(r["fn"] is fn for r in self.registered)
+
+    def unregister(self, fn):
+        self.registered = [r for r in self.registered if r["fn"] is not fn]
+
+
+def test_in_blender_a_timer_drives_the_queue_and_stops_when_idle(jobs, tmp_path, monkeypatch):
+    module, env, log = jobs
+    timers = FakeTimers()
+    fake_bpy = type(sys)("bpy")
+    fake_bpy.app = type(sys)("bpy.app")
+    fake_bpy.app.timers = timers
+    monkeypatch.setitem(sys.modules, "bpy", fake_bpy)
+    for i in range(2):
+        module.request(tmp_path / f"t{i}.json", sys.executable, env)
+    # One timer for the whole queue, kept across file loads (persistent).
+    assert len(timers.registered) == 1 and timers.registered[0]["persistent"]
+    tick = timers.registered[0]["fn"]
+    deadline = time.monotonic() + 60
+    intervals = []
+    while True:                                   # Blender calls the tick until it returns None
+        nxt = tick()
+        intervals.append(nxt)
+        if nxt is None:
+            timers.unregister(tick)               # what Blender does with a timer returning None
+            break
+        if time.monotonic() > deadline:
+            break
+        time.sleep(0.02)
+    assert intervals[-1] is None and set(intervals[:-1]) == {module.POLL_SECONDS}
+    assert [Path(f["path"]).name for f in module.finished()] == ["t0.json", "t1.json"]
+    assert [(Path(e["preset"]).name, e["at"]) for e in events(log)] == [
+        ("t0.json", "start"), ("t0.json", "end"), ("t1.json", "start"), ("t1.json", "end")]
+    module.request(tmp_path / "t2.json", sys.executable, env)      # idle again: a new timer
+    assert timers.is_registered(tick) and len(timers.registered) == 1
+    module.cancel()
+    module.stop_ticking()                         # add-on unload
+    assert not timers.is_registered(tick)
