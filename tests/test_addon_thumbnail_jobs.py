@@ -12,6 +12,7 @@ import sys
 import textwrap
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -127,12 +128,16 @@ class FakeTimers:
         self.registered = [r for r in self.registered if r["fn"] is not fn]
 
 
-def test_in_blender_a_timer_drives_the_queue_and_stops_when_idle(jobs, tmp_path, monkeypatch):
+def test_in_blender_a_timer_drives_the_queue_redraws_and_stops_when_idle(jobs, tmp_path, monkeypatch):
     module, env, log = jobs
     timers = FakeTimers()
     fake_bpy = type(sys)("bpy")
     fake_bpy.app = type(sys)("bpy.app")
     fake_bpy.app.timers = timers
+    redraws = []
+    area = lambda kind: SimpleNamespace(type=kind, tag_redraw=lambda: redraws.append(kind))
+    screen = SimpleNamespace(areas=[area("VIEW_3D"), area("PROPERTIES")])
+    fake_bpy.context = SimpleNamespace(window_manager=SimpleNamespace(windows=[SimpleNamespace(screen=screen)]))
     monkeypatch.setitem(sys.modules, "bpy", fake_bpy)
     for i in range(2):
         module.request(tmp_path / f"t{i}.json", sys.executable, env)
@@ -152,6 +157,7 @@ def test_in_blender_a_timer_drives_the_queue_and_stops_when_idle(jobs, tmp_path,
         time.sleep(0.02)
     assert intervals[-1] is None and set(intervals[:-1]) == {module.POLL_SECONDS}
     assert [Path(f["path"]).name for f in module.finished()] == ["t0.json", "t1.json"]
+    assert redraws == ["PROPERTIES", "PROPERTIES"]   # the preset panel, once per finished thumbnail
     assert [(Path(e["preset"]).name, e["at"]) for e in events(log)] == [
         ("t0.json", "start"), ("t0.json", "end"), ("t1.json", "start"), ("t1.json", "end")]
     module.request(tmp_path / "t2.json", sys.executable, env)      # idle again: a new timer

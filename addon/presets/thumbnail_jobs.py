@@ -129,11 +129,29 @@ def _collect(proc: subprocess.Popen) -> None:
 
 def _tick():
     """Timer callback: returns the next interval, or None to stop while idle."""
+    done = len(_finished)
     pump()
+    if len(_finished) > done:
+        _redraw_preset_views()
     if busy():
         return POLL_SECONDS
     _ticking[0] = False
     return None
+
+
+def _redraw_preset_views() -> None:
+    """Redraw the Properties editors (the Preset Library panel shows thumbnails as they arrive;
+    menus read the list again when they open). Timers run on the main thread, where this is safe."""
+    try:
+        import bpy
+        windows = bpy.context.window_manager.windows
+    except (ImportError, AttributeError):
+        return
+    for window in windows:
+        screen = window.screen
+        for area in (screen.areas if screen is not None else ()):
+            if area.type == "PROPERTIES":
+                area.tag_redraw()
 
 
 def _ensure_ticking() -> None:
