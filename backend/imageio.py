@@ -23,12 +23,35 @@ def _default_mode() -> int:
 
 
 def _atomic_target(path: Path, suffix: str):
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix, dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise LaminaError(f"cannot write {path}: cannot create the folder {path.parent} "
+                          f"({exc.strerror or exc})") from exc
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix, dir=path.parent)
+    except OSError as exc:
+        raise LaminaError(f"cannot write {path}: {exc.strerror or exc}") from exc
     os.close(fd)
     # mkstemp creates 0600 files; outputs get the usual permissions once renamed into place.
     os.chmod(tmp, _default_mode())
     return Path(tmp)
+
+
+def check_writable(path: str | Path, what: str = "output") -> None:
+    """Fail now, not after a long render, if ``path`` cannot be written: its folder is created
+    (as the writers would) and a scratch file is made and removed there; its extension must name
+    a format OpenImageIO writes (.npy is written by NumPy). Raises LaminaError."""
+    path = Path(path)
+    if path.is_dir():
+        raise LaminaError(f"the {what} {path} is a folder; give a file name")
+    tmp = _atomic_target(path, path.suffix or ".tmp")
+    tmp.unlink()
+    if path.suffix.lower() != ".npy":
+        import OpenImageIO as oiio
+        if oiio.ImageOutput.create(str(path)) is None:
+            oiio.geterror()                     # clear it: OIIO prints unread errors at exit
+            raise LaminaError(f"the {what} {path}: OpenImageIO cannot write '{path.suffix}' files")
 
 
 def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = False) -> None:

@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 import json
+import os
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -100,6 +102,7 @@ class ProgressPrinter:
 
 
 def cmd_render(args) -> int:
+    from .imageio import check_writable
     from .render import Renderer, RenderOptions, install_signal_handlers
     from .scene.loader import load_scene
 
@@ -109,6 +112,12 @@ def cmd_render(args) -> int:
     if output.suffix.lower() != ".exr":
         raise LaminaError(f"output must be an .exr file, got {output}")
     try:
+        # Every output is checked before rendering: a render must not be lost to a typo'd folder.
+        check_writable(output, "output")
+        if args.png:
+            check_writable(Path(args.png), "preview (--png)")
+        if args.partial:
+            check_writable(Path(args.partial), "partial result (--partial)")
         scene = load_scene(args.scene)
         options = RenderOptions(spp=args.spp, seed=args.seed, workers=args.workers,
                                 time_limit=args.time_limit, noise_target=args.noise_target,
@@ -127,7 +136,7 @@ def cmd_render(args) -> int:
                             args.partial_interval)
         install_signal_handlers(renderer)
         result = renderer.run()
-        write_outputs(result, output, args.png, args.half)
+        write_outputs_or_rescue(result, output, args.png, args.half)
         if args.partial:
             _write_partial(Path(args.partial), result.film, aovs=True)
         summary = summarise(result)
@@ -152,6 +161,20 @@ def write_outputs(result, output: Path, png: str | None, half: bool = False) -> 
     write_exr(output, layers, half=half)
     if png:
         write_preview(png, rgb)
+
+
+def write_outputs_or_rescue(result, output: Path, png: str | None, half: bool = False) -> None:
+    """write_outputs; if that fails after all (disk full, folder removed during the render), the
+    image is written to the temporary folder instead and the error names where it went."""
+    try:
+        write_outputs(result, output, png, half)
+    except (LaminaError, OSError) as exc:
+        rescue = Path(tempfile.gettempdir()) / f"lamina-rescued-{output.stem}-{os.getpid()}.exr"
+        try:
+            write_outputs(result, rescue, None, half)
+        except (LaminaError, OSError) as exc2:
+            raise LaminaError(f"{exc}; writing the render to {rescue} failed too: {exc2}") from exc
+        raise LaminaError(f"{exc}; the render was saved to {rescue} instead") from exc
 
 
 def _alpha(film) -> np.ndarray:

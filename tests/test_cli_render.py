@@ -98,3 +98,54 @@ def test_sigterm_stops_cleanly_writes_result_and_leaves_no_workers(tmp_path):
     assert np.all(np.isfinite(pixels))
     time.sleep(0.5)
     assert _processes_with_marker(marker) == []
+
+
+def test_unwritable_outputs_fail_before_rendering(tmp_path, monkeypatch, capsys):
+    """A bad output path is reported at once (exit 2, one line, no traceback), not after the
+    render: the folder of each output must be creatable and writable and the preview's format
+    known."""
+    from backend import cli, render
+    path = write_scene(tmp_path, furnace(1, size=8))
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("a file, not a folder")
+    started = []
+    monkeypatch.setattr(render.Renderer, "run", lambda self: started.append(1) or 1 / 0)
+    cases = {
+        ("-o", str(blocker / "sub" / "o.exr")): f"cannot write {blocker / 'sub' / 'o.exr'}: cannot create the folder",
+        ("-o", str(tmp_path / "o.exr"), "--png", str(blocker / "p.png")): f"cannot write {blocker / 'p.png'}",
+        ("-o", str(tmp_path / "o.exr"), "--png", str(tmp_path / "p.xyz")): "OpenImageIO cannot write '.xyz' files",
+        ("-o", str(tmp_path / "o.exr"), "--png", str(tmp_path)): "is a folder; give a file name",
+        ("-o", str(tmp_path / "o.exr"), "--partial", str(blocker / "p.npy")): f"cannot write {blocker / 'p.npy'}",
+    }
+    for args, message in cases.items():
+        code = cli.main(["render", str(path), *args, "--progress", "none"])
+        err = capsys.readouterr().err
+        assert code == 2 and message in err and "Traceback" not in err, (args, err)
+    assert not started                                   # no render began
+    assert not list(tmp_path.glob(".o.*")) and not (tmp_path / "o.exr").exists()   # no scratch files left
+
+
+def test_a_render_whose_output_cannot_be_written_at_the_end_is_rescued(tmp_path, monkeypatch, capsys):
+    """If writing fails after the render (disk full, folder removed meanwhile), the image goes to
+    the temporary folder and the error says where: the render is not lost."""
+    import tempfile
+    from backend import cli, imageio
+    path = write_scene(tmp_path, furnace(2, size=8))
+    out = tmp_path / "out" / "o.exr"
+    real = imageio.write_exr
+    rescue_dir = tmp_path / "tmpdir"
+    rescue_dir.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(rescue_dir))
+
+    def full_disk(target, layers, half=False):
+        if Path(target) == out:
+            raise OSError(28, "No space left on device")
+        return real(target, layers, half)
+
+    monkeypatch.setattr(imageio, "write_exr", full_disk)
+    code = cli.main(["render", str(path), "-o", str(out), "--progress", "none", "--workers", "1"])
+    err = capsys.readouterr().err
+    (rescued,) = rescue_dir.glob("lamina-rescued-o-*.exr")
+    assert code == 2 and "No space left on device" in err and f"saved to {rescued} instead" in err, err
+    pixels, names = read_exr(rescued)
+    assert pixels.shape == (8, 8, len(names)) and np.all(pixels[:, :, names.index("samples.Y")] == 2)
