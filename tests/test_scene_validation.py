@@ -130,3 +130,22 @@ def test_cli_reports_error_in_one_line_without_traceback(tmp_path):
     assert "Traceback" not in proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert lines == [f"error: {path}: materials.grey.color[0]: expected a number >= 0, got -0.3"]
+
+
+def test_lights_that_all_emit_nothing_are_warned_about():
+    """A black image must not come silently: every emitter black or at strength 0 is a warning;
+    one emitting light (here a dim blue point light, or an emissive material) clears it."""
+    point = {"type": "point", "to_world": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 2], [0, 0, 0, 1]],
+             "power": 0.0, "color": [1, 1, 1]}
+    dark = scene_with(lambda d: d.update(world={"type": "constant", "color": [0, 0, 0], "strength": 1},
+                                         lights=[point]))
+    (warning,) = load_scene_data(dark, "scene.json").warnings
+    assert "every light in the scene emits nothing" in warning and "2 checked" in warning
+    dim_blue = copy.deepcopy(dark)
+    dim_blue["lights"][0].update(power=1e-3, color=[0, 0, 1])
+    assert load_scene_data(dim_blue, "scene.json").warnings == []
+    glowing = copy.deepcopy(dark)
+    glowing["materials"]["grey"]["emission"] = [0.0, 0.5, 0.0]
+    assert load_scene_data(glowing, "scene.json").warnings == []
+    zero_strength = scene_with(lambda d: d["world"].update(strength=0))
+    assert "emits nothing" in load_scene_data(zero_strength, "scene.json").warnings[0]

@@ -122,6 +122,11 @@ def load_scene_data(data, where: str = "<scene>", base_dir: Path | None = None) 
                   soup, all_lights, world, mesh_light, ctx.warnings, center, radius)
     if not all_lights:
         ctx.warn("", "the scene has no lights and no world: the image will be black")
+    elif all(light.power() <= 0.0 for light in all_lights):
+        # power(): the luminance flux used for light selection, 0 only for black or zero-strength
+        # emitters (luminance weights are positive).
+        ctx.warn("", f"every light in the scene emits nothing (strength 0 or black colour, "
+                     f"{len(all_lights)} checked): the image will be black")
     return scene
 
 
