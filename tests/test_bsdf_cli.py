@@ -74,6 +74,21 @@ def test_plot_writes_a_png(tmp_path, capsys):
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_plot_output_problems_are_reported_before_the_estimation(tmp_path, monkeypatch, capsys):
+    import backend.bsdf_cli as bc
+    path = write(tmp_path, "fig2.json", FIG2)
+    monkeypatch.setattr(bc, "lobes", lambda *a, **k: 1 / 0)     # must not be reached
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("x")
+    for out, message in [(tmp_path / "lobes.xyz", "cannot write '.xyz' plots (use one of:"),
+                         (tmp_path / "none" / "lobes.png", "output folder does not exist"),
+                         (tmp_path, "is a folder; give a file name"),
+                         (blocker / "lobes.png", "cannot write there (Not a directory)")]:
+        assert main(["bsdf", "plot", path, "--theta", "30", "-o", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert message in err and "Traceback" not in err, (out, err)
+
+
 @pytest.mark.parametrize("argv,message", [
     (["bsdf", "albedo", "no-such-material", "--theta", "10"], "no such material file, and unknown material preset"),
     (["bsdf", "eval", "{bad}", "--wi", "10", "--wo", "10"], "no such material file, and unknown material preset"),
