@@ -70,7 +70,7 @@ def _info(name_or_path: str):
 
 def cmd_list(args) -> int:
     from .presets import all_presets, describe_stack
-    presets = all_presets()
+    everything = presets = all_presets()
     if args.category:
         presets = [p for p in presets if p.category == args.category]
     if args.tag:
@@ -79,7 +79,13 @@ def cmd_list(args) -> int:
         print(json.dumps([p.summary() for p in presets], indent=1, ensure_ascii=False))
         return 0
     if not presets:
-        print("no presets found")
+        # Say what the filters could have been: an empty list alone reads like a broken library.
+        known = []
+        if args.category and args.category not in {p.category for p in everything}:
+            known.append("categories: " + ", ".join(sorted({p.category for p in everything})))
+        if args.tag and all(args.tag not in p.tags for p in everything):
+            known.append("tags: " + ", ".join(sorted({t for p in everything for t in p.tags})))
+        print("no presets found" + (" (" + "; ".join(known) + ")" if known else ""))
         return 0
     width = max(len(p.name) for p in presets)
     cwidth = max(len(p.category) for p in presets)

@@ -201,6 +201,12 @@ def test_cli_list_show_validate(capsys):
     assert cli_main(["presets", "show", "nope"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: unknown material preset 'nope'")
+    # an empty listing names the categories (or tags) that exist
+    categories = sorted({p["category"] for p in listed})
+    assert cli_main(["presets", "list", "--category", "nope"]) == 0
+    assert capsys.readouterr().out.strip() == f"no presets found (categories: {', '.join(categories)})"
+    assert cli_main(["presets", "list", "--category", "metal", "--tag", "glass"]) == 0
+    assert capsys.readouterr().out.strip() == "no presets found"     # both exist, just not together
 
 
 # --------------------------------------------------------------------------- energy
