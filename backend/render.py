@@ -194,8 +194,13 @@ class Renderer:
             mapper = map
         try:
             for r in range(rounds):
-                if self._stop or active.size == 0:
+                if self._stop:                     # a stop request between two passes
+                    interrupted = True
                     break
+                if active.size == 0:
+                    break
+                if r > 0 and s.time_limit and time.perf_counter() - t_start > s.time_limit:
+                    break                          # the limit passed during the first pass
                 this_block = min(block, spp - r * block)
                 items = plan_round(active, this_block, r, s.seed)
                 for key, result, info in mapper(_render_item, items):
@@ -214,10 +219,13 @@ class Renderer:
                     if self.partial_callback and now - last_partial >= self.partial_interval:
                         self.partial_callback(film, spp_done)
                         last_partial = now
-                    if s.time_limit and elapsed > s.time_limit:
-                        self._stop = True
+                    # The time limit never cuts the first pass short: every pixel gets its
+                    # first samples (a limit shorter than one pass would leave black bands).
                     if self._stop:
-                        interrupted = not (s.time_limit and elapsed > s.time_limit)
+                        interrupted = True
+                        break
+                    if r > 0 and s.time_limit and elapsed > s.time_limit:
+                        self._stop = True          # not an interruption: the render is complete
                         break
                 else:
                     spp_done += this_block

@@ -22,14 +22,14 @@ def register(sub) -> None:
     p.add_argument("--seed", type=_non_negative_int, help="random seed (overrides the scene)")
     p.add_argument("--workers", type=_positive_int, help="worker processes (default: all cores)")
     p.add_argument("--max-bounces", type=_non_negative_int, help="Cycles-style max bounces")
-    p.add_argument("--time-limit", type=float, help="seconds; stop after this time")
-    p.add_argument("--noise-target", type=float, help="adaptive sampling: relative error target")
+    p.add_argument("--time-limit", type=_number(0.0), help="seconds (0 = none); stop after this time, never before the first full pass")
+    p.add_argument("--noise-target", type=_number(0.0, 1.0), help="adaptive sampling: relative error target (0 = off)")
     p.add_argument("--min-spp", type=_positive_int, help="adaptive sampling: samples before a pixel may stop")
     p.add_argument("--resolution", type=_resolution, help="WxH, overrides the film size")
     p.add_argument("--progress", choices=("bar", "json", "none"), default=None,
                    help="progress display (default: bar on a terminal, none otherwise)")
     p.add_argument("--partial", help="write partial results to this .npy path (add-on protocol)")
-    p.add_argument("--partial-interval", type=float, default=2.0, help="seconds between partial results")
+    p.add_argument("--partial-interval", type=_number(0.0), default=2.0, help="seconds between partial results")
     p.add_argument("--half", action="store_true", help="write half-float EXR")
     p.set_defaults(func=cmd_render)
 
@@ -61,14 +61,35 @@ def _non_negative_int(text: str) -> int:
     return value
 
 
+def _number(lo: float, hi: float | None = None):
+    """An argparse type: a finite float in [lo, hi] (the same ranges as the scene's fields)."""
+    import argparse
+    import math
+
+    span = f"in [{lo:g}, {hi:g}]" if hi is not None else f">= {lo:g}"
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number {span}, got {text!r}") from None
+        if not math.isfinite(value) or value < lo or (hi is not None and value > hi):
+            raise argparse.ArgumentTypeError(f"expected a number {span}, got {text!r}")
+        return value
+    return parse
+
+
+MAX_FILM = 65536   # pixels per side, as film.width/height in the scene format
+
+
 def _resolution(text: str) -> tuple[int, int]:
     import argparse
     try:
         w, h = (int(v) for v in text.lower().split("x"))
-        if w < 1 or h < 1:
+        if not (1 <= w <= MAX_FILM and 1 <= h <= MAX_FILM):
             raise ValueError
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WxH such as 640x480, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected WxH such as 640x480 (1 to {MAX_FILM} each), got {text!r}") from None
     return w, h
 
 

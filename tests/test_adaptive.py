@@ -43,3 +43,13 @@ def test_time_limit_stops_early_with_a_valid_image():
     assert 0 < result.film.counts().max() < 100000
     assert np.all(np.isfinite(result.film.combined()))
     assert not result.interrupted
+
+
+def test_a_time_limit_shorter_than_one_pass_still_samples_every_pixel():
+    """The limit never cuts the first pass short (that left unsampled, black bands): a limit
+    that has passed before any sample is done gives exactly the first pass, everywhere."""
+    result = render(half_sky_scene(100000, 0.0, 16), time_limit=1e-6)
+    counts = result.film.counts()
+    assert counts.min() >= 1 and counts.min() == counts.max(), (counts.min(), counts.max())
+    assert not result.interrupted
+    assert np.all(np.isfinite(result.film.combined()))

@@ -149,3 +149,23 @@ def test_a_render_whose_output_cannot_be_written_at_the_end_is_rescued(tmp_path,
     assert code == 2 and "No space left on device" in err and f"saved to {rescued} instead" in err, err
     pixels, names = read_exr(rescued)
     assert pixels.shape == (8, 8, len(names)) and np.all(pixels[:, :, names.index("samples.Y")] == 2)
+
+
+def test_out_of_range_options_are_refused_with_the_allowed_range(tmp_path, capsys):
+    """Options take the scene format's ranges: a negative time limit rendered 0 spp (a black
+    image) and a NaN noise target was silently ignored before."""
+    import pytest
+    from backend import cli
+    path = write_scene(tmp_path, furnace(1, size=8))
+    for option, value, message in [("--time-limit", "-1", "expected a number >= 0"),
+                                   ("--noise-target", "nan", "expected a number in [0, 1]"),
+                                   ("--noise-target", "1.5", "expected a number in [0, 1]"),
+                                   ("--partial-interval", "-5", "expected a number >= 0"),
+                                   ("--resolution", "70000x10", "(1 to 65536 each)"),
+                                   ("--spp", "0", "expected a positive integer"),
+                                   ("--seed", "-1", "expected an integer >= 0")]:
+        with pytest.raises(SystemExit) as info:
+            cli.main(["render", str(path), "-o", str(tmp_path / "o.exr"), option, value])
+        err = capsys.readouterr().err
+        assert info.value.code == 2 and message in err and "Traceback" not in err, (option, err)
+    assert not (tmp_path / "o.exr").exists()
