@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from .errors import LaminaError
+from .plot_output import check_plot_output, save_figure
 
 
 # ----------------------------------------------------------------------------- material lookup
@@ -307,31 +307,9 @@ def lobes(material, theta: float, phi: float, samples: int, seed: int, resolutio
     return {"images": images, "slices": slices, "stochastic": stochastic}
 
 
-def _check_plot_output(out: Path) -> None:
-    """Before the (long) lobe estimation: the folder exists and is writable, and matplotlib
-    knows the format. Raises LaminaError."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    if out.is_dir():
-        raise LaminaError(f"{out}: is a folder; give a file name such as lobes.png")
-    if out.parent and not out.parent.exists():
-        raise LaminaError(f"{out.parent}: output folder does not exist")
-    kinds = FigureCanvasAgg(Figure()).get_supported_filetypes()
-    ext = out.suffix.lower().lstrip(".")
-    if ext not in kinds:
-        raise LaminaError(f"{out}: cannot write '{out.suffix or 'no extension'}' plots "
-                          f"(use one of: {', '.join(sorted(kinds))})")
-    try:
-        tempfile.TemporaryFile(dir=out.parent or ".").close()
-    except OSError as exc:
-        raise LaminaError(f"{out.parent}: cannot write there ({exc.strerror or exc})") from exc
-
-
 def cmd_plot(args) -> int:
     mat = resolve_material(args.material, args.name)
-    out = Path(args.output)
-    _check_plot_output(out)
+    out = check_plot_output(args.output)
     data = lobes(mat, args.theta, args.phi, args.samples, args.seed, args.resolution, args.per_pixel,
                  args.estimator, args.uv)
     import matplotlib
@@ -370,10 +348,7 @@ def cmd_plot(args) -> int:
     ax.set_title(f"in-plane f·|cos θo| (solid: reflection, dashed: transmission), θi = {args.theta:g}°",
                  fontsize=9)
     fig.suptitle(f"{args.material} — incident θ={args.theta:g}°, φ={args.phi:g}°", fontsize=11)
-    try:
-        fig.savefig(out, dpi=100, bbox_inches="tight")
-    except OSError as exc:
-        raise LaminaError(f"cannot write {out}: {exc.strerror or exc}") from exc
+    save_figure(fig, out, dpi=100)
     plt.close(fig)
     print(f"wrote {out}")
     return 0

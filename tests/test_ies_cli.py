@@ -66,3 +66,19 @@ def test_errors_are_one_line(tmp_path):
     assert len(lines) == 1 and lines[0].startswith(f"error: {bad}: line 3: expected a 'TILT=NONE'")
     r = _run("plot", str(tmp_path / "missing.ies"), "-o", str(tmp_path / "x.png"))
     assert r.returncode == 2 and "IES file not found" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_plot_outputs_that_cannot_be_written_are_one_line(tmp_path):
+    """A format matplotlib cannot write, a missing extension (matplotlib would add '.png' to a
+    name other than the one printed), a folder or an unwritable place: one error line."""
+    ies = str(IES_DIR / "qssi_roadway_typeIII_bilateral180_lm95.ies")
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("x")
+    for out, message in [(tmp_path / "p.xyz", "cannot write '.xyz' plots (use one of:"),
+                         (tmp_path / "noext", "cannot write 'no extension' plots"),
+                         (tmp_path, "is a folder; give a file name"),
+                         (blocker / "p.png", "cannot write there (Not a directory)")]:
+        r = _run("plot", ies, "-o", str(out))
+        lines = r.stderr.strip().splitlines()
+        assert r.returncode == 2 and len(lines) == 1 and message in lines[0], (out, r.stderr)
+    assert not (tmp_path / "noext.png").exists()

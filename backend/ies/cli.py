@@ -115,6 +115,8 @@ def cmd_plot(args) -> int:
         import matplotlib.pyplot as plt
     except ImportError:
         raise LaminaError("ies plot needs matplotlib (pip install matplotlib)") from None
+    from ..plot_output import check_plot_output, save_figure
+    out = check_plot_output(args.output)
     profile = _load(args.file)
     curves = plane_curves(profile)
     scale, unit = 1.0, "cd"
@@ -144,12 +146,10 @@ def cmd_plot(args) -> int:
     ax.legend(loc="lower left", bbox_to_anchor=(-0.08, -0.12), fontsize=8, frameon=False)
     fig.text(0.99, 0.01, unit, ha="right", va="bottom", fontsize=8)
     try:
-        fig.savefig(args.output, dpi=120, bbox_inches="tight")
-    except OSError as exc:
-        raise LaminaError(f"{args.output}: cannot write the plot ({exc.strerror or exc})") from None
+        save_figure(fig, out, dpi=120)
     finally:
         plt.close(fig)
-    print(args.output)
+    print(out)
     return 0
 
 
