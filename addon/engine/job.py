@@ -6,24 +6,30 @@ the parent found numpy, embreex and OpenImageIO in — Blender's Python does not
 extensions' wheel folder by itself. The child gets its own process group, so cancelling can end
 it *and* its worker processes: a polite SIGTERM first (the backend writes what is done), then
 SIGKILL to the whole group after a short grace period. No orphan survives a cancel.
+
+No Python threads: Blender does not support them (they crash it in hard-to-trace ways while the UI
+or an operator runs; the preset thumbnails crashed the tests that way). The child writes its
+stdout and stderr to two temporary files, which ``poll`` reads from where it stopped last time
+(a file never fills up and blocks the child the way an unread pipe does, and this works the same
+on Windows, where pipes cannot be polled).
 """
 from __future__ import annotations
 
 import importlib.util
 import json
 import os
-import queue
 import signal
 import subprocess
 import sys
-import threading
+import tempfile
 import time
 from pathlib import Path
 
 EXTENSION_ROOT = Path(__file__).resolve().parent.parent.parent   # holds backend/
 DEPENDENCIES = ("numpy", "embreex", "OpenImageIO")
 GRACE_SECONDS = 1.0      # after SIGTERM, before the process group is killed
-STRAY_SECONDS = 2.0      # after the child exited, before processes it left behind are killed
+POLL_STEP = 0.02         # seconds between reads of the output files while poll() waits
+STDERR_LINES = 200       # the tail of stderr kept for failure messages
 
 
 def dependency_paths() -> list[str]:
@@ -66,6 +72,43 @@ def render_command(python: str, scene: Path, output: Path, partial: Path, *, wor
     return cmd + list(extra or [])
 
 
+class _OutputFile:
+    """A temporary file the child writes one stream to; ``lines()`` returns the complete lines
+    added since the last call (the unterminated end waits for its newline, or for ``final``)."""
+
+    def __init__(self, name: str):
+        fd, self.path = tempfile.mkstemp(prefix=f"lamina-{name}-", suffix=".log")
+        self.child_fd = fd                       # handed to the child, closed here after start
+        self._reader = open(self.path, "rb")
+        self._rest = b""
+
+    def lines(self, final: bool = False) -> list[str]:
+        if self._reader is None:
+            return []
+        data = self._rest + self._reader.read()
+        parts = data.split(b"\n")
+        self._rest = parts.pop()
+        if final and self._rest:
+            parts.append(self._rest)
+            self._rest = b""
+        return [p.decode("utf-8", "replace").rstrip("\r") for p in parts]
+
+    def close_child_end(self) -> None:
+        if self.child_fd is not None:
+            os.close(self.child_fd)
+            self.child_fd = None
+
+    def close(self) -> None:
+        self.close_child_end()
+        if self._reader is not None:
+            self._reader.close()
+            self._reader = None
+        try:
+            os.unlink(self.path)
+        except OSError:
+            pass
+
+
 class BackendJob:
     """One running backend process. ``poll()`` returns the JSON events that arrived."""
 
@@ -77,23 +120,26 @@ class BackendJob:
             kwargs["start_new_session"] = True           # own process group for killpg
         self.cmd = cmd
         self.started = time.perf_counter()
-        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     stdin=subprocess.DEVNULL, env=env, cwd=cwd, **kwargs)
+        self._out, self._err = _OutputFile("out"), _OutputFile("err")
+        try:
+            self.proc = subprocess.Popen(cmd, stdout=self._out.child_fd, stderr=self._err.child_fd,
+                                         stdin=subprocess.DEVNULL, env=env, cwd=cwd, **kwargs)
+        except BaseException:
+            self._out.close()
+            self._err.close()
+            raise
+        self._out.close_child_end()                     # the child has its own copies
+        self._err.close_child_end()
         self.pgid = self.proc.pid if sys.platform != "win32" else None
-        self._events: queue.Queue = queue.Queue()
+        self._pending: list[dict] = []
         self._stderr: list[str] = []
         self.cancelled = False
-        self._exit_seen = None
-        self._threads = [threading.Thread(target=self._read_stdout, daemon=True),
-                         threading.Thread(target=self._read_stderr, daemon=True)]
-        for t in self._threads:
-            t.start()
 
-    # -- reading (threads: pipes cannot be polled portably, and a full pipe would block the child)
+    # -- reading
 
-    def _read_stdout(self) -> None:
-        for raw in self.proc.stdout:
-            line = raw.decode("utf-8", "replace").strip()
+    def _read(self, final: bool = False) -> None:
+        for line in self._out.lines(final):
+            line = line.strip()
             if not line:
                 continue
             try:
@@ -102,24 +148,21 @@ class BackendJob:
                 event = {"event": "log", "message": line}
             if not isinstance(event, dict):
                 event = {"event": "log", "message": line}
-            self._events.put(event)
-        self.proc.stdout.close()
-
-    def _read_stderr(self) -> None:
-        for raw in self.proc.stderr:
-            self._stderr.append(raw.decode("utf-8", "replace").rstrip())
-            del self._stderr[:-200]
-        self.proc.stderr.close()
+            self._pending.append(event)
+        err = self._err.lines(final)
+        if err:
+            self._stderr.extend(err)
+            del self._stderr[:-STDERR_LINES]
 
     def poll(self, timeout: float = 0.1) -> list[dict]:
-        events = []
-        try:
-            events.append(self._events.get(timeout=timeout))
-            while True:
-                events.append(self._events.get_nowait())
-        except queue.Empty:
-            pass
-        return events
+        """The events that arrived, waiting up to ``timeout`` seconds for the first one."""
+        deadline = time.monotonic() + timeout
+        while True:
+            self._read()
+            if self._pending or time.monotonic() >= deadline or self._exited():
+                events, self._pending = self._pending, []
+                return events
+            time.sleep(min(POLL_STEP, max(deadline - time.monotonic(), 0.0)))
 
     def _exited(self) -> bool:
         """Whether the child has exited, *without reaping it* where the OS allows: an unreaped
@@ -140,16 +183,12 @@ class BackendJob:
         return not self._exited()
 
     def finished(self) -> bool:
-        """The process ended and everything it printed has been read."""
+        """The process ended and everything it printed has been returned by ``poll``. (Workers a
+        crashed child left behind do not hold this up: ``wait`` kills them.)"""
         if not self._exited():
             return False
-        if self._exit_seen is None:
-            self._exit_seen = time.monotonic()
-        readers_alive = any(t.is_alive() for t in self._threads)
-        if readers_alive and time.monotonic() - self._exit_seen > STRAY_SECONDS:
-            self.kill_group()        # stray workers of a crashed child hold the pipes open
-            readers_alive = any(t.is_alive() for t in self._threads)
-        return not readers_alive and self._events.empty()
+        self._read(final=True)
+        return not self._pending
 
     def wait(self, timeout: float | None = None) -> int:
         """Wait for the child to exit, end whatever is left of its group, reap it."""
@@ -211,8 +250,10 @@ class BackendJob:
             self.proc.wait(5)
         except subprocess.TimeoutExpired:
             pass
-        for t in self._threads:
-            t.join(timeout=2)
+        if self.proc.returncode is not None and self._out._reader is not None:
+            self._read(final=True)                   # the last words, then the files go
+            self._out.close()
+            self._err.close()
 
     def group_alive(self) -> bool:
         """Whether any process of the child's group still exists (POSIX; tests use it)."""
