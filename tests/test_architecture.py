@@ -1,0 +1,61 @@
+"""The split between the renderer and the Blender layer, checked on the source (AST, no imports):
+
+* the backend never imports bpy or the add-on (it runs standalone and in a child process);
+* the add-on uses no Python threads or process pools: Blender does not support Python threads
+  (they crash it while the UI or an operator runs; the preset-thumbnail thread did, in CI), and
+  rendering belongs to the backend's own process;
+* the add-on imports nothing of the backend's rendering code (only preset files and errors)."""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+from conftest import ROOT
+
+FORBIDDEN_IN_ADDON = {"threading", "_thread", "multiprocessing", "concurrent", "asyncio"}
+BACKEND_MODULES_THE_ADDON_MAY_USE = {"presets", "errors"}
+
+
+def imports(path: Path):
+    """(module, level, names) of every import; 'from . import x' gives ('', 1, ['x'])."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                yield a.name, 0, []
+        elif isinstance(node, ast.ImportFrom):
+            yield node.module or "", node.level, [a.name for a in node.names]
+
+
+def sources(folder: str):
+    files = sorted((ROOT / folder).rglob("*.py"))
+    assert files, folder
+    return files
+
+
+@pytest.mark.parametrize("path", sources("backend"), ids=lambda p: str(p.relative_to(ROOT)))
+def test_backend_never_imports_bpy_or_the_addon(path):
+    depth = len(path.relative_to(ROOT / "backend").parts)       # relative levels that stay in backend/
+    for module, level, _ in imports(path):
+        top = module.split(".")[0]
+        if level == 0:
+            assert top not in ("bpy", "bmesh", "mathutils", "addon_utils", "addon"), (path, module)
+        else:
+            assert level <= depth, (path, module, level)         # never climbs out of backend/
+
+
+@pytest.mark.parametrize("path", sources("addon"), ids=lambda p: str(p.relative_to(ROOT)))
+def test_addon_uses_no_threads_and_no_backend_rendering_code(path):
+    root_level = len(path.relative_to(ROOT / "addon").parts) + 1  # 'from <dots> import' at the repo root
+    for module, level, names in imports(path):
+        top = module.split(".")[0]
+        if level == 0:
+            assert top not in FORBIDDEN_IN_ADDON, (path, module)
+            assert top != "backend", (path, module)
+        elif level >= root_level:
+            parts = module.split(".") if module else []
+            if parts[:1] == ["backend"]:
+                used = parts[1:2] or names
+                assert set(used) <= BACKEND_MODULES_THE_ADDON_MAY_USE, (path, module, names)
