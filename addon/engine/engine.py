@@ -215,10 +215,14 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         code = job.wait()
         if warnings and not self.is_preview:
             self.report({"WARNING"}, "Lamina renderer: " + "; ".join(dict.fromkeys(warnings)))
+        if error is None and code != 0:
+            error = job.failure_message()
         if error is not None:
+            if last_partial is not None:
+                # The result already shows that image (update_result merged it); say that it
+                # is partial, so it is neither mistaken for the finished render nor thrown away.
+                raise RenderFailure(f"{error} (the image shows the last partial result)")
             raise RenderFailure(error)
-        if code != 0:
-            raise RenderFailure(job.failure_message())
         return "done"
 
     def _progress(self, event: dict) -> None:

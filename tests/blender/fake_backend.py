@@ -1,7 +1,7 @@
 """A stand-in for ``python -m backend render`` speaking the JSON progress protocol (docs/cli.md).
 
 Used as the add-on's "Backend Python" preference to test the engine's plumbing independently
-of the renderer: FAKE_MODE = pixels | error | crash | hang. ``pixels`` writes a known image
+of the renderer: FAKE_MODE = pixels | error | crash | crash_after_partial | hang. ``pixels`` writes a known image
 (red = x + 1000·y from the top-left, so orientation errors are visible; green = the scene's seed,
 or 0.5 for seed 0) and AOVs.
 ``hang`` starts two worker processes, ignores SIGTERM and reports progress forever: only a
@@ -77,6 +77,8 @@ def main(argv):
     np.save(partial + ".tmp.npy", rgba)
     os.replace(partial + ".tmp.npy", partial)
     emit(event="partial", path=partial, spp=4)
+    if mode == "crash_after_partial":                # e.g. out of memory 20 minutes into a render
+        raise MemoryError("fake crash after a partial result")
     base = partial[:-4] if partial.endswith(".npy") else partial
     np.save(base + ".aovs.npy", aovs)
     emit(event="warning", message="fake warning from the renderer")

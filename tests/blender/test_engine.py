@@ -26,7 +26,10 @@ def fake(tmp_path_factory):
          "layers": run_cases("engine_cases", ["fake_pixels"], tmp=tmp_path_factory.mktemp("layers"),
                              args={"fake_pixels": {"layers": 2}})["fake_pixels"],
          "crash": run_cases("engine_cases", ["fake_failure"], tmp=tmp_path_factory.mktemp("crash"),
-                            args={"fake_failure": {"mode": "crash"}})["fake_failure"]}
+                            args={"fake_failure": {"mode": "crash"}})["fake_failure"],
+         "crash_after_partial": run_cases("engine_cases", ["fake_failure"],
+                                          tmp=tmp_path_factory.mktemp("crash_after_partial"),
+                                          args={"fake_failure": {"mode": "crash_after_partial"}})["fake_failure"]}
 
 
 def read_exr_parts(path):
@@ -107,6 +110,16 @@ def test_backend_error_makes_render_raise(fake):
 def test_backend_crash_makes_render_raise(fake):
     r = fake["crash"]
     assert r["error"] is not None and "ZeroDivisionError: fake crash in the renderer" in r["error"]
+
+
+def test_a_crash_after_a_partial_result_keeps_that_image(fake):
+    """Nothing lost: the renderer dies after it wrote a partial image; the render reports the
+    error and says the image is partial, and the Render Result still holds that image (the
+    fake's red = x + 1000·y of a 16 × 12 film, so its largest value is 15 + 1000·11)."""
+    r = fake["crash_after_partial"]
+    assert r["error"] is not None and "MemoryError: fake crash after a partial result" in r["error"]
+    assert "the image shows the last partial result" in r["error"]
+    assert r["red_max"] == 15 + 1000 * 11
 
 
 def _alive(pid: int, started: int, settle: float = 2.0) -> bool:

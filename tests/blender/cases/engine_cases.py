@@ -77,7 +77,20 @@ def fake_failure(tmp, mode="error"):
     _fake_backend(tmp, mode)
     error, seconds = _render_to(sc, Path(tmp) / f"fail_{mode}.exr")
     _reset_backend()
-    return {"error": error, "seconds": seconds}
+    # What the image editor shows afterwards: the Render Result, saved as a float EXR.
+    shown = Path(tmp) / f"shown_{mode}.exr"
+    red_max = None
+    try:
+        bpy.data.images["Render Result"].save_render(str(shown))
+        import OpenImageIO as oiio
+        inp = oiio.ImageInput.open(str(shown))
+        if inp is not None:
+            pixels = inp.read_image(0, 0, 0, 3, oiio.FLOAT)
+            inp.close()
+            red_max = float(pixels[..., 0].max())
+    except (KeyError, RuntimeError):
+        pass
+    return {"error": error, "seconds": seconds, "red_max": red_max}
 
 
 def cancel(tmp, after=1.0):
