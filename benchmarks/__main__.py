@@ -13,7 +13,9 @@ import argparse
 import datetime
 import json
 import math
+import os
 import shlex
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -25,6 +27,7 @@ from .scenes import BENCH_SCENES
 
 HERE = Path(__file__).resolve().parent
 SECTIONS = ("tve", "compare", "overhead", "stress")
+STAGING = ".report-staging"     # inside the output folder; a finished run moves out of it
 
 
 def _json_default(o):
@@ -160,12 +163,14 @@ def main(argv=None) -> int:
     if only and any(s not in SECTIONS for s in only):
         ap.error(f"--only takes {', '.join(SECTIONS)}")
     out = args.out or (HERE / "report-quick" if args.quick else HERE)
-    report_dir = out / "report"
-    report_dir.mkdir(parents=True, exist_ok=True)
+    # Figures go to a staging folder and replace the published ones only when the run is
+    # complete: an interrupted run leaves REPORT.md and its figures as they were (a run stopped
+    # halfway once left the committed report pointing at 13 deleted figures).
+    staging = out / STAGING
+    shutil.rmtree(staging, ignore_errors=True)
+    report_dir = staging / "report"
+    report_dir.mkdir(parents=True)
     partial = (only or []) + ([f"scenes {args.scenes}"] if args.scenes else [])
-    if not partial:
-        for old in report_dir.glob("*.png"):
-            old.unlink()
     command = "python -m benchmarks" + ("" if not sys.argv[1:] else " " + shlex.join(sys.argv[1:]))
     t_start = time.perf_counter()
     info = machine.describe()
@@ -201,14 +206,30 @@ def main(argv=None) -> int:
     elapsed = time.perf_counter() - t_start
     text = "\n".join([header(info, command, args.quick, partial, elapsed, machine.load_now()), summary(ctx, stress_tot),
                       METHOD, *body])
-    (out / "REPORT.md").write_text(text, encoding="utf-8")
     ctx.results["machine"] = info
     ctx.results["command"] = command
     ctx.results["elapsed_s"] = elapsed
     (report_dir / "results.json").write_text(json.dumps(_clean(ctx.results), indent=1, default=_json_default),
                                              encoding="utf-8")
+    (staging / "REPORT.md").write_text(text, encoding="utf-8")
+    publish(staging, out, replace_all=not partial)
     log(f"wrote {out / 'REPORT.md'} ({elapsed / 60:.1f} min)")
     return 0
+
+
+def publish(staging: Path, out: Path, replace_all: bool) -> None:
+    """Move a finished run from ``staging`` into ``out``: REPORT.md and report/*. A full run
+    (``replace_all``) first removes the published figures it did not make again; a partial run
+    (--only, --scenes) replaces only its own."""
+    final = out / "report"
+    final.mkdir(parents=True, exist_ok=True)
+    if replace_all:
+        for old in final.glob("*.png"):
+            old.unlink()
+    for f in sorted((staging / "report").iterdir()):
+        os.replace(f, final / f.name)
+    os.replace(staging / "REPORT.md", out / "REPORT.md")
+    shutil.rmtree(staging, ignore_errors=True)
 
 
 if __name__ == "__main__":
