@@ -86,8 +86,10 @@ def rebased(data):
     modified (a shallow copy is returned). Malformed input is left for validation to report."""
     try:
         cam = np.asarray(data["camera"]["to_world"], dtype=np.float64)
+        if cam.shape != (4, 4):
+            return data
         offset = cam[:3, 3].copy()
-        if cam.shape != (4, 4) or not np.all(np.isfinite(offset)) or np.linalg.norm(offset) <= REBASE_ABOVE:
+        if not np.all(np.isfinite(offset)) or np.linalg.norm(offset) <= REBASE_ABOVE:
             return data
 
         def moved(node, default_identity: bool):
@@ -107,7 +109,7 @@ def rebased(data):
         if isinstance(data.get("lights"), list):
             out["lights"] = [moved(l, False) for l in data["lights"]]
         return out
-    except (KeyError, TypeError, ValueError):
+    except (KeyError, TypeError, ValueError, IndexError):
         return data
 
 
