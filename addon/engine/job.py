@@ -93,6 +93,10 @@ class _OutputFile:
             self._rest = b""
         return [p.decode("utf-8", "replace").rstrip("\r") for p in parts]
 
+    @property
+    def is_open(self) -> bool:
+        return self._reader is not None
+
     def close_child_end(self) -> None:
         if self.child_fd is not None:
             os.close(self.child_fd)
@@ -250,7 +254,7 @@ class BackendJob:
             self.proc.wait(5)
         except subprocess.TimeoutExpired:
             pass
-        if self.proc.returncode is not None and self._out._reader is not None:
+        if self.proc.returncode is not None and self._out.is_open:
             self._read(final=True)                   # the last words, then the files go
             self._out.close()
             self._err.close()
