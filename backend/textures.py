@@ -97,25 +97,15 @@ class ImageParam(Param):
         self.source = source
 
     def bind(self, uv: np.ndarray) -> np.ndarray:
-        h, w = self.texels.shape[:2]
-        # Texel centres at (i + 0.5)/w; v is up in UV space, rows go down in the image.
-        x = uv[:, 0] * w - 0.5
-        y = (1.0 - uv[:, 1]) * h - 0.5
-        x0 = np.floor(x)
-        y0 = np.floor(y)
-        fx = (x - x0)[:, None]
-        fy = (y - y0)[:, None]
-        x0 = x0.astype(np.int64) % w
-        y0 = y0.astype(np.int64) % h
-        x1 = (x0 + 1) % w
-        y1 = (y0 + 1) % h
-        t = self.texels
-        top = t[y0, x0] * (1 - fx) + t[y0, x1] * fx
-        bottom = t[y1, x0] * (1 - fx) + t[y1, x1] * fx
-        value = (top * (1 - fy) + bottom * fy).astype(np.float64)
+        # The renderer's own lookup (backend/kernels/textures.py), over this one image.
+        from .kernels.textures import build_table, lookup_batch
+        if getattr(self, "_table", None) is None:
+            self._table = build_table([self.texels])
+        out = np.empty((uv.shape[0], self.channels))
+        lookup_batch(self._table, 0, np.ascontiguousarray(uv, dtype=np.float64), out)
         if self.channels == 1:
-            return value[:, 0] * self.scale
-        return value * self.scale
+            return out[:, 0] * self.scale
+        return out * self.scale
 
     def mean(self) -> np.ndarray:
         m = self.texels.reshape(-1, self.channels).mean(axis=0).astype(np.float64) * self.scale

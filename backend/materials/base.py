@@ -50,6 +50,22 @@ class ShadingContext:
         return self.uv.shape[0]
 
 
+def rows3(value) -> np.ndarray:
+    """A bound RGB parameter or (n, 3) direction array as a C-contiguous float64 (m, 3) array
+    (m = 1 for constants), the layout the compiled batch kernels take."""
+    return np.ascontiguousarray(np.asarray(value, dtype=np.float64).reshape(-1, 3))
+
+
+def rows1(value, dtype=np.float64) -> np.ndarray:
+    """A bound scalar parameter (shape () or (n,)) as a contiguous (1,) or (n,) array."""
+    return np.ascontiguousarray(np.asarray(value, dtype=dtype).reshape(-1))
+
+
+def sample_arrays(n: int):
+    """Output arrays (wo, weight, pdf, delta) of a batch ``sample`` kernel."""
+    return np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n, dtype=bool)
+
+
 def lanes(value: np.ndarray, idx) -> np.ndarray:
     """Subset a bound parameter: constants (ndim 0, or leading dimension 1) stay as they are."""
     value = np.asarray(value)

@@ -14,18 +14,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernels.bsdf import batch as _batch
+from ..kernels.microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from . import register
-from .base import BSDF, BSDFSample, Material, ShadingContext, lanes
-from ..mathutil import scale_rows
-from .common import (any_textured, as_param, delta_lanes, dot, mirror_z, normalize,
-                     parse_microfacet_kind, parse_roughness, upper_side)
+from .base import BSDF, BSDFSample, Material, ShadingContext, lanes, rows1, rows3, sample_arrays
+from .common import any_textured, as_param, delta_lanes, parse_microfacet_kind, parse_roughness
 from .emission import parse_emission
-from .fresnel import conductor as fresnel_conductor
 from .metals import METALS, metal_ior
-from .microfacet import GGX, HEIGHT_CORRELATED, Microfacet
+from .microfacet import GGX, HEIGHT_CORRELATED
 
 
 class ConductorBSDF(BSDF):
+    """Per-lane maths: backend/kernels/bsdf/conductor.py."""
+
     def __init__(self, n, eta, k, tint, alpha_u, alpha_v, distribution=GGX,
                  masking=HEIGHT_CORRELATED):
         self.n = n
@@ -33,80 +34,39 @@ class ConductorBSDF(BSDF):
         self.tint = tint                   # (1, 3) or (n, 3)
         self.alpha_u, self.alpha_v = alpha_u, alpha_v  # () or (n,)
         self.distribution, self.masking = distribution, masking
-        self.mf = Microfacet(distribution, alpha_u, alpha_v, masking)
         self.smooth = delta_lanes(alpha_u, alpha_v)   # () or (n,) bool
         self.delta_only = bool(np.all(self.smooth))
         self.has_delta = bool(np.any(self.smooth))
+        self._args = (rows3(eta), rows3(k), rows3(tint),
+                      rows1(np.maximum(alpha_u, ALPHA_MIN)), rows1(np.maximum(alpha_v, ALPHA_MIN)),
+                      rows1(self.smooth, bool), DISTRIBUTION_CODES[distribution], MASKING_CODES[masking])
 
-    def _fresnel(self, cos_i):
-        eta, k, tint = (np.asarray(x, dtype=np.float64) for x in (self.eta, self.k, self.tint))
-        if not all(x.size == 3 for x in (eta, k, tint)):   # textured: per-lane (n, 3) parameters
-            return fresnel_conductor(cos_i[:, None], eta, k) * tint
-        # Constant metal: one channel at a time on 1-D arrays. The same arithmetic through
-        # (n, 1) × (1, 3) broadcasting runs numpy's loops 3 elements at a time (5x slower).
-        eta, k, tint = eta.reshape(3), k.reshape(3), tint.reshape(3)
-        out = np.empty((cos_i.shape[0], 3))
-        for ch in range(3):
-            out[:, ch] = fresnel_conductor(cos_i, eta[ch], k[ch]) * tint[ch]
-        return out
+    def _eval_pdf(self, wi, wo):
+        wi, wo = rows3(wi), rows3(wo)
+        f = np.empty((wi.shape[0], 3))
+        pdf = np.empty(wi.shape[0])
+        _batch.conductor_eval_pdf(*self._args, wi, wo, f, pdf)
+        return f, pdf
 
     def eval(self, wi, wo, rng=None, mode=0):
-        n = wi.shape[0]
-        if self.delta_only:
-            return np.zeros((n, 3))
-        s = upper_side(wi)
-        wi_u, wo_u = mirror_z(wi, s), mirror_z(wo, s)
-        ok = (wi_u[:, 2] > 0) & (wo_u[:, 2] > 0) & ~self.smooth
-        h = normalize(wi_u + wo_u)
-        val = self.mf.D(h) * self.mf.G(wi_u, wo_u, h) / np.where(ok, 4.0 * wi_u[:, 2], 1.0)
-        return np.where(ok[:, None], self._fresnel(dot(wi_u, h)) * val[:, None], 0.0)
+        return self._eval_pdf(wi, wo)[0]
 
     def pdf(self, wi, wo, rng=None, mode=0):
-        n = wi.shape[0]
-        if self.delta_only:
-            return np.zeros(n)
-        s = upper_side(wi)
-        wi_u, wo_u = mirror_z(wi, s), mirror_z(wo, s)
-        ok = (wi_u[:, 2] > 0) & (wo_u[:, 2] > 0) & ~self.smooth
-        h = normalize(wi_u + wo_u)
-        # Visible-normal density / (4 |wo·h|); wi·h = wo·h for a reflection, so it cancels.
-        p = self.mf.G1(wi_u, h) * self.mf.D(h) / np.where(ok, 4.0 * wi_u[:, 2], 1.0)
-        return np.where(ok, p, 0.0)
+        return self._eval_pdf(wi, wo)[1]
 
     def sample(self, wi, rng, mode=0):
+        wi = rows3(wi)
         n = wi.shape[0]
-        s = upper_side(wi)
-        wi_u = mirror_z(wi, s)
-        u = rng.random((n, 2))
-        front = wi_u[:, 2] > 0
-        wo_u = np.zeros((n, 3))
-        weight = np.zeros((n, 3))
-        pdf = np.zeros(n)
-        delta = np.zeros(n, dtype=bool)
-        if not self.delta_only:
-            m = self.mf.sample_visible(wi_u, u)
-            cos_im = dot(wi_u, m)
-            wo_r = 2.0 * cos_im[:, None] * m - wi_u
-            ok = front & (wo_r[:, 2] > 0) & ~self.smooth
-            g1 = self.mf.G1(wi_u, m)
-            g1_safe = np.where(g1 > 0, g1, 1.0)
-            ratio = np.where(ok & (g1 > 0), self.mf.G(wi_u, wo_r, m) / g1_safe, 0.0)
-            weight = scale_rows(ratio, self._fresnel(cos_im))
-            pdf = np.where(ok, g1 * self.mf.D(m) / np.where(front, 4.0 * wi_u[:, 2], 1.0), 0.0)
-            wo_u = wo_r
-        if self.has_delta:
-            sm = np.broadcast_to(self.smooth, (n,)) & front
-            mirror = wi_u * np.array([-1.0, -1.0, 1.0])
-            wo_u = np.where(sm[:, None], mirror, wo_u)
-            weight = np.where(sm[:, None], self._fresnel(wi_u[:, 2]), weight)
-            pdf = np.where(sm, 0.0, pdf)
-            delta = sm
-        weight = np.where(front[:, None], weight, 0.0)
-        return BSDFSample(mirror_z(wo_u, s), weight, pdf, delta)
+        out = sample_arrays(n)
+        _batch.conductor_sample(*self._args, wi, rng.random((n, 2)), *out)
+        return BSDFSample(*out)
 
     def albedo(self):
         # Normal-incidence reflectance: the metal's colour, what a denoiser wants as albedo.
-        return fresnel_conductor(np.ones((1, 1)), self.eta, self.k) * self.tint
+        a = self._args
+        out = np.empty((max(a[0].shape[0], a[1].shape[0], a[2].shape[0]), 3))
+        _batch.conductor_albedo(a[0], a[1], a[2], out)
+        return out
 
     def take(self, idx):
         idx = np.asarray(idx)

@@ -21,21 +21,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernels.bsdf import batch as _batch
+from ..kernels.microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from . import register
-from .base import BSDF, RADIANCE, BSDFSample, Material, ShadingContext, lanes
-from .common import (any_textured, as_param, col, delta_lanes, dot, normalize,
-                     parse_microfacet_kind, parse_roughness)
+from .base import (BSDF, RADIANCE, BSDFSample, Material, ShadingContext, lanes, rows1, rows3,
+                   sample_arrays)
+from .common import any_textured, as_param, delta_lanes, parse_microfacet_kind, parse_roughness
 from .emission import parse_emission
-from .fresnel import dielectric as fresnel_dielectric
-from .microfacet import GGX, HEIGHT_CORRELATED, Microfacet
-
-
-def _div(num, den):
-    ok = den != 0
-    return np.where(ok, num / np.where(ok, den, 1.0), 0.0)
+from .microfacet import GGX, HEIGHT_CORRELATED
 
 
 class DielectricBSDF(BSDF):
+    """Per-lane maths: backend/kernels/bsdf/dielectric.py."""
+
     transmissive = True
 
     def __init__(self, n, eta, tint, alpha_u, alpha_v, distribution=GGX,
@@ -47,108 +45,32 @@ class DielectricBSDF(BSDF):
         self.tint = tint                  # (1, 3) or (n, 3) transmission colour
         self.alpha_u, self.alpha_v = alpha_u, alpha_v
         self.distribution, self.masking = distribution, masking
-        self.mf = Microfacet(distribution, alpha_u, alpha_v, masking)
         self.smooth = delta_lanes(alpha_u, alpha_v)
         self.delta_only = bool(np.all(self.smooth))
         self.has_delta = bool(np.any(self.smooth))
+        self._args = (rows1(self.eta), rows3(tint),
+                      rows1(np.maximum(alpha_u, ALPHA_MIN)), rows1(np.maximum(alpha_v, ALPHA_MIN)),
+                      rows1(self.smooth, bool), DISTRIBUTION_CODES[distribution], MASKING_CODES[masking])
 
-    # ------------------------------------------------------------------ geometry
-    def _half(self, wi, wo):
-        """(h oriented to +z, reflect mask, transmit mask, e = n_wo / n_wi for transmission)."""
-        ci, co = wi[:, 2], wo[:, 2]
-        reflect = ci * co > 0
-        transmit = ci * co < 0
-        e = np.where(ci > 0, self.eta, 1.0 / self.eta)
-        h = np.where(reflect[:, None], wi + wo, wi + e[:, None] * wo)
-        h = normalize(h)
-        h = h * np.where(h[:, 2] < 0, -1.0, 1.0)[:, None]
-        ok = h[:, 2] > 0
-        return h, reflect & ok, transmit & ok, e
+    def _eval_pdf(self, wi, wo, mode):
+        wi, wo = rows3(wi), rows3(wo)
+        f = np.empty((wi.shape[0], 3))
+        pdf = np.empty(wi.shape[0])
+        _batch.dielectric_eval_pdf(*self._args, int(mode), wi, wo, f, pdf)
+        return f, pdf
 
-    def _parts(self, wi, wo):
-        h, refl, trans, e = self._half(wi, wo)
-        cih, coh = dot(wi, h), dot(wo, h)
-        F = fresnel_dielectric(cih, self.eta)[0]
-        # Transmission needs wi and wo on opposite sides of the microfacet, reflection the same.
-        refl &= cih * coh > 0
-        trans &= cih * coh < 0
-        rough = ~np.broadcast_to(self.smooth, (wi.shape[0],))
-        refl &= rough
-        trans &= rough
-        return h, refl, trans, e, cih, coh, F
-
-    # ------------------------------------------------------------------ queries
     def eval(self, wi, wo, rng=None, mode=RADIANCE):
-        n = wi.shape[0]
-        if self.delta_only:
-            return np.zeros((n, 3))
-        h, refl, trans, e, cih, coh, F = self._parts(wi, wo)
-        DG = self.mf.D(h) * self.mf.G(wi, wo, h)
-        aci = np.abs(wi[:, 2])
-        fr = _div(F * DG, 4.0 * aci)
-        ft = _div((1.0 - F) * DG * np.abs(cih * coh), aci * (cih + e * coh) ** 2)
-        if mode != RADIANCE:
-            ft = ft * e * e
-        out = np.where(refl[:, None], fr[:, None], 0.0)
-        return out + np.where(trans[:, None], ft[:, None] * self.tint, 0.0)
+        return self._eval_pdf(wi, wo, mode)[0]
 
     def pdf(self, wi, wo, rng=None, mode=RADIANCE):
-        n = wi.shape[0]
-        if self.delta_only:
-            return np.zeros(n)
-        h, refl, trans, e, cih, coh, F = self._parts(wi, wo)
-        side = np.where(wi[:, 2] < 0, -1.0, 1.0)[:, None]
-        p_h = self.mf.pdf_visible(wi * side, h)
-        pr = _div(F * p_h, 4.0 * np.abs(coh))
-        pt = _div((1.0 - F) * p_h * e * e * np.abs(coh), (cih + e * coh) ** 2)
-        return np.where(refl, pr, 0.0) + np.where(trans, pt, 0.0)
+        return self._eval_pdf(wi, wo, mode)[1]
 
     def sample(self, wi, rng, mode=RADIANCE):
+        wi = rows3(wi)
         n = wi.shape[0]
-        u = rng.random((n, 3))
-        ci = wi[:, 2]
-        front_or_back = ci != 0
-        side = np.where(ci < 0, -1.0, 1.0)
-        wo = np.zeros((n, 3))
-        weight = np.zeros((n, 3))
-        pdf = np.zeros(n)
-        delta = np.zeros(n, dtype=bool)
-        if not self.delta_only:
-            ws = wi * side[:, None]
-            m = self.mf.sample_visible(ws, u[:, :2])
-            cim = dot(wi, m)
-            F, cos_t, e = fresnel_dielectric(cim, self.eta)
-            choose_r = u[:, 2] < F
-            wo_r = 2.0 * cim[:, None] * m - wi
-            wo_t = -wi / e[:, None] + (cim / e + cos_t)[:, None] * m
-            wo = np.where(choose_r[:, None], wo_r, wo_t)
-            com = dot(wo, m)
-            ok = front_or_back & (cim * ci > 0) & np.where(choose_r, wo[:, 2] * ci > 0,
-                                                           (wo[:, 2] * ci < 0) & (cos_t != 0))
-            g1 = self.mf.G1(ws, m)
-            ratio = _div(self.mf.G(wi, wo, m), g1)
-            p_h = self.mf.pdf_visible(ws, m)
-            pr = _div(F * p_h, 4.0 * np.abs(com))
-            pt = _div((1.0 - F) * p_h * e * e * np.abs(com), (cim + e * com) ** 2)
-            tscale = np.ones(n) if mode != RADIANCE else _div(np.ones(n), e * e)
-            w_t = self.tint * col(ratio * tscale)
-            weight = np.where(choose_r[:, None], ratio[:, None], w_t)
-            weight = np.where(ok[:, None], weight, 0.0)
-            pdf = np.where(ok, np.where(choose_r, pr, pt), 0.0)
-        if self.has_delta:
-            sm = np.broadcast_to(self.smooth, (n,)) & front_or_back
-            F, cos_t, e = fresnel_dielectric(ci, self.eta)
-            choose_r = u[:, 2] < F
-            wo_r = wi * np.array([-1.0, -1.0, 1.0])
-            wo_t = np.stack([-wi[:, 0] / e, -wi[:, 1] / e, cos_t], axis=1)
-            wo_d = np.where(choose_r[:, None], wo_r, wo_t)
-            tscale = np.ones(n) if mode != RADIANCE else 1.0 / (e * e)
-            w_d = np.where(choose_r[:, None], 1.0, self.tint * col(tscale))
-            wo = np.where(sm[:, None], wo_d, wo)
-            weight = np.where(sm[:, None], w_d, weight)
-            pdf = np.where(sm, 0.0, pdf)
-            delta = sm
-        return BSDFSample(wo, weight, pdf, delta)
+        out = sample_arrays(n)
+        _batch.dielectric_sample(*self._args, int(mode), wi, rng.random((n, 3)), *out)
+        return BSDFSample(*out)
 
     def albedo(self):
         # For the denoising AOV: what shows through the glass is tinted by transmission_color.

@@ -3,41 +3,39 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sampling.warp import square_to_cosine_hemisphere
+from ..kernels.bsdf import batch as _batch
 from . import register
-from .base import BSDF, BSDFSample, Material, ShadingContext, lanes
-from .common import any_textured, as_param, times_color, upper_side
+from .base import BSDF, BSDFSample, Material, ShadingContext, lanes, rows3, sample_arrays
+from .common import any_textured, as_param
 from .emission import parse_emission
-
-INV_PI = 1.0 / np.pi
 
 
 class DiffuseBSDF(BSDF):
-    """Two-sided Lambertian: wi below the surface is handled by mirroring (see common.upper_side)."""
+    """Two-sided Lambertian (per-lane maths: backend/kernels/bsdf/diffuse.py)."""
 
     def __init__(self, n: int, color: np.ndarray):
         self.n = n
         self.color = color  # (1, 3) constant or (n, 3) textured, linear RGB albedo
 
-    def _cos_out(self, wi, wo):
-        # Same side as wi, else 0 (no transmission).
-        same = wi[:, 2] * wo[:, 2] > 0
-        return np.where(same, np.abs(wo[:, 2]), 0.0)
+    def _eval_pdf(self, wi, wo):
+        wi, wo = rows3(wi), rows3(wo)
+        f = np.empty((wi.shape[0], 3))
+        pdf = np.empty(wi.shape[0])
+        _batch.diffuse_eval_pdf(rows3(self.color), wi, wo, f, pdf)
+        return f, pdf
 
     def eval(self, wi, wo, rng=None, mode=0):
-        return times_color(INV_PI * self._cos_out(wi, wo), self.color)
+        return self._eval_pdf(wi, wo)[0]
 
     def pdf(self, wi, wo, rng=None, mode=0):
-        return INV_PI * self._cos_out(wi, wo)
+        return self._eval_pdf(wi, wo)[1]
 
     def sample(self, wi, rng, mode=0):
+        wi = rows3(wi)
         n = wi.shape[0]
-        wo = square_to_cosine_hemisphere(rng.random((n, 2)))
-        wo[:, 2] *= upper_side(wi)      # our own array: mirrored in place
-        ok = (wi[:, 2] != 0) & (wo[:, 2] != 0)
-        weight = times_color(ok, self.color)
-        pdf = np.where(ok, INV_PI * np.abs(wo[:, 2]), 0.0)
-        return BSDFSample(wo, weight, pdf, np.zeros(n, dtype=bool))
+        out = sample_arrays(n)
+        _batch.diffuse_sample(rows3(self.color), wi, rng.random((n, 2)), *out)
+        return BSDFSample(*out)
 
     def albedo(self):
         return self.color

@@ -1,0 +1,91 @@
+"""Array entry points of the per-lane BSDFs, for NumPy callers (the BSDF inspector, tests, the
+layered stacks' interfaces): loops over lanes calling the same per-lane code the integrator uses.
+
+Per-lane parameters are arrays whose first dimension is 1 (a constant, broadcast to every lane)
+or n (one value per lane): RGB (1|n, 3), scalars (1|n,), smooth flags (1|n,) bool.
+"""
+from __future__ import annotations
+
+from numba import njit
+
+from . import conductor, dielectric, diffuse
+
+
+@njit(cache=True)
+def _rgb(a, i):
+    j = i if a.shape[0] > 1 else 0
+    return (a[j, 0], a[j, 1], a[j, 2])
+
+
+@njit(cache=True)
+def _s(a, i):
+    return a[i if a.shape[0] > 1 else 0]
+
+
+@njit(cache=True)
+def _dir(a, i):
+    return (a[i, 0], a[i, 1], a[i, 2])
+
+
+@njit(cache=True)
+def diffuse_eval_pdf(color, wi, wo, f, pdf):
+    for i in range(wi.shape[0]):
+        v, p = diffuse.eval_pdf(_rgb(color, i), _dir(wi, i), _dir(wo, i))
+        f[i, 0], f[i, 1], f[i, 2] = v
+        pdf[i] = p
+
+
+@njit(cache=True)
+def diffuse_sample(color, wi, u, wo, weight, pdf, delta):
+    for i in range(wi.shape[0]):
+        w, v, p, d = diffuse.sample(_rgb(color, i), _dir(wi, i), u[i, 0], u[i, 1])
+        wo[i, 0], wo[i, 1], wo[i, 2] = w
+        weight[i, 0], weight[i, 1], weight[i, 2] = v
+        pdf[i] = p
+        delta[i] = d
+
+
+@njit(cache=True)
+def conductor_eval_pdf(eta, k, tint, au, av, smooth, dist, masking, wi, wo, f, pdf):
+    for i in range(wi.shape[0]):
+        v, p = conductor.eval_pdf(_rgb(eta, i), _rgb(k, i), _rgb(tint, i), _s(au, i), _s(av, i),
+                                  _s(smooth, i), dist, masking, _dir(wi, i), _dir(wo, i))
+        f[i, 0], f[i, 1], f[i, 2] = v
+        pdf[i] = p
+
+
+@njit(cache=True)
+def conductor_sample(eta, k, tint, au, av, smooth, dist, masking, wi, u, wo, weight, pdf, delta):
+    for i in range(wi.shape[0]):
+        w, v, p, d = conductor.sample(_rgb(eta, i), _rgb(k, i), _rgb(tint, i), _s(au, i), _s(av, i),
+                                      _s(smooth, i), dist, masking, _dir(wi, i), u[i, 0], u[i, 1])
+        wo[i, 0], wo[i, 1], wo[i, 2] = w
+        weight[i, 0], weight[i, 1], weight[i, 2] = v
+        pdf[i] = p
+        delta[i] = d
+
+
+@njit(cache=True)
+def conductor_albedo(eta, k, tint, out):
+    for i in range(out.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2] = conductor.albedo(_rgb(eta, i), _rgb(k, i), _rgb(tint, i))
+
+
+@njit(cache=True)
+def dielectric_eval_pdf(eta, tint, au, av, smooth, dist, masking, mode, wi, wo, f, pdf):
+    for i in range(wi.shape[0]):
+        v, p = dielectric.eval_pdf(_s(eta, i), _rgb(tint, i), _s(au, i), _s(av, i), _s(smooth, i),
+                                   dist, masking, mode, _dir(wi, i), _dir(wo, i))
+        f[i, 0], f[i, 1], f[i, 2] = v
+        pdf[i] = p
+
+
+@njit(cache=True)
+def dielectric_sample(eta, tint, au, av, smooth, dist, masking, mode, wi, u, wo, weight, pdf, delta):
+    for i in range(wi.shape[0]):
+        w, v, p, d = dielectric.sample(_s(eta, i), _rgb(tint, i), _s(au, i), _s(av, i), _s(smooth, i),
+                                       dist, masking, mode, _dir(wi, i), u[i, 0], u[i, 1], u[i, 2])
+        wo[i, 0], wo[i, 1], wo[i, 2] = w
+        weight[i, 0], weight[i, 1], weight[i, 2] = v
+        pdf[i] = p
+        delta[i] = d

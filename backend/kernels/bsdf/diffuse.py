@@ -1,0 +1,30 @@
+"""Lambertian reflection, f = colour/π, cosine-weighted sampling. Two-sided: wi below the
+surface is handled by mirroring both directions (the integrator already turns the frame towards
+the viewer; this keeps the BSDF usable from either side inside layered stacks)."""
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from ..warp import cosine_hemisphere
+
+INV_PI = 1.0 / math.pi
+
+
+@njit(cache=True)
+def eval_pdf(color, wi, wo):
+    if wi[2] * wo[2] > 0.0:
+        c = abs(wo[2]) * INV_PI
+        return (color[0] * c, color[1] * c, color[2] * c), c
+    return (0.0, 0.0, 0.0), 0.0
+
+
+@njit(cache=True)
+def sample(color, wi, u0, u1):
+    wo = cosine_hemisphere(u0, u1)
+    if wi[2] < 0.0:
+        wo = (wo[0], wo[1], -wo[2])
+    if wi[2] == 0.0 or wo[2] == 0.0:
+        return wo, (0.0, 0.0, 0.0), 0.0, False
+    return wo, color, INV_PI * abs(wo[2]), False

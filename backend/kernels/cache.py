@@ -1,0 +1,108 @@
+"""Where compiled kernels are cached, and the "compiling render kernels" message of a first run.
+
+Numba's ``cache=True`` writes machine code next to a per-function index. Its own staleness check
+looks only at the modification time of the file that defines a function, not at the files of the
+functions it calls, so editing a shared helper would leave stale callers in the cache. Lamina
+therefore keys the whole cache folder by a hash of every source file under ``backend/`` that
+defines kernels, plus the Lamina, Numba, llvmlite and Python versions: any change gives a new,
+empty folder (another version's cache is ignored, not trusted).
+
+Folder (first match):
+  1. ``$LAMINA_KERNEL_CACHE`` (the Blender add-on sets it to the extension's user folder);
+  2. the platform's user cache directory: ``$XDG_CACHE_HOME`` or ``~/.cache`` (Linux),
+     ``~/Library/Caches`` (macOS), ``%LOCALAPPDATA%`` (Windows), + ``/lamina/kernels``.
+Never the install folder (it may be read-only, and it is shared between users).
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+import time
+from pathlib import Path
+
+BACKEND = Path(__file__).resolve().parent.parent
+_STATE = {"dir": None, "key": None}
+
+
+def user_cache_root() -> Path:
+    env = os.environ.get("LAMINA_KERNEL_CACHE")
+    if env:
+        return Path(env)
+    if sys.platform == "win32":
+        base = Path(os.environ.get("LOCALAPPDATA") or Path.home() / "AppData" / "Local")
+    elif sys.platform == "darwin":
+        base = Path.home() / "Library" / "Caches"
+    else:
+        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "lamina" / "kernels"
+
+
+def source_key() -> str:
+    """Hash of the kernel sources and the toolchain versions (16 hex digits)."""
+    import llvmlite
+    import numba
+
+    from .. import __version__
+    digest = hashlib.sha256()
+    digest.update(f"{__version__}|{numba.__version__}|{llvmlite.__version__}|{sys.version}".encode())
+    for path in sorted(BACKEND.rglob("*.py")):
+        text = path.read_bytes()
+        if b"njit" in text or b"vectorize" in text:      # files that define compiled code
+            digest.update(str(path.relative_to(BACKEND)).encode())
+            digest.update(text)
+    return digest.hexdigest()[:16]
+
+
+def configure() -> Path:
+    """Point Numba's cache at the keyed folder (idempotent). Returns the folder."""
+    if _STATE["dir"] is not None:
+        return _STATE["dir"]
+    import numba
+    key = source_key()
+    folder = user_cache_root() / key
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        probe = folder / ".writable"
+        probe.touch()
+    except OSError:
+        # A read-only home (some farm nodes): compile into a private temporary folder instead.
+        import tempfile
+        folder = Path(tempfile.gettempdir()) / f"lamina-kernels-{os.getuid() if hasattr(os, 'getuid') else 0}" / key
+        folder.mkdir(parents=True, exist_ok=True)
+    numba.config.CACHE_DIR = str(folder)
+    _STATE["dir"], _STATE["key"] = folder, key
+    return folder
+
+
+def marker() -> Path:
+    return configure() / "warm"
+
+
+def is_warm() -> bool:
+    return marker().exists()
+
+
+def ensure_compiled(announce=None) -> float:
+    """Compile (or load) every render kernel once per process, before worker processes start.
+
+    On a cold cache prints one line through ``announce`` (default: stderr) before and one after,
+    with the time taken, and marks the folder warm. Returns the seconds spent (0 when warm)."""
+    if _STATE.get("compiled"):
+        return 0.0
+    say = announce or (lambda msg: print(msg, file=sys.stderr, flush=True))
+    cold = not is_warm()
+    if cold:
+        say("compiling render kernels (first run only) ...")
+    t0 = time.perf_counter()
+    from .warmup import warm_up
+    warm_up()
+    elapsed = time.perf_counter() - t0
+    _STATE["compiled"] = True
+    if cold:
+        try:
+            marker().write_text(f"{elapsed:.1f}\n")
+        except OSError:
+            pass
+        say(f"compiled render kernels in {elapsed:.1f} s (cached in {configure()})")
+    return elapsed if cold else 0.0
