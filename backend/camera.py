@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .mathutil import norm, normalize, scale_rows
-from .sampling.warp import square_to_disk_concentric
 from .scene.reader import Node
 
 
@@ -33,53 +31,20 @@ class Camera:
         self._rot = rot
         self._origin = self.to_world[:3, 3]
 
-    def film_to_camera(self, st: np.ndarray) -> np.ndarray:
-        tr, br, bl, tl = self.frame
-        # tl + s·(tr − tl) + t·(bl − tl) as one (n, 2) @ (2, 3) product (no (n, 1) broadcasting)
-        return st @ np.stack([tr - tl, bl - tl]) + tl
-
     def generate_rays(self, st: np.ndarray, lens_u: np.ndarray | None = None):
-        """Film positions (n, 2) → world rays (o, d unit, tmin, tmax), all float64."""
-        p = self.film_to_camera(st)
-        n = p.shape[0]
-        if self.kind == "orthographic":
-            o_cam = np.concatenate([p[:, :2], np.zeros((n, 1))], axis=1)
-            d_cam = np.tile([0.0, 0.0, -1.0], (n, 1))
-        else:
-            o_cam = np.zeros((n, 3))
-            d_cam = normalize(p)
-        cos_axis = np.maximum(-d_cam[:, 2], 1e-12)
-        if self.aperture_radius > 0 and self.focus_distance > 0 and lens_u is not None:
-            focus = o_cam + d_cam * (self.focus_distance / cos_axis)[:, None]
-            lens = self._sample_aperture(lens_u) * self.aperture_radius
-            o_cam = o_cam + np.concatenate([lens, np.zeros((n, 1))], axis=1)
-            d_cam = normalize(focus - o_cam)
-            cos_axis = np.maximum(-d_cam[:, 2], 1e-12)
-        o = o_cam @ self.to_world[:3, :3].T + self._origin
-        d_world = d_cam @ self._rot.T
-        # Clip distances are measured along the view axis, in world units along the ray.
-        axis_scale = norm(d_world)
-        d = scale_rows(1.0 / np.where(axis_scale > 0, axis_scale, 1.0), d_world)
-        tmin = self.clip_start / cos_axis * axis_scale
-        tmax = np.where(np.isfinite(self.clip_end), self.clip_end / cos_axis * axis_scale, np.inf)
-        return o, d, tmin, tmax
+        """Film positions (n, 2) → world rays (o, d unit, tmin, tmax), all float64.
 
-    def _sample_aperture(self, u: np.ndarray) -> np.ndarray:
-        if self.blades < 3:
-            xy = square_to_disk_concentric(u)
-        else:
-            # Uniform point in a regular polygon with corners on the unit circle (as Cycles):
-            # pick one of the equal triangles (centre, corner k, corner k+1), then a point in it.
-            k = np.minimum((u[:, 0] * self.blades).astype(np.int64), self.blades - 1)
-            u0 = u[:, 0] * self.blades - k
-            a = np.sqrt(u0)
-            b = u[:, 1]
-            step = 2 * np.pi / self.blades
-            c0 = np.stack([np.cos(k * step + self.rotation), np.sin(k * step + self.rotation)], 1)
-            c1 = np.stack([np.cos((k + 1) * step + self.rotation), np.sin((k + 1) * step + self.rotation)], 1)
-            xy = a[:, None] * ((1 - b)[:, None] * c0 + b[:, None] * c1)
-        xy[:, 1] *= self.ratio
-        return xy
+        The ray model lives once, per lane, in backend/kernels/camera.py (the renderer's camera
+        kernel); this array form serves tests and tools."""
+        from .kernels.camera import camera_vector, generate_batch
+        st = np.ascontiguousarray(st, dtype=np.float64)
+        n = st.shape[0]
+        use_lens = lens_u is not None
+        lu = np.ascontiguousarray(lens_u, dtype=np.float64) if use_lens else np.zeros((1, 2))
+        o, d = np.empty((n, 3)), np.empty((n, 3))
+        tmin, tmax = np.empty(n), np.empty(n)
+        generate_batch(camera_vector(self), st, lu, use_lens, o, d, tmin, tmax)
+        return o, d, tmin, tmax
 
 
 def parse_camera(node: Node) -> Camera:

@@ -103,13 +103,15 @@ def _setup_local(source, options: RenderOptions, scene=None):
 
 
 def _render_item(item) -> tuple:
-    key, pixels, spp, seed = item
+    key, pixels, spp, seed, sample0 = item
     tracer = _WORKER["tracer"]
     accel = _WORKER["accel"]
+    # Only the layered BSDF's NumPy walks draw from this generator; everything else uses the
+    # counter-based numbers keyed by (seed, pixel, sample, dimension).
     rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, *key])))
     rays0 = accel.rays_traced
     t0 = time.process_time()
-    result = tracer.render(pixels, spp, rng)
+    result = tracer.render(pixels, spp, rng, sample0)
     info = stats.take()
     info["rays"] = info.get("rays", 0) + accel.rays_traced - rays0
     info["cpu_time"] = time.process_time() - t0
@@ -119,12 +121,13 @@ def _render_item(item) -> tuple:
 
 # --------------------------------------------------------------------------- master side
 
-def plan_round(active: np.ndarray, spp_block: int, round_index: int, seed: int) -> list:
-    """Split the active pixels into bands of about LANES_PER_ITEM lanes."""
+def plan_round(active: np.ndarray, spp_block: int, round_index: int, seed: int, sample0: int = 0) -> list:
+    """Split the active pixels into bands of about LANES_PER_ITEM lanes; every pixel of the round
+    takes samples sample0 … sample0 + spp_block − 1."""
     per_band = max(1, LANES_PER_ITEM // spp_block)
     n_bands = max(math.ceil(active.size / per_band), min(MIN_ITEMS_PER_ROUND, active.size))
     bands = np.array_split(active, n_bands)
-    return [((round_index, b), band, spp_block, seed) for b, band in enumerate(bands) if band.size]
+    return [((round_index, b), band, spp_block, seed, sample0) for b, band in enumerate(bands) if band.size]
 
 
 def choose_spp_block(pixel_count: int, spp: int) -> int:
@@ -202,7 +205,7 @@ class Renderer:
                 if r > 0 and s.time_limit and time.perf_counter() - t_start > s.time_limit:
                     break                          # the limit passed during the first pass
                 this_block = min(block, spp - r * block)
-                items = plan_round(active, this_block, r, s.seed)
+                items = plan_round(active, this_block, r, s.seed, r * block)
                 for key, result, info in mapper(_render_item, items):
                     band = items[key[1]][1]
                     film.add(band, result)

@@ -117,6 +117,28 @@ class Accelerator:
         prim = res["primID"].astype(np.int64)
         return prim, res["tfar"].astype(np.float64), res["u"].astype(np.float64), res["v"].astype(np.float64)
 
+    def intersect32(self, o32: np.ndarray, d32: np.ndarray, tmax32: np.ndarray):
+        """Closest hits of float32 rays as embree returns them: (prim int32 with −1 = miss,
+        t float32, b1 float32, b2 float32) — the kernels read these without conversion."""
+        if o32.shape[0] == 0:
+            z = np.zeros(0, np.float32)
+            return np.zeros(0, np.int32), z, z, z
+        if self.recorder is not None:
+            self.recorder.append(("intersect", o32, d32, tmax32))
+        res = self._scene.run(o32, d32, dists=tmax32, output=True)
+        self.rays_traced += o32.shape[0]
+        return res["primID"], res["tfar"], res["u"], res["v"]
+
+    def occluded32(self, o32: np.ndarray, d32: np.ndarray, tmax32: np.ndarray) -> np.ndarray:
+        """embree's OCCLUDED answer per float32 segment: −1 where the segment (0, tmax) is free."""
+        if o32.shape[0] == 0:
+            return np.zeros(0, np.int32)
+        if self.recorder is not None:
+            self.recorder.append(("occluded", o32, d32, tmax32))
+        res = self._scene.run(o32, d32, dists=tmax32, query="OCCLUDED")
+        self.rays_traced += o32.shape[0]
+        return np.asarray(res)
+
     def occluded(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray) -> np.ndarray:
         """True where something lies on the segment (0, tmax)."""
         n = o.shape[0]

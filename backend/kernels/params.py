@@ -50,16 +50,16 @@ class ParamPacker:
         return build_table(self._images)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def param_rgb(tx, values, tex_id, u, v):
-    """RGB parameter at (u, v): ``values`` is a 3-element array row."""
+    """RGB parameter at (u, v): ``values`` is a 3-tuple (constant or texture factor)."""
     if tex_id >= 0:
         t = lookup(tx, tex_id, u, v)
         return (t[0] * values[0], t[1] * values[1], t[2] * values[2])
     return (values[0], values[1], values[2])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def param_scalar(tx, value, tex_id, u, v):
     if tex_id >= 0:
         return lookup(tx, tex_id, u, v)[0] * value

@@ -65,7 +65,7 @@ def bounce_dim(bounce, slot):
     return BOUNCE_BASE + bounce * BOUNCE_DIMS + slot
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def fill_uniform(seed, pixels, samples, dim0, out):
     """Batch form (tests, the layered walk seeds): out[i, j] = uniform(key_i, dim0 + j)."""
     for i in range(out.shape[0]):

@@ -89,6 +89,13 @@ class LayeredMaterial(Material):
             any(m.uses_textures for m in self.media) or \
             any(nm is not None and not nm.is_constant for nm in self.normals)
 
+    def pack(self, row) -> None:
+        from ..kernels import materials as km
+        if len(self.interfaces) == 1 and self.normals[0] is None:
+            self.interfaces[0].pack(row)   # a one-interface stack is that interface's BSDF
+        else:
+            row.kind = km.DEFERRED         # shaded by this module's NumPy walks
+
     def bind(self, ctx: ShadingContext):
         if len(self.interfaces) == 1:
             # A one-interface stack is that interface's analytic BSDF.

@@ -152,6 +152,12 @@ class Material:
     def bind(self, ctx: ShadingContext) -> BSDF:
         raise NotImplementedError
 
+    def pack(self, row) -> None:
+        """Write this material's kind and parameters into its row of the compiled material
+        table (``backend/kernels/materials.py``: ``MaterialRow``); emission is written by the
+        table builder."""
+        raise NotImplementedError
+
     @property
     def uses_textures(self) -> bool:
         return False

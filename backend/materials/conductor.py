@@ -103,6 +103,17 @@ class ConductorMaterial(Material):
                              self.tint.bind(uv), self.roughness.bind(uv), self.roughness_v.bind(uv),
                              self.distribution, self.masking)
 
+    def pack(self, row) -> None:
+        from ..kernels import materials as km
+        inv = 1.0 / self.eta_above
+        row.kind = km.CONDUCTOR
+        row.set(km.ETA, self.eta, 3, inv)
+        row.set(km.K, self.k, 3, inv)
+        row.set(km.TINT, self.tint, 3)
+        row.set(km.AU, self.roughness, 1)
+        row.set(km.AV, self.roughness_v, 1)
+        row.microfacet(self.distribution, self.masking)
+
     @property
     def uses_textures(self) -> bool:
         return any_textured(self.eta, self.k, self.roughness, self.roughness_v, self.tint)

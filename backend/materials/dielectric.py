@@ -105,6 +105,15 @@ class DielectricMaterial(Material):
                               self.transmission_color.bind(uv), self.roughness.bind(uv),
                               self.roughness_v.bind(uv), self.distribution, self.masking)
 
+    def pack(self, row) -> None:
+        from ..kernels import materials as km
+        row.kind = km.DIELECTRIC
+        row.set(km.D_ETA, self.ior, 1, 1.0 / self.ior_above)
+        row.set(km.D_TINT, self.transmission_color, 3)
+        row.set(km.D_AU, self.roughness, 1)
+        row.set(km.D_AV, self.roughness_v, 1)
+        row.microfacet(self.distribution, self.masking)
+
     @property
     def uses_textures(self) -> bool:
         return any_textured(self.ior, self.roughness, self.roughness_v, self.transmission_color)

@@ -57,6 +57,11 @@ class DiffuseMaterial(Material):
     def bind(self, ctx: ShadingContext) -> DiffuseBSDF:
         return DiffuseBSDF(ctx.n, self.color.bind(ctx.uv))
 
+    def pack(self, row) -> None:
+        from ..kernels import materials as km
+        row.kind = km.DIFFUSE
+        row.set(km.COLOR, self.color, 3)
+
     @property
     def uses_textures(self) -> bool:
         return any_textured(self.color)

@@ -100,6 +100,10 @@ class EmissionMaterial(Material):
     def bind(self, ctx: ShadingContext) -> BSDF:
         return BlackBSDF(ctx.n)
 
+    def pack(self, row) -> None:
+        from ..kernels import materials as km
+        row.kind = km.BLACK
+
     @property
     def uses_textures(self) -> bool:
         return any_textured(self.color)

@@ -1,0 +1,163 @@
+"""Camera rays per lane: pixel-filter importance sampling, the Blender camera model, thin lens.
+
+Camera parameter vector ``cam`` (float64, see ``camera_vector``):
+  [0] kind (0 perspective, 1 orthographic)   [1:13] to_world rows 0–2 (3 × 4, row-major)
+  [13:25] frame corners tr, br, bl, tl (camera space)   [25] clip_start  [26] clip_end
+  [27] focus distance  [28] aperture radius  [29] blades  [30] rotation [rad]  [31] ratio
+Film position (s, t) ∈ [0, 1]² (s right, t down; pixel (0, 0) top-left) maps bilinearly onto the
+frame corners (Blender's ``Camera.view_frame``, sensor fit and shift included); the camera looks
+down its local −Z; clip distances are measured along the view axis.
+
+Pixel filter (as Cycles): each sample's offset from the pixel centre is drawn from the filter's
+separable 1-D profile by inverting its tabulated CDF, so every sample has weight 1.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .rng import DIM_FILTER, DIM_LENS, path_key, uniform
+from .warp import disk_concentric
+
+CAMERA_SIZE = 32
+
+
+def camera_vector(camera) -> np.ndarray:
+    c = np.zeros(CAMERA_SIZE)
+    c[0] = 1.0 if camera.kind == "orthographic" else 0.0
+    c[1:13] = np.asarray(camera.to_world, np.float64)[:3, :4].ravel()
+    c[13:25] = np.asarray(camera.frame, np.float64).ravel()
+    c[25] = camera.clip_start
+    c[26] = camera.clip_end if np.isfinite(camera.clip_end) else np.inf
+    c[27] = camera.focus_distance
+    c[28] = camera.aperture_radius
+    c[29] = camera.blades
+    c[30] = camera.rotation
+    c[31] = camera.ratio
+    return c
+
+
+@njit(cache=True, _nrt=False)
+def filter_offset(cdf, grid, width, u):
+    """Offset from the pixel centre [pixels] for u in [0, 1): the inverse of the filter's CDF
+    (piecewise linear between table nodes), centred and scaled to the filter width."""
+    lo = 0
+    hi = cdf.shape[0] - 1
+    while hi - lo > 1:            # largest lo with cdf[lo] <= u
+        mid = (lo + hi) >> 1
+        if cdf[mid] <= u:
+            lo = mid
+        else:
+            hi = mid
+    span = cdf[lo + 1] - cdf[lo]
+    x = grid[lo] + ((u - cdf[lo]) / span * (grid[lo + 1] - grid[lo]) if span > 0.0 else 0.0)
+    return (x - 0.5) * width
+
+
+@njit(cache=True)
+def _aperture(cam, u0, u1):
+    blades = int(cam[29])
+    if blades < 3:
+        x, y = disk_concentric(u0, u1)
+    else:
+        # Uniform point in a regular polygon with corners on the unit circle (as Cycles): pick
+        # one of the equal triangles (centre, corner k, corner k+1), then a point in it.
+        k = min(int(u0 * blades), blades - 1)
+        a = math.sqrt(u0 * blades - k)
+        step = 2.0 * math.pi / blades
+        rot = cam[30]
+        c0x, c0y = math.cos(k * step + rot), math.sin(k * step + rot)
+        c1x, c1y = math.cos((k + 1) * step + rot), math.sin((k + 1) * step + rot)
+        x = a * ((1.0 - u1) * c0x + u1 * c1x)
+        y = a * ((1.0 - u1) * c0y + u1 * c1y)
+    return x, y * cam[31]
+
+
+@njit(cache=True, _nrt=False)
+def generate(cam, s, t, lens, l0, l1):
+    """World ray (o, d unit, tmin, tmax) through film position (s, t); ``lens`` enables the
+    thin-lens sample (l0, l1)."""
+    fx = cam[22] + s * (cam[13] - cam[22]) + t * (cam[19] - cam[22])
+    fy = cam[23] + s * (cam[14] - cam[23]) + t * (cam[20] - cam[23])
+    fz = cam[24] + s * (cam[15] - cam[24]) + t * (cam[21] - cam[24])
+    if cam[0] == 1.0:
+        ox, oy, oz = fx, fy, 0.0
+        dx, dy, dz = 0.0, 0.0, -1.0
+    else:
+        ox, oy, oz = 0.0, 0.0, 0.0
+        n = math.sqrt(fx * fx + fy * fy + fz * fz)
+        dx, dy, dz = fx / n, fy / n, fz / n
+    cos_axis = max(-dz, 1e-12)
+    if lens and cam[28] > 0.0 and cam[27] > 0.0:
+        f = cam[27] / cos_axis
+        px, py, pz = ox + dx * f, oy + dy * f, oz + dz * f
+        ax, ay = _aperture(cam, l0, l1)
+        ox += ax * cam[28]
+        oy += ay * cam[28]
+        dx, dy, dz = px - ox, py - oy, pz - oz
+        n = math.sqrt(dx * dx + dy * dy + dz * dz)
+        dx, dy, dz = dx / n, dy / n, dz / n
+        cos_axis = max(-dz, 1e-12)
+    m = cam[1:13]
+    o = (m[0] * ox + m[1] * oy + m[2] * oz + m[3],
+         m[4] * ox + m[5] * oy + m[6] * oz + m[7],
+         m[8] * ox + m[9] * oy + m[10] * oz + m[11])
+    wx = m[0] * dx + m[1] * dy + m[2] * dz
+    wy = m[4] * dx + m[5] * dy + m[6] * dz
+    wz = m[8] * dx + m[9] * dy + m[10] * dz
+    # The matrix may scale: clip distances scale with the length of the transformed direction.
+    scale = math.sqrt(wx * wx + wy * wy + wz * wz)
+    inv = 1.0 / scale if scale > 0.0 else 1.0
+    d = (wx * inv, wy * inv, wz * inv)
+    tmin = cam[25] / cos_axis * scale
+    tmax = cam[26] / cos_axis * scale if math.isfinite(cam[26]) else np.inf
+    return o, d, tmin, tmax
+
+
+@njit(cache=True, _nrt=False)
+def generate_batch(cam, st, lens_u, use_lens, o, d, tmin, tmax):
+    """Array form (tests): st (n, 2) film positions, lens_u (n, 2) or unused."""
+    for i in range(st.shape[0]):
+        l0 = lens_u[i, 0] if use_lens else 0.5
+        l1 = lens_u[i, 1] if use_lens else 0.5
+        oo, dd, a, b = generate(cam, st[i, 0], st[i, 1], use_lens, l0, l1)
+        o[i, 0], o[i, 1], o[i, 2] = oo
+        d[i, 0], d[i, 1], d[i, 2] = dd
+        tmin[i] = a
+        tmax[i] = b
+
+
+@njit(cache=True, _nrt=False)
+def filter_batch(cdf, grid, width, u, out):
+    for i in range(u.shape[0]):
+        out[i, 0] = filter_offset(cdf, grid, width, u[i, 0])
+        out[i, 1] = filter_offset(cdf, grid, width, u[i, 1])
+
+
+@njit(cache=True, _nrt=False)
+def camera_rays(cam, cdf, grid, fwidth, width, height, seed, pixels, spp, sample0,
+                key, o, d, o32, d32, tmax32):
+    """The primary rays of a work item: lane i is sample ``sample0 + i % spp`` of pixel
+    ``pixels[i // spp]`` (flat index, row 0 = top). Writes the lane's random-number key, the ray
+    in float64 (shading) and float32 (embree, with its clipped length)."""
+    lens = cam[28] > 0.0 and cam[27] > 0.0
+    for i in range(key.shape[0]):
+        pix = pixels[i // spp]
+        k = path_key(seed, pix, sample0 + i % spp)
+        key[i] = k
+        px = pix % width
+        py = pix // width
+        ox_ = filter_offset(cdf, grid, fwidth, uniform(k, DIM_FILTER))
+        oy_ = filter_offset(cdf, grid, fwidth, uniform(k, DIM_FILTER + 1))
+        s = (px + 0.5 + ox_) / width
+        t = (py + 0.5 + oy_) / height
+        ro, rd, tmin, tm = generate(cam, s, t, lens, uniform(k, DIM_LENS), uniform(k, DIM_LENS + 1))
+        # Start at the near clip plane.
+        for c in range(3):
+            o[i, c] = ro[c] + rd[c] * tmin
+            d[i, c] = rd[c]
+            o32[i, c] = o[i, c]
+            d32[i, c] = rd[c]
+        tmax32[i] = min(tm - tmin, 3e38)

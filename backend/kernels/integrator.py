@@ -1,0 +1,452 @@
+"""The path tracer's per-bounce kernels: everything between two embree calls, one loop body per
+lane (wavefront over work queues, in the manner of pbrt-v4's wavefront integrator).
+
+Per bounce, for every lane whose ray embree has just traced (``shade``):
+  1. emission the ray passed: hittable lights are transparent (as in Cycles), so every light the
+     segment crosses before the surface adds its radiance, MIS-weighted against light sampling;
+     rays that escape see the infinite lights (sun disk, world);
+  2. the surface: hit point from barycentrics in float64, geometric and shading normals, UV,
+     tangent; holdouts; emission of the surface (MIS with the mesh light);
+  3. the shading frame (two-sided materials face the viewer; shading normals bent so the mirror
+     direction stays above the geometry), AOVs at the camera hit;
+  4. next-event estimation: pick a light (power or local selection), sample it, evaluate the BSDF
+     and the MIS weight (power heuristic), write a shadow ray with its contribution;
+  5. continuation: sample the BSDF, Russian roulette, write the next ray (compacted).
+Lanes whose material is DEFERRED (multi-interface layered stacks, still NumPy) stop after step 3
+and the light sample of step 4; ``finish_deferred`` completes them from the layered BSDF's
+results with the same code (``_nee`` and ``_continue``).
+
+Path length: ``max_bounces`` has Cycles' meaning (0 = direct lighting only): a path has at most
+max_bounces + 2 segments (camera → … → light). Precision: shading state float64; rays go to
+embree as float32 (written here, so no conversion pass).
+"""
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+from . import materials as km
+from .lights import dispatch as ld
+from .rng import (SLOT_BSDF, SLOT_BSDF_LOBE, SLOT_LIGHT, SLOT_LIGHT_PICK, SLOT_RR, bounce_dim,
+                  uniform)
+
+SHADOW_EPS = 1e-4   # shadow rays stop this fraction short of the light (not its own surface)
+# Ray offsets (geometry/accel.py): along the geometric normal by a multiple of the float32
+# spacing at the point's magnitude, 2^-16 ≈ 1.5e-5 relative (~128 ulps), 1e-7 m absolute.
+OFFSET_RELATIVE = 2.0 ** -16
+OFFSET_ABSOLUTE = 1e-7
+INF = np.inf
+
+# Scene geometry for shading. Interpolation tables hold, per triangle, the value at corner 0 then
+# the differences to corners 1 and 2: a(b1, b2) = row[0:k] + b1·row[k:2k] + b2·row[2k:3k].
+Geometry = namedtuple("Geometry", ["position", "normal", "uv", "geo_normal", "tangent",
+                                   "material", "holdout", "emitter", "has_normals", "has_uvs"])
+# Render settings the kernels read (scalars; one Numba type per field).
+Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", "transparent",
+                                   "has_lights", "mesh_light", "hittable", "infinite",
+                                   "visible_camera"])
+
+
+@njit(cache=True)
+def power_heuristic(a, b):
+    """a²/(a² + b²), 0/0 → 0."""
+    a2 = a * a
+    den = a2 + b * b
+    return a2 / den if den > 0.0 else 0.0
+
+
+@njit(cache=True)
+def _offset(p, ng, d):
+    """p moved off the surface along ±ng, to the side d points to."""
+    side = 1.0 if ng[0] * d[0] + ng[1] * d[1] + ng[2] * d[2] >= 0.0 else -1.0
+    s = side * (OFFSET_ABSOLUTE + OFFSET_RELATIVE * max(abs(p[0]), max(abs(p[1]), abs(p[2]))))
+    return (p[0] + s * ng[0], p[1] + s * ng[1], p[2] + s * ng[2])
+
+
+@njit(cache=True)
+def _clamped(c, clamp, segment):
+    """Cycles-style sample clamping of indirect contributions (off when clamp ≤ 0)."""
+    if clamp > 0.0 and segment > 0:
+        m = max(c[0], max(c[1], c[2]))
+        if m > clamp:
+            s = clamp / m
+            return (c[0] * s, c[1] * s, c[2] * s)
+    return c
+
+
+@njit(cache=True, _nrt=False)
+def _add(L, slot, c):
+    L[slot, 0] += c[0]
+    L[slot, 1] += c[1]
+    L[slot, 2] += c[2]
+
+
+@njit(cache=True, _nrt=False)
+def _mis_hit(LT, li, pdf_light, prev_pdf, prev_delta, o):
+    """MIS weight of emission found by BSDF sampling against light sampling from o."""
+    if prev_delta:
+        return 1.0
+    return power_heuristic(prev_pdf, ld.select_prob(LT, o, li) * pdf_light)
+
+
+@njit(cache=True, _nrt=False)
+def _interp3(tab, prim, b1, b2):
+    return (tab[prim, 0] + b1 * tab[prim, 3] + b2 * tab[prim, 6],
+            tab[prim, 1] + b1 * tab[prim, 4] + b2 * tab[prim, 7],
+            tab[prim, 2] + b1 * tab[prim, 5] + b2 * tab[prim, 8])
+
+
+@njit(cache=True)
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(cache=True)
+def _normalize(a):
+    n = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+    return (a[0] / n, a[1] / n, a[2] / n) if n > 0.0 else a
+
+
+@njit(cache=True)
+def _valid_reflection_normal(wi, ns, ng):
+    """Bend an interpolated shading normal so the mirror direction of wi stays above the
+    geometric surface (the idea of Cycles' ensure_valid_specular_reflection, own derivation):
+    on coarse smooth-shaded meshes the mirror about ns can point below the triangle, and that
+    energy would be lost (dark rims on mirrors). There the reflection is lifted to just above
+    the geometric plane (cosine ``threshold``) and ns replaced by the half vector of wi and the
+    lifted reflection, on ns's side."""
+    wi_ng = _dot(wi, ng)
+    side = 1.0 if wi_ng >= 0.0 else -1.0
+    c = _dot(wi, ns)
+    r_ng = side * (2.0 * c * _dot(ns, ng) - wi_ng)
+    threshold = min(0.9 * abs(wi_ng), 0.01)
+    if not (r_ng < threshold and c * side > 0.0):
+        return ns
+    ngw = (ng[0] * side, ng[1] * side, ng[2] * side)
+    r = (2.0 * c * ns[0] - wi[0], 2.0 * c * ns[1] - wi[1], 2.0 * c * ns[2] - wi[2])
+    k = threshold - _dot(r, ngw)
+    rb = _normalize((r[0] + k * ngw[0], r[1] + k * ngw[1], r[2] + k * ngw[2]))
+    h = _normalize((wi[0] + rb[0], wi[1] + rb[1], wi[2] + rb[2]))
+    sg = 1.0 if c > 0.0 else -1.0
+    return (h[0] * sg, h[1] * sg, h[2] * sg)
+
+
+@njit(cache=True)
+def _frame(n, tangent):
+    """(s, t, n): Gram-Schmidt the UV tangent against n; Duff et al.'s frame where it is
+    undefined (no UVs: zero tangent)."""
+    d = _dot(tangent, n)
+    s = (tangent[0] - d * n[0], tangent[1] - d * n[1], tangent[2] - d * n[2])
+    ls = math.sqrt(_dot(s, s))
+    if ls > 1e-8:
+        s = (s[0] / ls, s[1] / ls, s[2] / ls)
+    else:
+        sign = 1.0 if n[2] >= 0.0 else -1.0
+        a = -1.0 / (sign + n[2])
+        s = (1.0 + sign * n[0] * n[0] * a, sign * (n[0] * n[1] * a), -sign * n[0])
+    t = (n[1] * s[2] - n[2] * s[1], n[2] * s[0] - n[0] * s[2], n[0] * s[1] - n[1] * s[0])
+    return s, t
+
+
+@njit(cache=True)
+def _local(s, t, n, v):
+    return (_dot(v, s), _dot(v, t), _dot(v, n))
+
+
+@njit(cache=True)
+def _world(s, t, n, v):
+    return (v[0] * s[0] + v[1] * t[0] + v[2] * n[0],
+            v[0] * s[1] + v[1] * t[1] + v[2] * n[1],
+            v[0] * s[2] + v[1] * t[2] + v[2] * n[2])
+
+
+@njit(cache=True, _nrt=False)
+def _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, sh_slot, sh_o32, sh_d32, sh_t32,
+                 sh_c, counts):
+    k = counts[1]
+    origin = _offset(p, ng, wi_w)
+    sh_slot[k] = slot
+    for j in range(3):
+        sh_o32[k, j] = origin[j]
+        sh_d32[k, j] = wi_w[j]
+    sh_t32[k] = min(dist * (1.0 - SHADOW_EPS), 3e38) if math.isfinite(dist) else 3e38
+    cc = _clamped(c, S.clamp, segment)
+    sh_c[k, 0], sh_c[k, 1], sh_c[k, 2] = cc
+    counts[1] = k + 1
+
+
+@njit(cache=True, _nrt=False)
+def _nee(S, segment, slot, beta, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p, f, bsdf_pdf,
+         sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts):
+    """Light-sample contribution: MIS (power heuristic) against BSDF sampling, divided by the
+    selection probability; a shadow ray if it carries anything."""
+    w = 1.0 if is_delta else power_heuristic(sel_p * lpdf, bsdf_pdf)
+    w /= sel_p
+    c = (w * beta[0] * f[0] * value[0], w * beta[1] * f[1] * value[1], w * beta[2] * f[2] * value[2])
+    if max(c[0], max(c[1], c[2])) > 0.0:
+        _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
+
+
+@njit(cache=True, _nrt=False)
+def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, delta,
+              nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, counts):
+    """The next ray: leak guard, Russian roulette (survivors divided by the survival
+    probability: unbiased), compaction into the next-ray queue."""
+    # The sampled side must agree for the shading and the geometric normal.
+    if not (_dot(d_world, ng) * wo_z > 0.0):
+        return
+    b = (beta[0] * weight[0], beta[1] * weight[1], beta[2] * weight[2])
+    peak = max(b[0], max(b[1], b[2]))
+    if segment + 1 >= S.rr_depth:
+        q = min(peak, 1.0)
+        if not uniform(key, bounce_dim(segment, SLOT_RR)) < q:
+            return
+        b = (b[0] / q, b[1] / q, b[2] / q)
+        peak = peak / q
+    if not math.isfinite(peak):
+        counts[3] += 1
+        return
+    if not peak > 0.0:
+        return
+    k = counts[0]
+    origin = _offset(p, ng, d_world)
+    nx_slot[k] = slot
+    nx_key[k] = key
+    for j in range(3):
+        nx_o[k, j] = origin[j]
+        nx_d[k, j] = d_world[j]
+        nx_o32[k, j] = origin[j]
+        nx_d32[k, j] = d_world[j]
+        nx_beta[k, j] = b[j]
+    nx_pdf[k] = pdf
+    nx_delta[k] = delta
+    counts[0] = k + 1
+
+
+@njit(cache=True, _nrt=False)
+def shade(G, MT, TX, LT, S, segment,
+          slot, key, o, d, beta, prev_pdf, prev_delta, tmax32, prim, t32, b1_32, b2_32,
+          L, albedo, normal, alpha,
+          nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta,
+          sh_slot, sh_o32, sh_d32, sh_t32, sh_c,
+          df_lane, df_frame, df_light, counts):
+    """One bounce for every traced lane (see the module docstring). ``counts`` (int64[5]) gets
+    [next rays, shadow rays, deferred lanes, non-finite paths killed, 0]."""
+    camera = segment == 0
+    last = segment == S.max_segments - 1
+    can_nee = S.has_lights and segment + 1 < S.max_segments
+    nh = S.hittable.shape[0]
+    ni = S.infinite.shape[0]
+    for i in range(slot.shape[0]):
+        sl = slot[i]
+        ro = (o[i, 0], o[i, 1], o[i, 2])
+        rd = (d[i, 0], d[i, 1], d[i, 2])
+        bt = (beta[i, 0], beta[i, 1], beta[i, 2])
+        pp = prev_pdf[i]
+        pd = prev_delta[i]
+        pr = prim[i]
+        t_surf = np.float64(t32[i]) if pr >= 0 else INF
+        t_limit = min(t_surf, np.float64(tmax32[i]))
+        # 1. lights passed on the way (transparent, as in Cycles)
+        for j in range(nh):
+            li = S.hittable[j]
+            if camera and not S.visible_camera[li]:
+                continue
+            tl = ld.intersect(LT, li, ro, rd, t_limit)
+            if tl < INF:
+                le = ld.eval_hit(LT, li, ro, rd, tl)
+                w = _mis_hit(LT, li, ld.pdf_hit(LT, li, ro, rd, tl), pp, pd, ro)
+                _add(L, sl, _clamped((bt[0] * le[0] * w, bt[1] * le[1] * w, bt[2] * le[2] * w),
+                                     S.clamp, segment))
+        if pr < 0:
+            if not (camera and S.transparent):
+                for j in range(ni):
+                    li = S.infinite[j]
+                    if camera and not S.visible_camera[li]:
+                        continue
+                    le = ld.eval_escaped(LT, li, rd)
+                    if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
+                        w = _mis_hit(LT, li, ld.pdf_escaped(LT, li, rd), pp, pd, ro)
+                        _add(L, sl, _clamped((bt[0] * le[0] * w, bt[1] * le[1] * w, bt[2] * le[2] * w),
+                                             S.clamp, segment))
+            continue
+        if camera:
+            # Holdouts are black, transparent holes for camera rays (as in Cycles); they still
+            # cast shadows and show in reflections.
+            if G.holdout[pr]:
+                continue
+            alpha[sl] = 1.0
+        # 2. the surface, in float64 from barycentrics (accurate to the vertex precision)
+        b1 = np.float64(b1_32[i])
+        b2 = np.float64(b2_32[i])
+        p = _interp3(G.position, pr, b1, b2)
+        ng = (G.geo_normal[pr, 0], G.geo_normal[pr, 1], G.geo_normal[pr, 2])
+        if G.has_normals:
+            ns = _interp3(G.normal, pr, b1, b2)
+            ln = math.sqrt(_dot(ns, ns))
+            ns = (ns[0] / ln, ns[1] / ln, ns[2] / ln) if ln > 0.0 else ng
+        else:
+            ns = ng
+        if G.has_uvs:
+            u = G.uv[pr, 0] + b1 * G.uv[pr, 2] + b2 * G.uv[pr, 4]
+            v = G.uv[pr, 1] + b1 * G.uv[pr, 3] + b2 * G.uv[pr, 5]
+        else:
+            u = 0.0
+            v = 0.0
+        m = G.material[pr]
+        wi = (-rd[0], -rd[1], -rd[2])
+        if MT.emits[m]:
+            le = km.emission(MT, TX, m, u, v)     # both faces, as Cycles' emission shader
+            w = 1.0
+            if S.mesh_light >= 0:
+                local = G.emitter[pr]
+                pdf_l = ld.mesh_pdf_hit(LT, S.mesh_light, ro, rd, t_surf, local) if local >= 0 else 0.0
+                w = _mis_hit(LT, S.mesh_light, pdf_l, pp, pd, ro)
+            _add(L, sl, _clamped((bt[0] * le[0] * w, bt[1] * le[1] * w, bt[2] * le[2] * w), S.clamp, segment))
+        # 3. shading frame and AOVs
+        if camera:
+            normal[sl, 0], normal[sl, 1], normal[sl, 2] = ns
+        kind = MT.kind[m]
+        if MT.two_sided[m]:
+            # Reflection-only materials are seen from both sides: turn the normals towards the
+            # viewer; where the shading normal still faces away, fall back to the geometric one.
+            if _dot(wi, ng) < 0.0:
+                ng = (-ng[0], -ng[1], -ng[2])
+                ns = (-ns[0], -ns[1], -ns[2])
+            if _dot(wi, ns) <= 0.0:
+                ns = ng
+        if G.has_normals:
+            ns = _valid_reflection_normal(wi, ns, ng)
+        tan = (G.tangent[pr, 0], G.tangent[pr, 1], G.tangent[pr, 2])
+        fs, ft = _frame(ns, tan)
+        wi_l = _local(fs, ft, ns, wi)
+        # 4a. light sample (shared with deferred lanes)
+        li = -1
+        sel_p = 0.0
+        wi_w = (0.0, 0.0, 1.0)
+        dist = 0.0
+        value = (0.0, 0.0, 0.0)
+        lpdf = 0.0
+        is_delta = True
+        live = False
+        wo_n = (0.0, 0.0, 1.0)
+        if can_nee:
+            li, sel_p = ld.select(LT, p, uniform(key[i], bounce_dim(segment, SLOT_LIGHT_PICK)))
+            if li >= 0 and sel_p > 0.0:
+                wi_w, dist, value, lpdf, is_delta = ld.sample(
+                    LT, TX, li, p, uniform(key[i], bounce_dim(segment, SLOT_LIGHT)),
+                    uniform(key[i], bounce_dim(segment, SLOT_LIGHT) + 1))
+                wo_n = _local(fs, ft, ns, wi_w)
+                live = max(value[0], max(value[1], value[2])) > 0.0 and _dot(wi_w, ng) * wo_n[2] > 0.0
+        if kind == km.DEFERRED:
+            k = counts[2]
+            df_lane[k] = i
+            for j in range(3):
+                df_frame[k, j] = fs[j]
+                df_frame[k, 3 + j] = ft[j]
+                df_frame[k, 6 + j] = ns[j]
+                df_frame[k, 9 + j] = p[j]
+                df_frame[k, 12 + j] = ng[j]
+                df_frame[k, 15 + j] = wi_l[j]
+                df_light[k, j] = wi_w[j]
+                df_light[k, 4 + j] = value[j]
+                df_light[k, 10 + j] = wo_n[j]
+            df_light[k, 3] = dist
+            df_light[k, 7] = lpdf
+            df_light[k, 8] = 1.0 if is_delta else 0.0
+            df_light[k, 9] = sel_p
+            df_light[k, 13] = 1.0 if (live and can_nee) else 0.0
+            df_frame[k, 18] = u
+            df_frame[k, 19] = v
+            df_frame[k, 20] = m
+            counts[2] = k + 1
+            continue
+        prm = km.bind(MT, TX, m, u, v)
+        dist_code = MT.dist[m]
+        mask_code = MT.masking[m]
+        if camera:
+            a = km.albedo(kind, prm)
+            albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = a
+        # 4b. next-event estimation
+        if live and not km.is_delta_only(kind, prm):
+            f, bpdf = km.eval_pdf(kind, dist_code, mask_code, prm, 0, wi_l, wo_n)
+            _nee(S, segment, sl, bt, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p, f, bpdf,
+                 sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
+        # 5. continuation
+        if not last:
+            wo, weight, spdf, sdelta = km.sample(
+                kind, dist_code, mask_code, prm, 0, wi_l,
+                uniform(key[i], bounce_dim(segment, SLOT_BSDF)),
+                uniform(key[i], bounce_dim(segment, SLOT_BSDF) + 1),
+                uniform(key[i], bounce_dim(segment, SLOT_BSDF_LOBE)))
+            if weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0:
+                _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
+                          spdf, sdelta, nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta,
+                          nx_pdf, nx_delta, counts)
+
+
+@njit(cache=True, _nrt=False)
+def finish_deferred(S, segment, df_lane, df_frame, df_light, f_nee, bsdf_pdf,
+                    s_wo, s_weight, s_pdf, s_delta, has_sample,
+                    slot, key, beta,
+                    nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta,
+                    sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts):
+    """Steps 4b and 5 for deferred lanes, from the layered BSDF's NEE value, pdf and sample."""
+    for k in range(df_lane.shape[0]):
+        i = df_lane[k]
+        sl = slot[i]
+        bt = (beta[i, 0], beta[i, 1], beta[i, 2])
+        fs = (df_frame[k, 0], df_frame[k, 1], df_frame[k, 2])
+        ft = (df_frame[k, 3], df_frame[k, 4], df_frame[k, 5])
+        ns = (df_frame[k, 6], df_frame[k, 7], df_frame[k, 8])
+        p = (df_frame[k, 9], df_frame[k, 10], df_frame[k, 11])
+        ng = (df_frame[k, 12], df_frame[k, 13], df_frame[k, 14])
+        if df_light[k, 13] > 0.0:
+            f = (f_nee[k, 0], f_nee[k, 1], f_nee[k, 2])
+            _nee(S, segment, sl, bt, p, ng, (df_light[k, 0], df_light[k, 1], df_light[k, 2]),
+                 df_light[k, 3], (df_light[k, 4], df_light[k, 5], df_light[k, 6]), df_light[k, 7],
+                 df_light[k, 8] > 0.0, df_light[k, 9], f, bsdf_pdf[k],
+                 sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
+        if has_sample:
+            wo = (s_wo[k, 0], s_wo[k, 1], s_wo[k, 2])
+            weight = (s_weight[k, 0], s_weight[k, 1], s_weight[k, 2])
+            if weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0:
+                _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
+                          s_pdf[k], s_delta[k], nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32,
+                          nx_beta, nx_pdf, nx_delta, counts)
+
+
+@njit(cache=True, _nrt=False)
+def add_unoccluded(sh_slot, sh_c, blocked, L):
+    """Shadow-ray contributions of the unblocked rays (embree's OCCLUDED answer: −1 = free)."""
+    for k in range(sh_slot.shape[0]):
+        if blocked[k] == -1:
+            _add(L, sh_slot[k], (sh_c[k, 0], sh_c[k, 1], sh_c[k, 2]))
+
+
+@njit(cache=True, _nrt=False)
+def pixel_sums(L, albedo, normal, alpha, npix, spp, out_sum, out_sq, out_alb, out_nrm, out_alpha):
+    """Per-pixel sums of the lanes (lanes of a pixel adjacent); non-finite samples dropped.
+    Returns the number dropped."""
+    bad = 0
+    for pix in range(npix):
+        for j in range(spp):
+            i = pix * spp + j
+            x, y, z = L[i, 0], L[i, 1], L[i, 2]
+            if math.isfinite(x) and math.isfinite(y) and math.isfinite(z):
+                out_sum[pix, 0] += x
+                out_sum[pix, 1] += y
+                out_sum[pix, 2] += z
+                out_sq[pix, 0] += x * x
+                out_sq[pix, 1] += y * y
+                out_sq[pix, 2] += z * z
+            else:
+                bad += 1
+            for c in range(3):
+                out_alb[pix, c] += albedo[i, c]
+                out_nrm[pix, c] += normal[i, c]
+            out_alpha[pix] += alpha[i]
+    return bad

@@ -1,0 +1,178 @@
+"""Materials as a typed parameter table, and per-lane dispatch to the BSDF kernels.
+
+``MaterialTable`` (one row per scene material):
+  kind      int32   DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK (emission only: reflects nothing) or
+                    DEFERRED (a multi-interface layered stack: shaded by backend/layered in NumPy
+                    until its own compiled port; the integrator hands these lanes over)
+  dist, masking     microfacet codes (kernels/microfacet.py)
+  two_sided bool    reflection-only materials are seen from both sides (the integrator turns the
+                    frame towards the viewer); transmissive ones are not flipped
+  emits     bool    the material has an ``emission``
+  values    float64 (M, NSLOT), tex int32 (M, NSLOT): texturable parameters (kernels/params.py),
+                    an RGB parameter takes three consecutive slots and its texture id sits in the
+                    first. Slot layout below (EMISSION is common to every kind).
+
+Per lane, ``bind`` evaluates a row's parameters at a UV into a fixed 12-tuple ``p`` (so every
+kind returns the same Numba type): diffuse (colour); conductor (eta, k, tint, αu, αv, smooth);
+dielectric (eta, tint, αu, αv, smooth). ``eval_pdf`` / ``sample`` / ``albedo`` dispatch on kind.
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+from .bsdf import conductor, dielectric, diffuse
+from .microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
+from .params import ParamPacker, param_rgb, param_scalar
+
+DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK, DEFERRED = 0, 1, 2, 3, 4
+NSLOT = 16
+EMISSION = 0                 # RGB, every kind
+COLOR = 3                    # diffuse: RGB albedo
+ETA, K, TINT, AU, AV = 3, 6, 9, 12, 13         # conductor: relative eta, k (RGB), tint, α
+D_ETA, D_TINT, D_AU, D_AV = 3, 4, 7, 8           # dielectric: relative eta, transmission colour, α
+
+MaterialTable = namedtuple("MaterialTable", ["kind", "dist", "masking", "two_sided", "emits",
+                                             "values", "tex"])
+
+
+class MaterialRow:
+    """One material's row while the table is built (see ``Material.pack``)."""
+
+    def __init__(self, packer: ParamPacker):
+        self.packer = packer
+        self.kind = BLACK
+        self.dist = 0
+        self.masking = 0
+        self.two_sided = True
+        self.emits = False
+        self.values = np.zeros(NSLOT)
+        self.tex = np.full(NSLOT, -1, np.int32)
+
+    def set(self, slot: int, param, channels: int, factor=1.0) -> None:
+        values, tex = self.packer.pack(param, channels, factor)
+        self.values[slot:slot + channels] = values
+        self.tex[slot] = tex
+
+    def microfacet(self, distribution: str, masking: str) -> None:
+        self.dist = DISTRIBUTION_CODES[distribution]
+        self.masking = MASKING_CODES[masking]
+
+
+def build_material_table(materials: list, packer: ParamPacker) -> MaterialTable:
+    rows = []
+    for m in materials:
+        row = MaterialRow(packer)
+        m.pack(row)
+        row.two_sided = bool(m.two_sided)
+        if getattr(m, "emission", None) is not None:
+            row.set(EMISSION, m.emission, 3)
+            row.emits = True
+        rows.append(row)
+    if not rows:
+        rows.append(MaterialRow(packer))
+    return MaterialTable(np.array([r.kind for r in rows], np.int32), np.array([r.dist for r in rows], np.int32),
+                         np.array([r.masking for r in rows], np.int32), np.array([r.two_sided for r in rows]),
+                         np.array([r.emits for r in rows]), np.stack([r.values for r in rows]),
+                         np.stack([r.tex for r in rows]))
+
+
+@njit(cache=True, _nrt=False)
+def _rgb(mt, tx, m, slot, u, v):
+    # Elements, not a slice: a view would take a reference (an atomic increment) per call.
+    vals = mt.values
+    return param_rgb(tx, (vals[m, slot], vals[m, slot + 1], vals[m, slot + 2]), mt.tex[m, slot], u, v)
+
+
+@njit(cache=True, _nrt=False)
+def _scalar(mt, tx, m, slot, u, v):
+    return param_scalar(tx, mt.values[m, slot], mt.tex[m, slot], u, v)
+
+
+@njit(cache=True, _nrt=False)
+def emission(mt, tx, m, u, v):
+    """Emitted radiance [W m⁻² sr⁻¹] of material m at (u, v), both faces."""
+    if not mt.emits[m]:
+        return (0.0, 0.0, 0.0)
+    return _rgb(mt, tx, m, EMISSION, u, v)
+
+
+@njit(cache=True, _nrt=False)
+def bind(mt, tx, m, u, v):
+    """The 12-tuple of lane parameters (see the module docstring)."""
+    kind = mt.kind[m]
+    if kind == DIFFUSE:
+        c = _rgb(mt, tx, m, COLOR, u, v)
+        return (c[0], c[1], c[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    if kind == CONDUCTOR:
+        e = _rgb(mt, tx, m, ETA, u, v)
+        k = _rgb(mt, tx, m, K, u, v)
+        t = _rgb(mt, tx, m, TINT, u, v)
+        au = _scalar(mt, tx, m, AU, u, v)
+        av = _scalar(mt, tx, m, AV, u, v)
+        smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
+        return (e[0], e[1], e[2], k[0], k[1], k[2], t[0], t[1], t[2],
+                max(au, ALPHA_MIN), max(av, ALPHA_MIN), smooth)
+    if kind == DIELECTRIC:
+        # A texture may hold 0 (texels are clamped to the range's closed end): keep the index
+        # positive so 1/eta stays finite.
+        eta = max(_scalar(mt, tx, m, D_ETA, u, v), 1e-4)
+        t = _rgb(mt, tx, m, D_TINT, u, v)
+        au = _scalar(mt, tx, m, D_AU, u, v)
+        av = _scalar(mt, tx, m, D_AV, u, v)
+        smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
+        return (eta, t[0], t[1], t[2], max(au, ALPHA_MIN), max(av, ALPHA_MIN), smooth,
+                0.0, 0.0, 0.0, 0.0, 0.0)
+    return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@njit(cache=True)
+def is_delta_only(kind, p):
+    """Every lobe is a delta (no light sampling needed): smooth metals and glass, black."""
+    if kind == CONDUCTOR:
+        return p[11] > 0.0
+    if kind == DIELECTRIC:
+        return p[6] > 0.0
+    return kind == BLACK
+
+
+@njit(cache=True)
+def eval_pdf(kind, dist, masking, p, mode, wi, wo):
+    """(f·|cos θo| RGB, pdf) of the non-delta part."""
+    if kind == DIFFUSE:
+        return diffuse.eval_pdf((p[0], p[1], p[2]), wi, wo)
+    if kind == CONDUCTOR:
+        return conductor.eval_pdf((p[0], p[1], p[2]), (p[3], p[4], p[5]), (p[6], p[7], p[8]),
+                                  p[9], p[10], p[11] > 0.0, dist, masking, wi, wo)
+    if kind == DIELECTRIC:
+        return dielectric.eval_pdf(p[0], (p[1], p[2], p[3]), p[4], p[5], p[6] > 0.0, dist, masking,
+                                   mode, wi, wo)
+    return (0.0, 0.0, 0.0), 0.0
+
+
+@njit(cache=True)
+def sample(kind, dist, masking, p, mode, wi, u0, u1, u2):
+    """(wo, weight RGB, pdf, is_delta); weight 0 ends the path."""
+    if kind == DIFFUSE:
+        return diffuse.sample((p[0], p[1], p[2]), wi, u0, u1)
+    if kind == CONDUCTOR:
+        return conductor.sample((p[0], p[1], p[2]), (p[3], p[4], p[5]), (p[6], p[7], p[8]),
+                                p[9], p[10], p[11] > 0.0, dist, masking, wi, u0, u1)
+    if kind == DIELECTRIC:
+        return dielectric.sample(p[0], (p[1], p[2], p[3]), p[4], p[5], p[6] > 0.0, dist, masking,
+                                 mode, wi, u0, u1, u2)
+    return (0.0, 0.0, 1.0 if wi[2] >= 0.0 else -1.0), (0.0, 0.0, 0.0), 0.0, False
+
+
+@njit(cache=True)
+def albedo(kind, p):
+    """RGB reflectance estimate for the denoising AOV."""
+    if kind == DIFFUSE:
+        return (p[0], p[1], p[2])
+    if kind == CONDUCTOR:
+        return conductor.albedo((p[0], p[1], p[2]), (p[3], p[4], p[5]), (p[6], p[7], p[8]))
+    if kind == DIELECTRIC:
+        return (p[1], p[2], p[3])
+    return (0.0, 0.0, 0.0)
