@@ -66,13 +66,16 @@ class FilmAccumulator:
         self.alpha = np.zeros(n)
         self.transparent = False   # set from the scene: alpha = coverage instead of 1
 
-    def add(self, pixels: np.ndarray, result: dict) -> None:
-        self.sum[pixels] += result["sum"]
-        self.sum_sq[pixels] += result["sum_sq"]
-        self.albedo[pixels] += result["albedo"]
-        self.normal[pixels] += result["normal"]
-        self.count[pixels] += result["count"]
-        self.alpha[pixels] += result["alpha"]
+    def add(self, pixels: np.ndarray, result: dict) -> int:
+        """Add a work item's per-lane samples (``result["lanes"]``: radiance, albedo, normal,
+        alpha; ``result["spp"]`` samples per pixel, lanes of a pixel adjacent). Returns the number
+        of non-finite samples dropped. Sample by sample, so the image does not depend on how the
+        work was cut (kernels/film.py)."""
+        from .kernels.film import accumulate
+        L, albedo, normal, alpha = result["lanes"]
+        return int(accumulate(self.sum, self.sum_sq, self.albedo, self.normal, self.alpha, self.count,
+                              np.ascontiguousarray(pixels, np.int64), int(result["spp"]),
+                              L, albedo, normal, alpha))
 
     def _mean(self, a: np.ndarray) -> np.ndarray:
         c = np.maximum(self.count, 1)[:, None]

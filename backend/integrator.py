@@ -90,7 +90,8 @@ class PathTracer:
     # ------------------------------------------------------------------ work item
     def render(self, pixels: np.ndarray, spp: int, rng: np.random.Generator, sample0: int = 0) -> dict:
         """``spp`` samples (indices sample0 …) in each of ``pixels`` (flat, row 0 = top).
-        Returns per-pixel sums. ``rng`` feeds the layered BSDF's NumPy walks only."""
+        Returns the per-lane samples (lane i: sample i % spp of pixel i // spp) for
+        ``FilmAccumulator.add``. ``rng`` feeds the layered BSDF's NumPy walks only."""
         scene = self.scene
         W, H = scene.width, scene.height
         P = pixels.size
@@ -121,6 +122,7 @@ class PathTracer:
             df = (np.empty(0, np.int64), np.empty((0, 21)), np.empty((0, 14)))
         counts = np.zeros(5, np.int64)
         killed = 0
+        rays = 0
         active = n
         for segment in range(self.max_segments):
             if active == 0:
@@ -128,6 +130,7 @@ class PathTracer:
             o32, d32 = cur.o32[:active], cur.d32[:active]
             t_in = tmax32[:active] if segment == 0 else np.full(active, 3e38, np.float32)
             prim, t, b1, b2 = self.accel.intersect32(o32, d32, t_in)
+            rays += active
             if segment == 0 and self.any_hidden:
                 prim, t, b1, b2 = self._skip_hidden(o32, d32, t_in, prim, t, b1, b2)
             counts[:] = 0
@@ -142,20 +145,15 @@ class PathTracer:
             ns = int(counts[1])
             if ns:
                 blocked = self.accel.occluded32(sh_o32[:ns], sh_d32[:ns], sh_t32[:ns])
+                rays += ns
                 ki.add_unoccluded(sh_slot[:ns], sh_c[:ns], blocked, L)
             killed += int(counts[3])
             active = int(counts[0])
             cur, nxt = nxt, cur
         if killed:
             stats.add("paths_nonfinite_killed", killed)
-        out = {"sum": np.zeros((P, 3)), "sum_sq": np.zeros((P, 3)), "albedo": np.zeros((P, 3)),
-               "normal": np.zeros((P, 3)), "alpha": np.zeros(P)}
-        bad = ki.pixel_sums(L, albedo, normal, alpha, P, spp, out["sum"], out["sum_sq"],
-                            out["albedo"], out["normal"], out["alpha"])
-        if bad:
-            stats.add("samples_nonfinite_dropped", int(bad))
-        out["count"] = np.full(P, spp, dtype=np.int64)
-        return out
+        # Per-lane samples: the film adds them in sample order (kernels/film.py).
+        return {"lanes": (L, albedo, normal, alpha), "spp": spp, "rays": rays}
 
     # ------------------------------------------------------------------ layered lanes
     def _shade_deferred(self, segment, m, df, cur, active, nxt, shadow, counts, albedo, rng):

@@ -10,8 +10,13 @@ Adaptive sampling (``noise_target`` > 0): after every round the master marks pix
 standard error of the mean is below the target (and that have ``min_spp`` samples) as converged;
 later rounds only trace the others.
 
-Workers are separate processes (embreex holds the GIL), started with the portable ``spawn``
-method; each loads the scene and builds its own embree scene once.
+Parallelism (``RenderOptions.parallel``):
+* ``"threads"`` (default): worker threads of this process share one scene, one embree BVH and
+  one set of compiled kernels. embree's ``run()`` and the compiled kernels (``nogil``) release
+  the GIL, so analytic scenes scale with cores without loading anything twice.
+* ``"processes"``: worker processes (``spawn``), each loading the scene and building its own
+  embree scene; for scenes dominated by the layered BSDF's NumPy walks, which hold the GIL.
+Kernels are compiled (or loaded from the cache) once, before any worker starts.
 """
 from __future__ import annotations
 
@@ -43,6 +48,7 @@ class RenderOptions:
     min_spp: int | None = None
     max_bounces: int | None = None
     resolution: tuple[int, int] | None = None
+    parallel: str | None = None          # "threads" | "processes" | None (the scene's choice)
 
     def apply(self, scene) -> None:
         s = scene.settings
@@ -109,12 +115,13 @@ def _render_item(item) -> tuple:
     # Only the layered BSDF's NumPy walks draw from this generator; everything else uses the
     # counter-based numbers keyed by (seed, pixel, sample, dimension).
     rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, *key])))
-    rays0 = accel.rays_traced
-    t0 = time.process_time()
+    # Per-thread CPU time: items may run on threads of one process (with one thread per worker
+    # process it equals the process's time).
+    t0 = time.thread_time()
     result = tracer.render(pixels, spp, rng, sample0)
     info = stats.take()
-    info["rays"] = info.get("rays", 0) + accel.rays_traced - rays0
-    info["cpu_time"] = time.process_time() - t0
+    info["rays"] = info.get("rays", 0) + result.pop("rays")
+    info["cpu_time"] = time.thread_time() - t0
     info["paths"] = int(pixels.size) * spp
     return key, result, info
 
@@ -185,16 +192,24 @@ class Renderer:
         planned_samples = all_pixels.size * spp
         spp_done = 0
         interrupted = False
-        self.on_progress({"event": "start", "width": W, "height": H, "spp": spp, "workers": workers})
+        from .kernels.cache import ensure_compiled
+        ensure_compiled(self.on_progress)
+        parallel = self.options.parallel or default_parallel(scene)
+        self.on_progress({"event": "start", "width": W, "height": H, "spp": spp, "workers": workers,
+                          "parallel": parallel})
 
         executor = None
-        if workers > 1:
+        if workers > 1 and parallel == "processes":
             executor = ProcessPoolExecutor(max_workers=workers, mp_context=_spawn_context(),
                                            initializer=_init_worker, initargs=(self.source, self.options))
             mapper = executor.map
         else:
             _setup_local(self.source, self.options, scene)
             mapper = map
+            if workers > 1:
+                from concurrent.futures import ThreadPoolExecutor
+                executor = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="lamina-render")
+                mapper = executor.map
         try:
             for r in range(rounds):
                 if self._stop:                     # a stop request between two passes
@@ -208,7 +223,9 @@ class Renderer:
                 items = plan_round(active, this_block, r, s.seed, r * block)
                 for key, result, info in mapper(_render_item, items):
                     band = items[key[1]][1]
-                    film.add(band, result)
+                    dropped = film.add(band, result)
+                    if dropped:
+                        info["samples_nonfinite_dropped"] = info.get("samples_nonfinite_dropped", 0) + dropped
                     stats.merge(totals, info)
                     done_samples += band.size * this_block
                     now = time.perf_counter()
@@ -246,13 +263,23 @@ class Renderer:
             interrupted = True
         finally:
             if executor is not None:
-                executor.shutdown(wait=not (self._stop or interrupted), cancel_futures=True)
-                if self._stop or interrupted:
+                threads = parallel != "processes"
+                # Threads cannot be killed: wait for the items they are on (each is short).
+                executor.shutdown(wait=threads or not (self._stop or interrupted), cancel_futures=True)
+                if (self._stop or interrupted) and not threads:
                     _terminate_pool(executor)
         elapsed = time.perf_counter() - t_start
         totals["master_cpu_time"] = time.process_time() - cpu_start
         return RenderResult(film, spp_done, elapsed, totals.get("cpu_time", 0.0), interrupted, totals,
                             list(scene.warnings))
+
+
+def default_parallel(scene) -> str:
+    """Threads share everything and scale when the work is compiled; multi-interface layered
+    stacks still run NumPy walks that hold the GIL, so scenes with them use processes."""
+    layered = any(getattr(m, "interfaces", None) is not None and len(m.interfaces) > 1
+                  for m in scene.materials)
+    return "processes" if layered else "threads"
 
 
 def _spawn_context():

@@ -116,10 +116,14 @@ class ProgressPrinter:
                 sys.stderr.flush()
             elif kind in ("warning",):
                 sys.stderr.write(f"warning: {event['message']}\n")
+            elif kind in ("compiling", "compiled"):
+                sys.stderr.write(event["message"] + "\n")
             elif kind == "done":
                 sys.stderr.write("\n")
         elif event.get("event") == "warning":
             sys.stderr.write(f"warning: {event['message']}\n")
+        elif event.get("event") in ("compiling", "compiled"):
+            sys.stderr.write(event["message"] + "\n")
 
 
 def cmd_render(args) -> int:

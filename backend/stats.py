@@ -1,23 +1,34 @@
-"""Process-wide counters (a statistic, never silent): walk-cap hits, NaN samples dropped, rays.
+"""Per-thread counters (a statistic, never silent): walk-cap hits, NaN samples dropped, rays.
 
-Workers return a snapshot with each work item; the master sums them into the render report.
+Each work item's counters are taken by the thread that rendered it and returned with its result;
+the master sums them into the render report. Thread-local, so render threads sharing one process
+never take each other's counts.
 """
 from __future__ import annotations
 
+import threading
 from collections import Counter
 
-_COUNTS: Counter = Counter()
+_LOCAL = threading.local()
+
+
+def _counts() -> Counter:
+    c = getattr(_LOCAL, "counts", None)
+    if c is None:
+        c = _LOCAL.counts = Counter()
+    return c
 
 
 def add(name: str, value: int | float = 1) -> None:
     if value:
-        _COUNTS[name] += value
+        _counts()[name] += value
 
 
 def take() -> dict:
-    """Return and reset the counters of this process."""
-    out = dict(_COUNTS)
-    _COUNTS.clear()
+    """Return and reset the counters of this thread."""
+    c = _counts()
+    out = dict(c)
+    c.clear()
     return out
 
 

@@ -4,8 +4,10 @@
     python tools/build_extension.py [--platform linux-x64 ...] [--python 3.11 ...]
                                     [--split-platforms] [--no-wheels] [--output-dir build/dist]
 
-Steps: download the embreex wheels (never numpy: Blender's own numpy is used) into
-build/wheels/ with ``pip download --no-deps --only-binary=:all:``; stage the repository into
+Steps: download the wheels of the compiled dependencies — embreex (ray casting), numba and
+llvmlite (the compiled render kernels), at the versions pinned in requirements.txt; never numpy:
+Blender's own numpy is used — into build/wheels/ with ``pip download --no-deps
+--only-binary=:all:``; stage the repository into
 build/stage/ filtered by the manifest's ``paths_exclude_pattern``, with the wheels and a manifest
 that lists them; build with ``blender_ext.py build`` and check with ``blender_ext.py validate``
 (the script ships inside the bpy module and Blender, and runs without a Blender binary).
@@ -24,7 +26,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 BUILD = ROOT / "build"
-EMBREEX = "embreex==4.4.0.post1"
+BUNDLED = ("embreex", "numba", "llvmlite")     # wheels the extension ships (pins: requirements.txt)
 
 # Blender platform → pip platform tag of the embreex wheels (checked 2026-11: no macOS x64
 # wheel exists for embreex 4.x, and the arm64 one needs macOS ≥ 13).
@@ -65,9 +67,18 @@ def load_blender_ext(path: Path):
     return module
 
 
-def wheel_for(folder: Path, platform: str, python: str) -> Path | None:
+def pinned(package: str) -> str:
+    """``package==version`` as pinned in requirements.txt (one source of truth)."""
+    for line in (ROOT / "requirements.txt").read_text().splitlines():
+        if line.split("==")[0].strip().lower() == package.lower():
+            return line.strip()
+    raise SystemExit(f"error: {package} is not pinned in requirements.txt")
+
+
+def wheel_for(folder: Path, package: str, platform: str, python: str) -> Path | None:
     tag = "cp" + python.replace(".", "")
-    hits = sorted(folder.glob(f"embreex-*-{tag}-{tag}-{WHEEL_PATTERNS[platform]}"))
+    version = pinned(package).split("==")[1]
+    hits = sorted(folder.glob(f"{package}-{version}-{tag}-{tag}-{WHEEL_PATTERNS[platform]}"))
     return hits[-1] if hits else None
 
 
@@ -76,22 +87,23 @@ def download_wheels(platforms, pythons, folder: Path, allow_missing: bool) -> li
     wheels = []
     for platform in platforms:
         for python in pythons:
-            found = wheel_for(folder, platform, python)
-            if found is None:
-                print(f"[build] downloading embreex for {platform}, Python {python}", flush=True)
-                cmd = [sys.executable, "-m", "pip", "download", EMBREEX, "--no-deps",
-                       "--only-binary=:all:", "--platform", PIP_PLATFORMS[platform],
-                       "--python-version", python, "-d", str(folder), "-q",
-                       "--disable-pip-version-check"]
-                code = subprocess.call(cmd)
-                found = wheel_for(folder, platform, python)
-                if code != 0 or found is None:
-                    message = f"no embreex wheel for {platform} / Python {python}"
-                    if not allow_missing:
-                        raise SystemExit(f"error: {message} (use --allow-missing-wheels to build without)")
-                    print(f"[build] warning: {message}; the zip will not include it", flush=True)
-                    continue
-            wheels.append(found)
+            for package in BUNDLED:
+                found = wheel_for(folder, package, platform, python)
+                if found is None:
+                    print(f"[build] downloading {package} for {platform}, Python {python}", flush=True)
+                    cmd = [sys.executable, "-m", "pip", "download", pinned(package), "--no-deps",
+                           "--only-binary=:all:", "--platform", PIP_PLATFORMS[platform],
+                           "--python-version", python, "-d", str(folder), "-q",
+                           "--disable-pip-version-check"]
+                    code = subprocess.call(cmd)
+                    found = wheel_for(folder, package, platform, python)
+                    if code != 0 or found is None:
+                        message = f"no {package} wheel for {platform} / Python {python}"
+                        if not allow_missing:
+                            raise SystemExit(f"error: {message} (use --allow-missing-wheels to build without)")
+                        print(f"[build] warning: {message}; the zip will not include it", flush=True)
+                        continue
+                wheels.append(found)
     return wheels
 
 
@@ -149,7 +161,8 @@ def main(argv=None) -> int:
     parser.add_argument("--python", action="append", choices=PYTHONS,
                         help="Python version of the target Blender (repeatable; default: 3.11 and 3.13)")
     parser.add_argument("--split-platforms", action="store_true", help="one zip per platform")
-    parser.add_argument("--no-wheels", action="store_true", help="do not bundle embreex wheels")
+    parser.add_argument("--no-wheels", action="store_true",
+                        help="do not bundle the embreex, numba and llvmlite wheels")
     parser.add_argument("--allow-missing-wheels", action="store_true",
                         help="build even if a wheel cannot be downloaded (offline)")
     parser.add_argument("--output-dir", default=str(BUILD / "dist"))

@@ -46,12 +46,18 @@ def _keep_files() -> bool:
     return bool(prefs and prefs.keep_files)
 
 
-def _preset_env() -> dict:
+def _user_env() -> dict:
+    """Where the backend finds user presets and caches its compiled kernels: the extension's user
+    folder (never the install folder, which an update replaces and may be read-only)."""
+    env = {}
     try:
-        folder = bpy.utils.extension_path_user(preferences.ADDON_ID, path="presets", create=False)
+        env["LAMINA_PRESET_PATH"] = bpy.utils.extension_path_user(preferences.ADDON_ID, path="presets",
+                                                                  create=False)
+        env["LAMINA_KERNEL_CACHE"] = bpy.utils.extension_path_user(preferences.ADDON_ID, path="kernels",
+                                                                   create=True)
     except (ValueError, RuntimeError, TypeError):   # not installed as an extension (development)
-        return {}
-    return {"LAMINA_PRESET_PATH": folder}
+        pass
+    return env
 
 
 def _format_seconds(seconds: float) -> str:
@@ -180,7 +186,7 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         self.end_result(result)
 
     def _run(self, cmd, result, partial: Path, rect, height: int) -> str:
-        env = child_environment(_preset_env())
+        env = child_environment(_user_env())
         self.job = job = BackendJob(cmd, env=env)
         error = None
         warnings: list[str] = []
@@ -200,6 +206,9 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
                     warnings.append(str(event.get("message", "")))
                 elif kind == "error":
                     error = str(event.get("message", "render failed"))
+                elif kind == "compiling":
+                    # First render after installing or updating: the kernels compile once.
+                    self.update_stats("", "Lamina | Compiling render kernels (first run only)")
                 elif kind == "start":
                     self.update_stats("", f"Lamina | Rendering {event.get('width')}×{event.get('height')}, "
                                           f"{event.get('spp')} samples, {event.get('workers')} workers")

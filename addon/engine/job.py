@@ -2,8 +2,8 @@
 
 No bpy here (tested on its own). The child is ``<python> -m backend render ... --progress json``
 (docs/cli.md) with ``PYTHONPATH`` naming the extension folder (for ``backend``) and the folders
-the parent found numpy, embreex and OpenImageIO in — Blender's Python does not search the
-extensions' wheel folder by itself. The child gets its own process group, so cancelling can end
+the parent found numpy, embreex, OpenImageIO, numba and llvmlite in — Blender's Python does not
+search the extensions' wheel folder by itself. The child gets its own process group, so cancelling can end
 it *and* its worker processes: a polite SIGTERM first (the backend writes what is done), then
 SIGKILL to the whole group after a short grace period. No orphan survives a cancel.
 
@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 EXTENSION_ROOT = Path(__file__).resolve().parent.parent.parent   # holds backend/
-DEPENDENCIES = ("numpy", "embreex", "OpenImageIO")
+DEPENDENCIES = ("numpy", "embreex", "OpenImageIO", "numba", "llvmlite")
 GRACE_SECONDS = 1.0      # after SIGTERM, before the process group is killed
 POLL_STEP = 0.02         # seconds between reads of the output files while poll() waits
 STDERR_LINES = 200       # the tail of stderr kept for failure messages

@@ -154,7 +154,12 @@ def backend_environment() -> dict:
     """The environment of a backend child process: its import paths and the user preset folder."""
     from ..engine.job import child_environment          # bpy-free; engine ranks above presets
     user = user_dir()
-    return child_environment({"LAMINA_PRESET_PATH": str(user)} if user is not None else None)
+    extra = {}
+    if user is not None:
+        extra["LAMINA_PRESET_PATH"] = str(user)
+        # Compiled kernels are cached next to the presets, in the extension's user folder.
+        extra["LAMINA_KERNEL_CACHE"] = str(user.parent / "kernels")
+    return child_environment(extra or None)
 
 
 def validate(path: Path) -> list[str]:

@@ -54,11 +54,27 @@ def source_key() -> str:
     return digest.hexdigest()[:16]
 
 
+def _import_numba():
+    """numba, or one clear error naming the fix (never a traceback, never a black image)."""
+    try:
+        import llvmlite  # noqa: F401
+        import numba
+    except Exception as exc:  # noqa: BLE001 - ImportError, or a broken binary (OSError)
+        from ..errors import LaminaError
+        raise LaminaError(
+            f"the compiled render kernels need Numba, which could not be imported into "
+            f"{sys.executable} ({type(exc).__name__}: {exc}). Fix: in Blender, install the Lamina "
+            f"extension zip built for your platform (it bundles numba and llvmlite); elsewhere, "
+            f"install the pinned versions with `python -m pip install numba==0.68.1 llvmlite==0.50.0` "
+            f"(see requirements.txt)") from None
+    return numba
+
+
 def configure() -> Path:
     """Point Numba's cache at the keyed folder (idempotent). Returns the folder."""
     if _STATE["dir"] is not None:
         return _STATE["dir"]
-    import numba
+    numba = _import_numba()
     key = source_key()
     folder = user_cache_root() / key
     try:
@@ -83,17 +99,22 @@ def is_warm() -> bool:
     return marker().exists()
 
 
-def ensure_compiled(announce=None) -> float:
+def _print_event(event: dict) -> None:
+    print(event["message"], file=sys.stderr, flush=True)
+
+
+def ensure_compiled(on_event=None) -> float:
     """Compile (or load) every render kernel once per process, before worker processes start.
 
-    On a cold cache prints one line through ``announce`` (default: stderr) before and one after,
-    with the time taken, and marks the folder warm. Returns the seconds spent (0 when warm)."""
+    On a cold cache reports ``{"event": "compiling", "message": ...}`` before and
+    ``{"event": "compiled", "seconds": s, "message": ...}`` after through ``on_event`` (default:
+    one line each on stderr), and marks the folder warm. Returns the seconds spent (0 when warm)."""
     if _STATE.get("compiled"):
         return 0.0
-    say = announce or (lambda msg: print(msg, file=sys.stderr, flush=True))
+    emit = on_event or _print_event
     cold = not is_warm()
     if cold:
-        say("compiling render kernels (first run only) ...")
+        emit({"event": "compiling", "message": "compiling render kernels (first run only) ..."})
     t0 = time.perf_counter()
     from .warmup import warm_up
     warm_up()
@@ -104,5 +125,6 @@ def ensure_compiled(announce=None) -> float:
             marker().write_text(f"{elapsed:.1f}\n")
         except OSError:
             pass
-        say(f"compiled render kernels in {elapsed:.1f} s (cached in {configure()})")
+        emit({"event": "compiled", "seconds": round(elapsed, 1),
+              "message": f"compiled render kernels in {elapsed:.1f} s (cached in {configure()})"})
     return elapsed if cold else 0.0

@@ -136,7 +136,7 @@ def filter_batch(cdf, grid, width, u, out):
         out[i, 1] = filter_offset(cdf, grid, width, u[i, 1])
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, nogil=True)
 def camera_rays(cam, cdf, grid, fwidth, width, height, seed, pixels, spp, sample0,
                 key, o, d, o32, d32, tmax32):
     """The primary rays of a work item: lane i is sample ``sample0 + i % spp`` of pixel

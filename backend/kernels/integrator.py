@@ -226,7 +226,7 @@ def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, de
     counts[0] = k + 1
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, nogil=True)
 def shade(G, MT, TX, LT, S, segment,
           slot, key, o, d, beta, prev_pdf, prev_delta, tmax32, prim, t32, b1_32, b2_32,
           L, albedo, normal, alpha,
@@ -388,7 +388,7 @@ def shade(G, MT, TX, LT, S, segment,
                           nx_pdf, nx_delta, counts)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, nogil=True)
 def finish_deferred(S, segment, df_lane, df_frame, df_light, f_nee, bsdf_pdf,
                     s_wo, s_weight, s_pdf, s_delta, has_sample,
                     slot, key, beta,
@@ -419,34 +419,9 @@ def finish_deferred(S, segment, df_lane, df_frame, df_light, f_nee, bsdf_pdf,
                           nx_beta, nx_pdf, nx_delta, counts)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, nogil=True)
 def add_unoccluded(sh_slot, sh_c, blocked, L):
     """Shadow-ray contributions of the unblocked rays (embree's OCCLUDED answer: −1 = free)."""
     for k in range(sh_slot.shape[0]):
         if blocked[k] == -1:
             _add(L, sh_slot[k], (sh_c[k, 0], sh_c[k, 1], sh_c[k, 2]))
-
-
-@njit(cache=True, _nrt=False)
-def pixel_sums(L, albedo, normal, alpha, npix, spp, out_sum, out_sq, out_alb, out_nrm, out_alpha):
-    """Per-pixel sums of the lanes (lanes of a pixel adjacent); non-finite samples dropped.
-    Returns the number dropped."""
-    bad = 0
-    for pix in range(npix):
-        for j in range(spp):
-            i = pix * spp + j
-            x, y, z = L[i, 0], L[i, 1], L[i, 2]
-            if math.isfinite(x) and math.isfinite(y) and math.isfinite(z):
-                out_sum[pix, 0] += x
-                out_sum[pix, 1] += y
-                out_sum[pix, 2] += z
-                out_sq[pix, 0] += x * x
-                out_sq[pix, 1] += y * y
-                out_sq[pix, 2] += z * z
-            else:
-                bad += 1
-            for c in range(3):
-                out_alb[pix, c] += albedo[i, c]
-                out_nrm[pix, c] += normal[i, c]
-            out_alpha[pix] += alpha[i]
-    return bad

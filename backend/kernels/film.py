@@ -1,0 +1,39 @@
+"""Adding a work item's samples to the film, one sample at a time in sample-index order.
+
+Each pixel's sums are accumulated sample by sample (sample 0, 1, 2, … of that pixel), never as
+partial sums of a work item added together: floating-point addition is not associative, and
+this order is the only one that does not depend on how samples were grouped into work items,
+rounds (adaptive or not), batches or workers. So the same seed and sample count give a
+bit-identical image however the work was cut. A non-finite sample (NaN/Inf in any channel) is
+dropped (it adds 0 and is counted).
+"""
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+
+@njit(cache=True, _nrt=False, nogil=True)
+def accumulate(f_sum, f_sq, f_alb, f_nrm, f_alpha, f_count, pixels, spp, L, albedo, normal, alpha):
+    """Lane i is sample i % spp of pixels[i // spp] (lanes of a pixel adjacent, in sample order).
+    Returns the number of non-finite samples dropped."""
+    bad = 0
+    for i in range(L.shape[0]):
+        pix = pixels[i // spp]
+        x, y, z = L[i, 0], L[i, 1], L[i, 2]
+        if math.isfinite(x) and math.isfinite(y) and math.isfinite(z):
+            f_sum[pix, 0] += x
+            f_sum[pix, 1] += y
+            f_sum[pix, 2] += z
+            f_sq[pix, 0] += x * x
+            f_sq[pix, 1] += y * y
+            f_sq[pix, 2] += z * z
+        else:
+            bad += 1
+        for c in range(3):
+            f_alb[pix, c] += albedo[i, c]
+            f_nrm[pix, c] += normal[i, c]
+        f_alpha[pix] += alpha[i]
+        f_count[pix] += 1
+    return bad

@@ -1,0 +1,158 @@
+"""The compiled-kernel infrastructure: counter-based random numbers, images that do not depend on
+how the work is cut, the kernel cache (keyed by version, announced once) and a clear error when
+Numba is missing."""
+from __future__ import annotations
+
+import copy
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import stats as sps
+
+from backend.kernels import cache
+from backend.kernels.rng import fill_uniform
+from render_util import IDENTITY, front_perspective, render, scene
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+# --------------------------------------------------------------------------- random numbers
+
+def _numbers(n=200_000, dims=24, seed=7, pixel_stride=1):
+    pixels = (np.arange(n, dtype=np.int64) // 16) * pixel_stride
+    samples = np.arange(n, dtype=np.int64) % 16
+    out = np.empty((n, dims))
+    fill_uniform(np.uint64(seed), pixels, samples, 0, out)
+    return out
+
+
+def test_uniform_numbers_are_uniform_and_pairwise_independent():
+    u = _numbers()
+    assert u.min() >= 0.0 and u.max() < 1.0
+    # 1-D: chi-square over 64 bins for every dimension (Šidák-corrected level for 24 tests).
+    level = 1 - (1 - 0.01) ** (1 / 30)
+    for d in range(u.shape[1]):
+        counts = np.bincount((u[:, d] * 64).astype(int), minlength=64)
+        assert sps.chisquare(counts).pvalue > level, d
+    # 2-D: neighbouring and distant dimension pairs, 16×16 cells.
+    for a, b in [(0, 1), (4, 5), (3, 17), (10, 23), (2, 6), (5, 11)]:
+        cells = (u[:, a] * 16).astype(int) * 16 + (u[:, b] * 16).astype(int)
+        counts = np.bincount(cells, minlength=256)
+        assert sps.chisquare(counts).pvalue > level, (a, b)
+
+
+def test_numbers_depend_on_every_key_and_nothing_else():
+    a = _numbers(4096, 4)
+    assert np.array_equal(a, _numbers(4096, 4))                      # deterministic
+    assert not np.any(a == _numbers(4096, 4, seed=8))                # seed
+    assert not np.any(a[16:] == _numbers(4096, 4, pixel_stride=3)[16:])  # pixel (0·3 = 0)
+    # Adjacent samples of a pixel and adjacent pixels are uncorrelated.
+    u = _numbers(100_000, 2)
+    r = np.corrcoef(u[:-1, 0], u[1:, 0])[0, 1]
+    assert abs(r) < 4 / np.sqrt(u.shape[0])
+    assert len(np.unique(u[:, 0])) == u.shape[0]                     # no repeats in 1e5
+
+
+# --------------------------------------------------------------------------- determinism
+
+def _mixed_scene(spp=12):
+    materials = {"white": {"type": "diffuse", "color": [0.7, 0.7, 0.7]},
+                 "gold": {"type": "conductor", "metal": "Au", "roughness": 0.3},
+                 "glass": {"type": "dielectric", "ior": 1.5, "roughness": 0.2}}
+    meshes = {"floor": {"shape": "rectangle", "size": [6, 6]},
+              "ball": {"shape": "sphere", "radius": 0.5, "segments": 24}}
+    objects = [{"name": "floor", "mesh": "floor", "materials": ["white"]},
+               {"name": "a", "mesh": "ball", "materials": ["gold"],
+                "to_world": [[1, 0, 0, -0.6], [0, 1, 0, 0], [0, 0, 1, 0.5], [0, 0, 0, 1]]},
+               {"name": "b", "mesh": "ball", "materials": ["glass"],
+                "to_world": [[1, 0, 0, 0.6], [0, 1, 0, 0], [0, 0, 1, 0.5], [0, 0, 0, 1]]}]
+    lights = [{"type": "point", "to_world": [[1, 0, 0, 0.5], [0, 1, 0, -1], [0, 0, 1, 3], [0, 0, 0, 1]],
+               "power": 200.0}]
+    cam = front_perspective(5.0, 0.3, 1.5)
+    cam["to_world"][2][3] = 0.6
+    return scene(24, 16, cam, materials, meshes, objects, lights,
+                 world={"type": "constant", "color": [0.2, 0.25, 0.3]},
+                 render={"spp": spp, "max_bounces": 5, "rr_depth": 2, "seed": 3})
+
+
+def _same(a, b):
+    return (np.array_equal(a.film.sum, b.film.sum) and np.array_equal(a.film.sum_sq, b.film.sum_sq)
+            and np.array_equal(a.film.count, b.film.count) and np.array_equal(a.film.albedo, b.film.albedo))
+
+
+def test_same_image_whatever_the_worker_count_parallel_mode_or_batch_size(monkeypatch):
+    data = _mixed_scene()
+    base = render(data, workers=1)
+    assert base.film.combined().mean() > 0
+    assert _same(base, render(data, workers=2, parallel="threads"))
+    assert _same(base, render(data, workers=2, parallel="processes"))
+    # Tiny work items: 12 rounds of one sample each instead of one round of 12.
+    import backend.render as r
+    monkeypatch.setattr(r, "LANES_PER_ITEM", 64)
+    small = render(data, workers=1)
+    assert _same(base, small)
+    other_seed = copy.deepcopy(data)
+    other_seed["render"]["seed"] = 4
+    assert not np.array_equal(base.film.sum, render(other_seed, workers=1).film.sum)
+
+
+# --------------------------------------------------------------------------- kernel cache
+
+def test_cache_folder_is_keyed_by_sources_and_versions(tmp_path, monkeypatch):
+    fake = tmp_path / "backend"
+    (fake / "kernels").mkdir(parents=True)
+    src = fake / "kernels" / "k.py"
+    src.write_text("from numba import njit\n@njit\ndef f(x):\n    return x\n")
+    (fake / "plain.py").write_text("x = 1\n")
+    monkeypatch.setattr(cache, "BACKEND", fake)
+    k1 = cache.source_key()
+    (fake / "plain.py").write_text("x = 2\n")            # not compiled code: same key
+    assert cache.source_key() == k1
+    src.write_text(src.read_text() + "\n# changed\n")    # a kernel source changed
+    k2 = cache.source_key()
+    assert k2 != k1
+    import numba
+    monkeypatch.setattr(numba, "__version__", "0.0.0-other")
+    assert cache.source_key() != k2                      # another Numba: another folder
+    monkeypatch.setenv("LAMINA_KERNEL_CACHE", str(tmp_path / "c"))
+    assert cache.user_cache_root() == tmp_path / "c"
+
+
+def _cli(args, env=None, cwd=None):
+    return subprocess.run([sys.executable, "-m", "backend", *args], capture_output=True, text=True,
+                          env=env, cwd=cwd or ROOT)
+
+
+def test_first_run_compiles_once_and_says_so(tmp_path):
+    data = _mixed_scene(spp=1)
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(data))
+    env = dict(os.environ, LAMINA_KERNEL_CACHE=str(tmp_path / "kernels"), PYTHONPATH=str(ROOT))
+    first = _cli(["render", str(path), "-o", str(tmp_path / "a.exr"), "--workers", "1"], env)
+    assert first.returncode == 0, first.stderr
+    assert first.stderr.count("compiling render kernels (first run only)") == 1
+    assert "compiled render kernels in" in first.stderr
+    second = _cli(["render", str(path), "-o", str(tmp_path / "b.exr"), "--workers", "1"], env)
+    assert second.returncode == 0, second.stderr
+    assert "compiling" not in second.stderr
+    folders = [p for p in (tmp_path / "kernels").iterdir() if p.is_dir()]
+    assert len(folders) == 1 and (folders[0] / "warm").exists()
+    assert any(folders[0].rglob("*.nbi"))                 # Numba's index files are there
+
+
+def test_missing_numba_is_one_clear_error(tmp_path):
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(_mixed_scene(spp=1)))
+    code = ("import sys; sys.modules['numba'] = None; from backend.cli import main; "
+            f"sys.exit(main(['render', {str(path)!r}, '-o', {str(tmp_path / 'o.exr')!r}]))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert out.returncode == 2, out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in out.stderr, out.stderr
+    assert "need Numba" in lines[0] and "numba==0.68.1" in lines[0]
+    assert not (tmp_path / "o.exr").exists()
