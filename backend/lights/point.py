@@ -73,7 +73,7 @@ class PointLight(Light):
         sphere), Gauss-Legendre in z' on each piece between ``breaks`` (kinks of the factor); the
         solid-angle Jacobian of the object's linear map is |det M| / |M l|³.
         """
-        if self.directional_factor(np.array([[0.0, 0.0, -1.0]])) is None:
+        if not self._has_factor():
             return 1.0
         xn, xw = np.polynomial.legendre.leggauss(48)
         edges = np.unique(np.clip([z_lo, *breaks, 1.0], z_lo, 1.0))
