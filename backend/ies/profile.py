@@ -1,19 +1,10 @@
-"""An IES photometric profile: Cycles' interpolation of the candela table, flux and peak.
+"""An IES photometric profile: the candela table in Cycles' frame, its flux and peak.
 
-Frame (DESIGN.md §3, Cycles ``svm_node_ies``): for a direction d in the light's local frame,
-vertical angle v = acos(−d_z) (0 = local −Z) and horizontal angle h = atan2(d_x, d_y) + π, so
-h = 0 → local −Y, 90° → −X, 180° → +Y, 270° → +X (clockwise seen from above, i.e. from +Z).
-
-Interpolation (Cycles ``kernel_ies_interp``): find the table cell (h_i, v_i) containing the angles,
-take the fractions linearly in angle within the cell, then Catmull-Rom (uniform, in *index* space)
-vertically in the four columns h_i−1..h_i+2 and horizontally across the four results. Missing
-neighbours: vertically, below the first row use row 1 when the table starts at the pole (v = 0),
-else repeat row v_i; past the last row use row nv−2 when the table ends at v = 180°, else repeat
-row v_i+1. Horizontally, a table covering 0..360° wraps (skipping the duplicate 360° column); a
-partial one (types A/B) repeats column h_i on *both* sides (Cycles does exactly this). The result
-is clamped at 0. Intensity is 0 for v ≥ the last vertical angle, v < the first one, and h outside
-the table. One deliberate difference: h is wrapped to [0°, 360°), so the direction exactly along
-local −Y gets the 0° value where Cycles' float atan2 can return h = 360° and hence 0.
+The per-lane intensity lookup (Cycles' Catmull-Rom interpolation of the table, the frame and the
+neighbour rules) is compiled code in ``backend/kernels/lights/ies.py``, whose docstring states
+the conventions; this class builds the table block it reads and loops it over arrays
+(``intensity``, ``intensity_angles``). Table building, flux integration, the peak and the
+description stay NumPy (load time).
 """
 from __future__ import annotations
 
@@ -22,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..kernels.lights import batch as _batch
+from ..kernels.lights.ies import WRAP_H, WRAP_VHIGH, WRAP_VLOW
 from .lm63 import LM63File, describe_symmetry, parse_lm63, read_lm63, to_cycles_frame
 
 #: Luminous efficacy [lm/W] Cycles assumes to turn candela into W/sr (D65 white; util/ies.cpp).
@@ -31,19 +24,12 @@ TWO_PI = 2.0 * np.pi
 _ANGLE_EPS = 1e-7  # rad; Cycles' test for "the table reaches the pole / covers 360°"
 
 
-def catmull_rom(a, b, c, d, x):
-    """Uniform Catmull-Rom spline between b (x = 0) and c (x = 1); a, d are the outer neighbours."""
-    return 0.5 * (((d + 3.0 * (b - c) - a) * x + (2.0 * a - 5.0 * b + 4.0 * c - d)) * x + (c - a)) * x + b
-
-
 def directions_to_angles(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(h, v) in radians for local directions d (n, 3) (need not be unit; zero → v = π/2)."""
-    d = np.asarray(d, dtype=np.float64)
-    length = np.sqrt(np.einsum("ij,ij->i", d, d))
-    z = -d[:, 2] / np.where(length > 0, length, 1.0)
-    v = np.arccos(np.clip(z, -1.0, 1.0))
-    h = np.arctan2(d[:, 0], d[:, 1]) + np.pi
-    h = np.where(h >= TWO_PI, h - TWO_PI, h)
+    d = np.ascontiguousarray(d, dtype=np.float64).reshape(-1, 3)
+    h = np.empty(d.shape[0])
+    v = np.empty(d.shape[0])
+    _batch.ies_directions_to_angles(d, h, v)
     return h, v
 
 
@@ -78,6 +64,10 @@ class IESProfile:
         self.wrap_h = bool(self.h[0] < _ANGLE_EPS and self.h[-1] > TWO_PI - _ANGLE_EPS)
         self.wrap_vlow = bool(self.v[0] < _ANGLE_EPS)
         self.wrap_vhigh = bool(self.v[-1] > np.pi - _ANGLE_EPS)
+        #: the kernels' table block: [h (nh) | v (nv) | candela (nh × nv)] and its wrap flags
+        self.block = np.ascontiguousarray(np.concatenate([self.h, self.v, np.ravel(table)]), np.float64)
+        self.flags = ((WRAP_H if self.wrap_h else 0) | (WRAP_VLOW if self.wrap_vlow else 0)
+                      | (WRAP_VHIGH if self.wrap_vhigh else 0))
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -90,47 +80,22 @@ class IESProfile:
 
     # ------------------------------------------------------------------ lookup
     def intensity_angles(self, h: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Candela at horizontal/vertical angles in radians (arrays of equal shape, h in [0, 2π))."""
-        h = np.asarray(h, dtype=np.float64)
-        v = np.asarray(v, dtype=np.float64)
-        shape = np.broadcast_shapes(h.shape, v.shape)
-        h = np.broadcast_to(h, shape).ravel()
-        v = np.broadcast_to(v, shape).ravel()
-        H, V, T = self.h, self.v, self.candela
-        nh, nv = self.nh, self.nv
-        out = np.zeros(h.size)
-        ok = (v >= V[0]) & (v < V[-1]) & (h >= H[0]) & (h < H[-1])
-        if not np.any(ok):
-            return out.reshape(shape)
-        h, v = h[ok], v[ok]
-
-        # Cell lookup as Cycles' linear scan: the first i with angle[i + 1] >= x.
-        hi = np.clip(np.searchsorted(H, h, side="left") - 1, 0, nh - 2)
-        vi = np.clip(np.searchsorted(V, v, side="left") - 1, 0, nv - 2)
-        hf = (h - H[hi]) / (H[hi + 1] - H[hi])   # angles strictly increase: no zero division
-        vf = (v - V[vi]) / (V[vi + 1] - V[vi])
-
-        # Neighbour rows (vertical) and columns (horizontal); see the module docstring.
-        row_a = np.where(vi > 0, vi - 1, 1 if self.wrap_vlow else vi)
-        row_d = np.where(vi + 2 < nv, vi + 2, nv - 2 if self.wrap_vhigh else vi + 1)
-        rows = np.stack([row_a, vi, vi + 1, row_d], axis=1)            # (m, 4)
-        col_a = np.where(hi > 0, hi - 1, nh - 2 if self.wrap_h else hi)
-        col_d = np.where(hi + 2 < nh, hi + 2, 1 if self.wrap_h else hi)
-        cols = np.stack([col_a, hi, hi + 1, col_d], axis=1)            # (m, 4)
-
-        vals = T[cols[:, :, None], rows[:, None, :]]                    # (m, 4 cols, 4 rows)
-        x = vf[:, None]
-        col_values = catmull_rom(vals[..., 0], vals[..., 1], vals[..., 2], vals[..., 3], x)
-        result = catmull_rom(col_values[:, 0], col_values[:, 1], col_values[:, 2], col_values[:, 3], hf)
-        out[ok] = np.maximum(result, 0.0)  # Catmull-Rom overshoots below zero near dark regions
+        """Candela at horizontal/vertical angles in radians (arrays broadcast together, h in
+        [0, 2π))."""
+        h, v = np.broadcast_arrays(np.asarray(h, dtype=np.float64), np.asarray(v, dtype=np.float64))
+        shape = h.shape
+        hf = np.ascontiguousarray(h).reshape(-1)
+        vf = np.ascontiguousarray(v).reshape(-1)
+        out = np.empty(hf.size)
+        _batch.ies_intensity_angles(self.block, self.nh, self.nv, self.flags, hf, vf, out)
         return out.reshape(shape)
 
     def intensity(self, directions_local: np.ndarray) -> np.ndarray:
         """Candela (n,) for directions (n, 3) in the light's local frame (from the light outwards)."""
-        d = np.asarray(directions_local, dtype=np.float64).reshape(-1, 3)
-        h, v = directions_to_angles(d)
-        out = self.intensity_angles(h, v)
-        return np.where(np.einsum("ij,ij->i", d, d) > 0, out, 0.0)
+        d = np.ascontiguousarray(directions_local, dtype=np.float64).reshape(-1, 3)
+        out = np.empty(d.shape[0])
+        _batch.ies_intensity(self.block, self.nh, self.nv, self.flags, d, out)
+        return out
 
     # ------------------------------------------------------------------ integrals
     def integrate(self, weight=None, nodes: tuple[int, int] = (4, 6)) -> float:

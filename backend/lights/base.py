@@ -13,12 +13,17 @@ one place.
   ``intersect`` / ``eval_hit`` (finite) or ``eval_escaped`` (infinite) plus ``pdf_hit`` for MIS.
 * ``power()`` is an estimate of emitted power in W (luminance of RGB) used only for light
   selection; it must be > 0 for a light that emits anything.
+
+The per-lane maths of every query is compiled code (``backend/kernels/lights/``, dispatch.py has
+the per-lane interface the integrator kernels call); these methods loop it over arrays.
 """
 from __future__ import annotations
 
 from typing import ClassVar, NamedTuple
 
 import numpy as np
+
+from ..kernels.lights import batch as _batch
 
 
 class LightSample(NamedTuple):
@@ -28,7 +33,23 @@ class LightSample(NamedTuple):
     pdf: np.ndarray     # (n,) solid-angle pdf of this direction (0 for delta lights)
 
 
+_LI0 = np.zeros(1, np.int64)      # light 0 of a one-light table, for every lane
+
+
+def _rows(a, k: int = 3) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(a, dtype=np.float64).reshape(-1, k))
+
+
+def _lanes(a, n: int) -> np.ndarray:
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(a, dtype=np.float64).reshape(-1), (n,)))
+
+
 class Light:
+    """A light: scene-file parsing, units and power estimates here (NumPy, load time); the per-lane
+    maths is compiled code in ``backend/kernels/lights/`` (one module per kind). ``pack(builder)``
+    writes the light's row of the light table; the array methods below run the same per-lane code
+    the integrator kernels call, through a one-light table cached on the instance."""
+
     #: A delta light (point, spot, IES, sun without angle) cannot be hit by BSDF rays.
     is_delta: ClassVar[bool] = False
     #: An infinitely distant light (environment, sun): seen by rays that escape the scene.
@@ -42,26 +63,62 @@ class Light:
     def power(self) -> float:
         raise NotImplementedError
 
-    def sample(self, p: np.ndarray, u: np.ndarray) -> LightSample:
+    def pack(self, builder) -> None:
+        """Add this light's row to a light table (backend/kernels/lights/table.py)."""
         raise NotImplementedError
+
+    def kernel_table(self):
+        """(LightTable, TextureTable) holding this light alone, built once (selection off)."""
+        kt = self.__dict__.get("_kernel_table")
+        if kt is None:
+            from ..kernels.lights.table import build_light_table
+            from ..kernels.params import ParamPacker
+            packer = ParamPacker()
+            table = build_light_table([self], packer, 1.0, "power", powers=[0.0])
+            kt = (table, packer.table())
+            self._kernel_table = kt
+        return kt
+
+    def sample(self, p: np.ndarray, u: np.ndarray) -> LightSample:
+        table, tex = self.kernel_table()
+        p, u = _rows(p), _rows(u, 2)
+        n = p.shape[0]
+        wi, dist, value, pdf = np.empty((n, 3)), np.empty(n), np.empty((n, 3)), np.empty(n)
+        _batch.sample(table, tex, _LI0, p, u, wi, dist, value, pdf, np.empty(n, bool))
+        return LightSample(wi, dist, value, pdf)
 
     # finite hittable lights (area rectangle/disk/ellipse, sphere point/spot lights)
     def intersect(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray) -> np.ndarray:
         """Ray parameter t of the first hit in (0, tmax), np.inf where none. d is unit."""
-        raise NotImplementedError
+        o, d = _rows(o), _rows(d)
+        out = np.empty(o.shape[0])
+        _batch.intersect(self.kernel_table()[0], _LI0, o, d, _lanes(tmax, o.shape[0]), out)
+        return out
 
     def eval_hit(self, o: np.ndarray, d: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Radiance (n, 3) arriving at o from direction d, emitted at o + t d."""
-        raise NotImplementedError
+        o, d = _rows(o), _rows(d)
+        out = np.empty((o.shape[0], 3))
+        _batch.eval_hit(self.kernel_table()[0], _LI0, o, d, _lanes(t, o.shape[0]), out)
+        return out
 
     def pdf_hit(self, o: np.ndarray, d: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Solid-angle pdf with which ``sample(o, .)`` would have produced direction d."""
-        raise NotImplementedError
+        o, d = _rows(o), _rows(d)
+        out = np.empty(o.shape[0])
+        _batch.pdf_hit(self.kernel_table()[0], _LI0, o, d, _lanes(t, o.shape[0]), out)
+        return out
 
     # infinite lights
     def eval_escaped(self, d: np.ndarray) -> np.ndarray:
         """Radiance (n, 3) arriving along -d for rays escaping in direction d."""
-        raise NotImplementedError
+        d = _rows(d)
+        out = np.empty((d.shape[0], 3))
+        _batch.eval_escaped(self.kernel_table()[0], _LI0, d, out)
+        return out
 
     def pdf_escaped(self, d: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+        d = _rows(d)
+        out = np.empty(d.shape[0])
+        _batch.pdf_escaped(self.kernel_table()[0], _LI0, d, out)
+        return out

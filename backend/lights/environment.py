@@ -16,20 +16,22 @@ Importance sampling: a piecewise-constant density over the texels (``PiecewiseCo
 proportional to the luminance of the texel and its 8 neighbours (their maximum, so every direction
 where the bilinear radiance is non-zero has a non-zero pdf) times the texel row's solid angle; the
 solid-angle pdf is p(u, v) / (2π² sin θ).
+
+Lookups, sampling and densities are per-lane code (``backend/kernels/lights/environment.py``);
+these classes parse the world, build the texels and the distribution (load time) and pack them.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..mathutil import LUMINANCE, normalize
+from ..kernels.lights import common as _kc
+from ..kernels.lights import environment as _ke
+from ..mathutil import LUMINANCE
 from ..sampling.discrete import PiecewiseConstant2D
-from ..sampling.warp import square_to_uniform_sphere
 from ..textures import read_image, srgb_to_linear
 from . import register_world
-from .base import Light, LightSample
-from .common import power_luminance, safe_div
-
-INV_4PI = 0.25 / np.pi
+from .base import Light
+from .common import power_luminance
 
 
 class ConstantWorld(Light):
@@ -49,17 +51,10 @@ class ConstantWorld(Light):
         # Flux entering the scene's bounding sphere: π R² ∫ L dω = 4π² R² L.
         return power_luminance(self.radiance, 4.0 * np.pi ** 2 * self.scene_radius ** 2)
 
-    def sample(self, p, u) -> LightSample:
-        n = p.shape[0]
-        wi = square_to_uniform_sphere(u)
-        value = np.broadcast_to(self.radiance / INV_4PI, (n, 3)).copy()
-        return LightSample(wi, np.full(n, np.inf), value, np.full(n, INV_4PI))
-
-    def eval_escaped(self, d):
-        return np.broadcast_to(self.radiance, (d.shape[0], 3)).copy()
-
-    def pdf_escaped(self, d):
-        return np.full(d.shape[0], INV_4PI)
+    def pack(self, b) -> None:
+        row = b.light(_kc.CONSTANT, infinite=True, visible_camera=True)
+        row.select_uniform()
+        row.put(_ke.W_RADIANCE, self.radiance)
 
 
 class EnvironmentMap(Light):
@@ -91,57 +86,15 @@ class EnvironmentMap(Light):
     def power(self) -> float:
         return max(np.pi * self.scene_radius ** 2 * self.integral, 0.0)
 
-    # ---------------------------------------------------------------- mapping
-    def _direction_to_xy(self, d):
-        """World directions → (x, y) in [0,1)²: x = u, y = θ/π (image rows from the top)."""
-        loc = normalize(d @ self.to_local.T)
-        u = 0.5 - np.arctan2(loc[:, 1], loc[:, 0]) / (2.0 * np.pi)
-        y = np.arccos(np.clip(loc[:, 2], -1.0, 1.0)) / np.pi
-        return np.mod(u, 1.0), y, loc
-
-    def _xy_to_direction(self, x, y):
-        theta = np.pi * y
-        phi = np.pi - 2.0 * np.pi * x          # inverse of u = 0.5 − φ/2π
-        s = np.sin(theta)
-        loc = np.stack([s * np.cos(phi), s * np.sin(phi), np.cos(theta)], axis=-1)
-        return normalize(loc @ self.to_world.T), s
-
-    def lookup(self, x, y):
-        """Bilinear radiance at image coordinates x (column, wraps) and y (row from top, clamps)."""
-        fx = x * self.w - 0.5
-        fy = np.clip(y * self.h - 0.5, 0.0, self.h - 1.0)
-        x0 = np.floor(fx)
-        y0 = np.floor(fy)
-        ax = (fx - x0)[:, None]
-        ay = (fy - y0)[:, None]
-        x0 = x0.astype(np.int64) % self.w
-        x1 = (x0 + 1) % self.w
-        y0 = y0.astype(np.int64)
-        y1 = np.minimum(y0 + 1, self.h - 1)
-        t = self.texels
-        top = t[y0, x0] * (1.0 - ax) + t[y0, x1] * ax
-        bottom = t[y1, x0] * (1.0 - ax) + t[y1, x1] * ax
-        return top * (1.0 - ay) + bottom * ay
-
-    # ---------------------------------------------------------------- Light interface
-    def sample(self, p, u) -> LightSample:
-        n = p.shape[0]
-        xy, pdf_xy = self.dist.sample(u)
-        wi, sin_t = self._xy_to_direction(xy[:, 0], xy[:, 1])
-        pdf = safe_div(pdf_xy, 2.0 * np.pi ** 2 * sin_t)
-        le = self.lookup(xy[:, 0], xy[:, 1])
-        value = np.where((pdf > 0)[:, None], le * safe_div(1.0, pdf)[:, None], 0.0)
-        return LightSample(wi, np.full(n, np.inf), value, pdf)
-
-    def eval_escaped(self, d):
-        x, y, _ = self._direction_to_xy(d)
-        return self.lookup(x, y)
-
-    def pdf_escaped(self, d):
-        x, y, loc = self._direction_to_xy(d)
-        sin_t = np.hypot(loc[:, 0], loc[:, 1])      # precise near the poles, unlike √(1 − z²)
-        pdf_xy = self.dist.pdf(np.stack([x, y], axis=-1))
-        return safe_div(pdf_xy, 2.0 * np.pi ** 2 * sin_t)
+    def pack(self, b) -> None:
+        row = b.light(_kc.ENVIRONMENT, infinite=True, visible_camera=True)
+        row.select_uniform()
+        row.put(_ke.E_TO_WORLD, self.to_world)
+        row.put(_ke.E_TO_LOCAL, self.to_local)
+        row.i[_ke.I_TEX_OFF] = b.aux(self.texels)
+        row.i[_ke.I_H] = self.h
+        row.i[_ke.I_W] = self.w
+        row.i[_ke.I_DIST_OFF] = b.aux(self.dist.block)
 
 
 def _dilate_max(a: np.ndarray) -> np.ndarray:

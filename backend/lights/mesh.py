@@ -1,36 +1,41 @@
 """Emissive triangles (objects whose material has ``emission``), for next-event estimation.
 
-The integrator builds one ``MeshLight`` from all emissive triangles of the scene (world space,
-float64) with one radiance per triangle, used to pick triangles; a textured emission picks by its
-value at the triangle's UV centroid, and the sample's value is the exact texture lookup at the
-sampled point (``radiance_at``), so next-event estimation stays unbiased.
-The integrator intersects the triangles through embree (they are ordinary scene geometry), so this
-class provides sampling and the MIS density ``pdf_hit_triangle`` only.
+The scene loader builds one ``MeshLight`` from all emissive triangles of the scene (world space,
+float64) with one radiance per triangle, used to pick triangles (a textured emission picks by its
+value at the triangle's UV centroid). Given the triangles' UV corners, their emission parameters
+(``emission``, one Param per material slot) and each triangle's slot, the sample's value is the
+exact emission at the sampled point (the packed parameter evaluated at the interpolated UV), so
+next-event estimation stays unbiased. The integrator intersects the triangles through embree
+(they are ordinary scene geometry), so this class provides sampling and the MIS density
+``pdf_hit_triangle`` only.
 
 Scenes use ``two_sided=True``: Cycles' emission shader emits from both faces (measured with
 Cycles 5.0.1). One-sided emission (the counter-clockwise front only) remains available.
 
-Sampling: a triangle with probability ∝ area × luminance(radiance), then a uniform point on it
-(Heitz's low-distortion square-to-triangle map); pdf in solid angle = P(tri) / area × t² / |cos|.
+Sampling (a triangle ∝ area × luminance, then a uniform point by Heitz's map; pdf in solid angle
+P(tri)/area × t²/|cos|) is per-lane code in ``backend/kernels/lights/mesh.py``; this class
+computes the per-triangle geometry and the selection weights (load time) and packs them.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..mathutil import cross, dot, luminance
+from ..kernels.lights import batch as _batch
+from ..kernels.lights import common as _kc
+from ..kernels.lights import mesh as _km
+from ..mathutil import cross, luminance
 from ..sampling.discrete import Discrete1D
-from ..sampling.warp import square_to_triangle_barycentric
-from .base import Light, LightSample
-from .common import safe_div
+from .base import Light
 
 
 class MeshLight(Light):
     def __init__(self, triangles_world: np.ndarray, radiance: np.ndarray, two_sided: bool = False,
-                 radiance_at=None):
-        """``radiance_at(tri, bary)`` (optional) gives the exact radiance at sampled points
-        (textured emission): tri (n,) triangle indices, bary (n, 3) weights of v0, v1, v2. Without
-        it the per-triangle ``radiance`` is used; with it, ``radiance`` only steers sampling."""
-        self.radiance_at = radiance_at
+                 uvs: np.ndarray | None = None, emission: list | None = None,
+                 slots: np.ndarray | None = None):
+        """``radiance`` (n, 3) or (3,): per-triangle radiance [W m⁻² sr⁻¹]. For textured emission
+        also ``uvs`` (n, 3, 2) UV corners, ``emission`` (Params, one per slot) and ``slots`` (n,)
+        each triangle's index into ``emission``: samples then carry the exact emission at their
+        UV, and ``radiance`` only steers sampling."""
         v = np.asarray(triangles_world, dtype=np.float64).reshape(-1, 3, 3)
         self.v0 = v[:, 0]
         self.e1 = v[:, 1] - v[:, 0]
@@ -41,6 +46,13 @@ class MeshLight(Light):
         self.normal = n / np.where(length > 0, length, 1.0)[:, None]
         self.radiance = np.broadcast_to(np.asarray(radiance, dtype=np.float64).reshape(-1, 3), (v.shape[0], 3)).copy()
         self.two_sided = bool(two_sided)
+        self.textured = emission is not None
+        if self.textured:
+            if uvs is None or slots is None:
+                raise ValueError("textured mesh emission needs uvs, emission and slots")
+            self.uvs = np.asarray(uvs, dtype=np.float64).reshape(-1, 3, 2)
+            self.emission = list(emission)
+            self.slots = np.asarray(slots, dtype=np.int64).reshape(-1)
         # Where the emitters are, for light selection (lights/selection.py): the area-weighted
         # centre and the radius of the sphere around it that holds every vertex.
         centroids = v.mean(axis=1)
@@ -61,42 +73,39 @@ class MeshLight(Light):
         # A Lambertian emitter radiates π L per unit area and side.
         return np.pi * self._total * (2.0 if self.two_sided else 1.0)
 
-    def sample(self, p, u) -> LightSample:
-        n = p.shape[0]
-        if self.select is None:
-            return LightSample(np.zeros((n, 3)), np.zeros(n), np.zeros((n, 3)), np.zeros(n))
-        tri, prob, u_rem = self.select.sample(u[:, 0])
-        bary = square_to_triangle_barycentric(np.stack([u_rem, u[:, 1]], axis=-1))
-        # The warp returns two barycentrics (b0, b1); the point is b0·v0 + b1·v1 + (1−b0−b1)·v2.
-        b0, b1 = bary[:, 0], bary[:, 1]
-        x = self.v0[tri] + b1[:, None] * self.e1[tri] + (1.0 - b0 - b1)[:, None] * self.e2[tri]
-        v = x - p
-        t = np.sqrt(dot(v, v))
-        wi = v / np.where(t > 0, t, 1.0)[:, None]
-        cos_l = -dot(wi, self.normal[tri])
-        if self.two_sided:
-            cos_l = np.abs(cos_l)
-        pdf = safe_div(prob * t * t, self.area[tri] * cos_l)
-        ok = (cos_l > 0) & (t > 0) & (pdf > 0)
-        if self.radiance_at is not None:
-            emitted = self.radiance_at(tri, np.stack([b0, b1, 1.0 - b0 - b1], axis=-1))
-        else:
-            emitted = self.radiance[tri]
-        value = np.where(ok[:, None], emitted * safe_div(1.0, pdf)[:, None], 0.0)
-        return LightSample(wi, np.where(ok, t, 0.0), value, np.where(ok, pdf, 0.0))
+    def pack(self, b) -> None:
+        row = b.light(_kc.MESH)
+        row.select_point(self.position, self.extent)
+        tris = np.concatenate([self.v0, self.e1, self.e2, self.normal, self.area[:, None], self.radiance],
+                              axis=1)
+        assert tris.shape[1] == _km.TRI_STRIDE
+        row.i[_km.I_TRI_OFF] = b.aux(tris)
+        row.i[_km.I_COUNT] = self.count
+        row.i[_km.I_DIST_OFF] = b.aux(self.select.block) if self.select is not None else -1
+        row.i[_km.I_TWO_SIDED] = int(self.two_sided)
+        row.i[_km.I_TEXTURED] = int(self.textured)
+        if self.textured:
+            row.i[_km.I_UV_OFF] = b.aux(self.uvs.reshape(-1, 6))
+            row.i[_km.I_SLOT_OFF] = b.iaux(self.slots)
+            packed = [b.packer.pack(param, 3) for param in self.emission]
+            row.i[_km.I_EMIT_OFF] = b.aux(np.array([values for values, _ in packed]).reshape(-1))
+            row.i[_km.I_EMIT_TEX_OFF] = b.iaux(np.array([tex for _, tex in packed], np.int64))
 
     def pdf_hit_triangle(self, o, d, t, tri_index) -> np.ndarray:
         """Solid-angle pdf of ``sample(o)`` for the point o + t d on triangle ``tri_index``."""
-        tri = np.asarray(tri_index, dtype=np.int64)
-        cos_l = -dot(d, self.normal[tri])
-        if self.two_sided:
-            cos_l = np.abs(cos_l)
-        pdf = safe_div(self.pmf[tri] * t * t, self.area[tri] * cos_l)
-        return np.where(cos_l > 0, pdf, 0.0)
+        o = np.ascontiguousarray(o, dtype=np.float64).reshape(-1, 3)
+        d = np.ascontiguousarray(d, dtype=np.float64).reshape(-1, 3)
+        n = o.shape[0]
+        t = np.ascontiguousarray(np.broadcast_to(np.asarray(t, dtype=np.float64).reshape(-1), (n,)))
+        tri = np.ascontiguousarray(np.broadcast_to(np.asarray(tri_index, dtype=np.int64).reshape(-1), (n,)))
+        out = np.empty(n)
+        _batch.mesh_pdf_hit(self.kernel_table()[0], np.zeros(1, np.int64), o, d, t, tri, out)
+        return out
 
     def eval_triangle(self, d, tri_index) -> np.ndarray:
         """Radiance of triangle ``tri_index`` seen along ray direction d (per-triangle value)."""
-        tri = np.asarray(tri_index, dtype=np.int64)
-        cos_l = -dot(d, self.normal[tri])
-        front = (np.abs(cos_l) > 0) if self.two_sided else (cos_l > 0)
-        return np.where(front[:, None], self.radiance[tri], 0.0)
+        d = np.ascontiguousarray(d, dtype=np.float64).reshape(-1, 3)
+        tri = np.ascontiguousarray(np.broadcast_to(np.asarray(tri_index, dtype=np.int64).reshape(-1), (d.shape[0],)))
+        out = np.empty((d.shape[0], 3))
+        _batch.mesh_eval(self.kernel_table()[0], np.zeros(1, np.int64), d, tri, out)
+        return out

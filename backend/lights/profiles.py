@@ -7,28 +7,51 @@ Profiles are normalised to keep the emitted power: the radiance is ``L0 · f(θ)
 so ``∫ L cos θ dω = π L0`` whatever the profile, as for a Lambertian emitter of radiance L0:
 narrowing the beam concentrates the same power (as Cycles does for the area light ``spread``).
 Profiles expose ``cos_max``/``tan_max`` (the cutoff: f = 0 beyond it) so samplers can skip the
-parts of an emitter that cannot reach a point.
+parts of an emitter that cannot reach a point. f itself is per-lane code
+(``backend/kernels/lights/profiles.py``, which has the formulas); these classes hold the
+parameters, compute K at load time and evaluate f on arrays through the compiled code.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .common import safe_div
+from ..kernels.lights import area as _ka
+from ..kernels.lights import batch as _batch
+from ..kernels.lights import profiles as _kp
 
 
-class Lambertian:
+class _Profile:
+    code = _kp.LAMBERTIAN
+    tan_max = np.inf
+    _spread_tan = 0.0
+    _cutoff = 0.0
+    _beam = 0.0
+
+    def __call__(self, cos_theta: np.ndarray) -> np.ndarray:
+        c = np.asarray(cos_theta, dtype=np.float64)
+        flat = np.ascontiguousarray(c).reshape(-1)
+        out = np.empty(flat.size)
+        _batch.profile_eval(self.code, self._spread_tan, self._cutoff, self._beam, flat, out)
+        return out.reshape(c.shape)
+
+    def pack(self, row) -> None:
+        """The profile's columns of an area light row (kernels/lights/area.py)."""
+        row.i[_ka.I_PROFILE] = self.code
+        row.f[_ka.A_TAN_MAX] = self.tan_max
+        row.f[_ka.A_SPREAD_TAN] = self._spread_tan
+        row.f[_ka.A_CUTOFF] = self._cutoff
+        row.f[_ka.A_BEAM] = self._beam
+
+
+class Lambertian(_Profile):
     """f ≡ 1 on the front hemisphere (Blender's default spread of 180°)."""
 
     cos_max = 0.0
-    tan_max = np.inf
     normalization = 1.0
     is_lambertian = True
 
-    def __call__(self, cos_theta: np.ndarray) -> np.ndarray:
-        return (np.asarray(cos_theta) > 0).astype(np.float64)
 
-
-class CyclesSpread:
+class CyclesSpread(_Profile):
     """Blender/Cycles area light ``spread`` s (src/kernel/light/area.h, "soft-box grid").
 
     With a = s/2: f(θ) = max(0, 1 − tan θ / tan a) and K = (tan a − a) / tan a, i.e. the radiance
@@ -37,6 +60,7 @@ class CyclesSpread:
     single precision, which is at most 0.1 % brighter; we keep the exact value.)
     """
 
+    code = _kp.SPREAD
     is_lambertian = False
 
     def __init__(self, spread: float):
@@ -45,19 +69,16 @@ class CyclesSpread:
         self.half = a
         self.tan_max = float(np.tan(a))
         self.cos_max = float(np.cos(a))
+        self._spread_tan = self.tan_max
         if a < 1e-3:
+            # tan a − a by its series: the difference would lose all digits to cancellation
             tan_minus_a = a ** 3 / 3.0 + 2.0 * a ** 5 / 15.0 + 17.0 * a ** 7 / 315.0
         else:
             tan_minus_a = self.tan_max - a
         self.normalization = tan_minus_a / self.tan_max
 
-    def __call__(self, cos_theta: np.ndarray) -> np.ndarray:
-        c = np.asarray(cos_theta, dtype=np.float64)
-        tan_t = safe_div(np.sqrt(np.maximum(0.0, 1.0 - c * c)), c)
-        return np.where(c > 0, np.maximum(0.0, 1.0 - tan_t / self.tan_max), 0.0)
 
-
-class SmoothCone:
+class SmoothCone(_Profile):
     """Directional area light: full within ``beam_width`` of the normal, none beyond
     ``cutoff_angle``, smoothstep in the angle in between:
 
@@ -66,12 +87,14 @@ class SmoothCone:
              = 0                       θ ≥ c
     """
 
+    code = _kp.SMOOTH_CONE
     is_lambertian = False
 
     def __init__(self, cutoff: float, beam: float):
         """Angles in radians, 0 ≤ beam ≤ cutoff ≤ π/2, cutoff > 0."""
         self.cutoff = float(cutoff)
         self.beam = min(float(beam), self.cutoff)
+        self._cutoff, self._beam = self.cutoff, self.beam
         self.cos_max = float(np.cos(self.cutoff))
         self.tan_max = float(np.tan(self.cutoff)) if self.cutoff < 0.5 * np.pi else np.inf
         # K = sin² b + ∫_b^c f(θ) sin 2θ dθ; the integrand is smooth, 64-point Gauss-Legendre is
@@ -81,29 +104,18 @@ class SmoothCone:
             x, w = np.polynomial.legendre.leggauss(64)
             half = 0.5 * (self.cutoff - self.beam)
             theta = self.beam + half * (x + 1.0)
-            k += half * float(np.sum(w * self._ramp(theta) * np.sin(2.0 * theta)))
+            k += half * float(np.sum(w * self(np.cos(theta)) * np.sin(2.0 * theta)))
         self.normalization = float(k)
-
-    def _ramp(self, theta):
-        s = np.clip((self.cutoff - theta) / (self.cutoff - self.beam), 0.0, 1.0)
-        return s * s * (3.0 - 2.0 * s)
-
-    def __call__(self, cos_theta: np.ndarray) -> np.ndarray:
-        c = np.asarray(cos_theta, dtype=np.float64)
-        theta = np.arccos(np.clip(c, -1.0, 1.0))
-        if self.cutoff > self.beam:
-            f = np.where(theta <= self.beam, 1.0, self._ramp(theta))
-        else:
-            f = (theta <= self.cutoff).astype(np.float64)
-        return np.where(c > 0, f, 0.0)
 
 
 class ConeTable:
     """Samples emission directions inside a profile's cutoff cone with density ∝ f(θ) cos θ
     (the shape of the emitted power), piecewise constant in μ = cos θ over ``bins`` bins.
 
-    For a point whose whole cone footprint lies on the emitter this makes the NEE estimate
-    nearly constant (radiance / pdf ≈ π L0 / cos θ); ``pdf(μ)`` is the exact solid-angle density.
+    Built here (load time); sampled per lane by ``backend/kernels/lights/profiles.py``
+    (``cone_sample``/``cone_pdf``), whose block layout ``block`` follows: a 1-D distribution over
+    the bins, then the density per steradian of each bin. ``pdf(μ)`` is the exact solid-angle
+    density of ``sample``.
     """
 
     def __init__(self, profile, bins: int = 256):
@@ -117,14 +129,17 @@ class ConeTable:
         weights = (profile(mu.ravel()).reshape(mu.shape) * mu * w[None, :]).sum(axis=1)
         self.dist = Discrete1D(np.maximum(weights, 0.0))
         self.density = self.dist.pmf / (self.width * 2.0 * np.pi)   # per steradian
+        self.block = np.ascontiguousarray(np.concatenate([self.dist.block, self.density]))
 
     def sample(self, u: np.ndarray):
         """u (n, 2) → (μ, φ, solid-angle pdf)."""
-        k, _, rem = self.dist.sample(u[:, 0])
-        mu = np.minimum(self.mu_lo + (k + rem) * self.width, 1.0)
-        return mu, 2.0 * np.pi * u[:, 1], self.density[k]
+        u = np.ascontiguousarray(u, dtype=np.float64).reshape(-1, 2)
+        mu, phi, pdf = (np.empty(u.shape[0]) for _ in range(3))
+        _batch.cone_sample(self.block, self.bins, self.mu_lo, self.width, u, mu, phi, pdf)
+        return mu, phi, pdf
 
     def pdf(self, mu: np.ndarray) -> np.ndarray:
-        k = np.floor((mu - self.mu_lo) / self.width).astype(np.int64)
-        inside = (mu >= self.mu_lo) & (mu <= 1.0)
-        return np.where(inside, self.density[np.clip(k, 0, self.bins - 1)], 0.0)
+        mu = np.ascontiguousarray(mu, dtype=np.float64).reshape(-1)
+        out = np.empty(mu.size)
+        _batch.cone_pdf(self.block, self.bins, self.mu_lo, self.width, mu, out)
+        return out

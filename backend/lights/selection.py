@@ -3,16 +3,13 @@
 Two modes (scene ``render.light_selection``):
 
 * ``"power"`` — probability ∝ ``Light.power()`` everywhere (one global table).
-* ``"local"`` (default) — probability ∝ the light's power *as received at the shading point*: the
-  power spread over the sphere at the point's distance, i.e. an unoccluded irradiance scale in
-  W/m², computed per lane. Distant lights ("infinite": sun, world) have no distance; their power is
-  defined over the scene's bounding disk (P = E·πR²), so their received scale is P/(πR²) = E.
-  A light very close to a point is capped at its own size (no division by ~0). One-sided area
-  lights give 0 behind themselves, where they cannot contribute. This matters as soon as lights
-  differ in distance: with a global table a 40 m sunlit floor made a nearby 400 W area light get
-  6 % of the samples and the render noise 4× higher than with local selection (measured on the
-  demo scene's floor).
+* ``"local"`` (default) — probability ∝ the light's power *as received at the shading point*
+  (an unoccluded irradiance scale in W/m², per lane; distant lights: P/(πR²) = E; capped at the
+  light's size nearby; one-sided area lights give 0 behind themselves).
 
+The per-lane choice and its probability are compiled code (``backend/kernels/lights/
+selection.py``, whose docstring has the details and the measurement that motivates local
+selection); ``LightSelector`` builds the light table for them and loops them over arrays.
 Lights whose power is zero (or not finite) are never picked and have selection probability 0 for
 MIS. ``build_selector`` returns None when nothing in the scene emits. Per-lane probabilities are
 exact (they are what MIS uses), whatever the mode.
@@ -21,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernels.lights import batch as _batch
 from ..sampling.discrete import Discrete1D
 
 MODES = ("local", "power")
@@ -41,9 +39,19 @@ class LightSelector:
         self.lights = list(lights) if lights is not None else None
         self.local = mode == "local" and self.lights is not None and self.active.size > 1
         self.radius = max(float(radius), 1e-6)
+        self._table = None
 
     def __len__(self) -> int:
         return self.pmf.size
+
+    def table(self):
+        """The light table of the lights with these powers and this mode (built once)."""
+        if self._table is None:
+            from ..kernels.lights.table import build_light_table
+            from ..kernels.params import ParamPacker
+            self._table = build_light_table(self.lights, ParamPacker(), self.radius,
+                                            "local" if self.local else "power", powers=self.powers)
+        return self._table
 
     # ------------------------------------------------------------------ global table
     def sample(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -58,57 +66,45 @@ class LightSelector:
     # ------------------------------------------------------------------ per shading point
     def weights_at(self, p: np.ndarray) -> np.ndarray:
         """(n, len(active)) received-power weights of the active lights at points p."""
-        cols = [received_power(self.lights[i], self.powers[i], p, self.radius) for i in self.active]
-        return np.stack(cols, axis=1)
+        p = np.ascontiguousarray(p, dtype=np.float64).reshape(-1, 3)
+        out = np.empty((p.shape[0], self.active.size))
+        col = np.empty(p.shape[0])
+        for k, i in enumerate(self.active):
+            _batch.received_power(self.table(), int(i), p, col)
+            out[:, k] = col
+        return out
 
     def sample_at(self, p: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per-lane choice at points p: (light index, its probability)."""
-        if not self.local:
+        if self.lights is None:
             idx, prob, _ = self.sample(u)
             return idx, prob
-        w = self.weights_at(p)
-        total = w.sum(axis=1)
-        # Where nothing can reach the point fall back to the global table (contributions are 0).
-        w = np.where(total[:, None] > 0, w, self.powers[self.active][None, :])
-        cdf = np.cumsum(w, axis=1)
-        cdf /= cdf[:, -1:]
-        k = (u[:, None] >= cdf).sum(axis=1)
-        k = np.minimum(k, self.active.size - 1)
-        # A bin of zero width is never chosen by the comparison above except through rounding at
-        # the very top; step back to the last positive bin then.
-        rows = np.arange(k.size)
-        zero = w[rows, k] <= 0
-        if zero.any():
-            k[zero] = w.shape[1] - 1 - np.argmax(w[zero][:, ::-1] > 0, axis=1)
-        prob = w[rows, k] / w.sum(axis=1)
-        return self.active[k], prob
+        p = np.ascontiguousarray(p, dtype=np.float64).reshape(-1, 3)
+        u = np.ascontiguousarray(np.broadcast_to(np.asarray(u, dtype=np.float64).reshape(-1), (p.shape[0],)))
+        idx = np.empty(p.shape[0], np.int64)
+        prob = np.empty(p.shape[0])
+        _batch.select(self.table(), p, u, idx, prob)
+        return idx, prob
 
     def prob_at(self, p: np.ndarray, light_index: int) -> np.ndarray:
         """Selection probability of one light at points p (for MIS of light hits)."""
-        if not self.local:
-            return np.full(p.shape[0], self.pmf[light_index])
-        if self.powers[light_index] <= 0:
-            return np.zeros(p.shape[0])
-        w = self.weights_at(p)
-        total = w.sum(axis=1)
-        col = int(np.searchsorted(self.active, light_index))
-        fallback = self.pmf[light_index]
-        return np.where(total > 0, w[:, col] / np.where(total > 0, total, 1.0), fallback)
+        if self.lights is None:
+            return np.full(np.asarray(p).shape[0], self.pmf[light_index])
+        p = np.ascontiguousarray(p, dtype=np.float64).reshape(-1, 3)
+        out = np.empty(p.shape[0])
+        _batch.select_prob(self.table(), p, np.array([light_index], np.int64), out)
+        return out
 
 
 def received_power(light, power: float, p: np.ndarray, radius: float) -> np.ndarray:
-    """Power of ``light`` as received at points p (W/m² scale; see module docstring)."""
-    custom = getattr(light, "received_power", None)
-    if custom is not None:
-        return np.asarray(custom(p, power), dtype=np.float64)
-    n = p.shape[0]
-    position = getattr(light, "position", None)
-    if light.is_infinite or position is None:
-        return np.full(n, power / (np.pi * radius * radius))
-    d = p - np.asarray(position, dtype=np.float64)
-    d2 = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]
-    size = float(getattr(light, "extent", 0.0) or getattr(light, "radius", 0.0) or 0.0)
-    return power / (4.0 * np.pi * np.maximum(d2, max(size * size, 1e-8)))
+    """Power of ``light`` as received at points p (W/m² scale; kernels/lights/selection.py)."""
+    from ..kernels.lights.table import build_light_table
+    from ..kernels.params import ParamPacker
+    table = build_light_table([light], ParamPacker(), max(float(radius), 1e-6), "power", powers=[power])
+    p = np.ascontiguousarray(p, dtype=np.float64).reshape(-1, 3)
+    out = np.empty(p.shape[0])
+    _batch.received_power(table, 0, p, out)
+    return out
 
 
 def build_selector(lights, mode: str = "local", radius: float = 1.0) -> LightSelector | None:

@@ -1,40 +1,36 @@
 """Spot lights, as Cycles ≥ 4.0 (src/scene/light.cpp, src/kernel/light/spot.h).
 
 A spot light is a point light (point.py: same units, radius, soft falloff) whose emission is
-multiplied by Cycles' cone falloff, evaluated on the direction the light travels expressed in the
-light object's local frame (``M⁻¹ w``, normalised; the cone axis is local −Z)::
-
-    z'    = −(M⁻¹ w / |M⁻¹ w|)_z                 cosine to the cone axis in local space
-    x     = (z' − cos(spot_size/2)) / ((1 − cos(spot_size/2)) · spot_blend)
-    atten = smoothstep(x) = 0 (x ≤ 0), 1 (x ≥ 1), x²(3 − 2x) otherwise
-
-so a non-uniformly scaled spot light has an elliptical cone, as in Blender. ``spot_blend`` = 0
-gives a hard edge. An optional profile (IES) multiplies the attenuation; ``spot_attenuation`` is
-the function to combine with it.
+multiplied by Cycles' cone falloff (smoothstep of the cosine to the cone axis, evaluated on the
+travel direction in the light object's local frame, so a non-uniformly scaled spot has an
+elliptical cone): per-lane code in ``backend/kernels/lights/spot.py``, whose docstring has the
+formula. An optional profile (IES) multiplies the attenuation.
 
 Sampling: like Cycles, a sphere spot light seen from close by samples the (larger) cone of the
 spot instead of the sphere's visible cone when that is narrower: directions outside the spot cone
-carry no light anyway.
+carry no light anyway. This class computes that cone's world half-angle (load time).
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..kernels.lights import batch as _batch
+from ..kernels.lights import point as _kp
 from . import register
 from .common import column, power_luminance, sin2_to_one_minus_cos, unit
 from .point import PointLight, parse_point_fields
 
 
 def spot_attenuation(cos_axis: np.ndarray, cos_half_angle: float, spot_smooth: float) -> np.ndarray:
-    """Cycles' spot falloff of the local cosine to the cone axis (see module docstring).
+    """Cycles' spot falloff of the local cosine to the cone axis (kernels/lights/spot.py).
 
     ``spot_smooth`` = 1/((1 − cos_half_angle) · spot_blend); ``np.inf`` for a hard edge.
     """
     z = np.asarray(cos_axis, dtype=np.float64)
-    if not np.isfinite(spot_smooth):
-        return (z > cos_half_angle).astype(np.float64)
-    x = np.clip((z - cos_half_angle) * spot_smooth, 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
+    flat = np.ascontiguousarray(z).reshape(-1)
+    out = np.empty(flat.size)
+    _batch.spot_attenuation(flat, float(cos_half_angle), float(spot_smooth), out)
+    return out.reshape(z.shape)
 
 
 def spot_smooth_factor(cos_half_angle: float, blend: float) -> float:
@@ -58,15 +54,16 @@ class SpotLight(PointLight):
         su, sv, sw = (float(np.linalg.norm(column(self.to_world, i))) for i in range(3))
         tan_wide = np.tan(half) * max(su, sv) / sw if half < 0.5 * np.pi else np.inf
         sin2_wide = 1.0 if not np.isfinite(tan_wide) else tan_wide ** 2 / (1.0 + tan_wide ** 2)
-        self._spread_one_minus_cos = float(sin2_to_one_minus_cos(np.array(sin2_wide)))
+        self._spread_one_minus_cos = sin2_to_one_minus_cos(sin2_wide)
         self._spread_axis = unit(column(self.to_world, 2))   # towards the light from lit points
 
-    def directional_factor(self, w_out):
-        local = self.local_direction(w_out)
-        f = spot_attenuation(-local[:, 2], self.cos_half, self.spot_smooth)
-        if self.profile is not None:
-            f = f * np.asarray(self.profile(local), dtype=np.float64)
-        return f
+    def _has_factor(self) -> bool:
+        return True
+
+    def _pack_spot(self, row) -> None:
+        row.i[_kp.I_SPOT] = 1
+        row.f[_kp.P_COS_HALF] = self.cos_half
+        row.f[_kp.P_SPOT_SMOOTH] = self.spot_smooth
 
     def power(self) -> float:
         mean = self._profile_mean(

@@ -8,15 +8,19 @@ The light travels along the object's local −Z, so the sun is seen towards loca
   radiance L = E / (π sin² a) (Cycles: ``eval_fac = 1/(π sin²(angle/2))``), so the irradiance of
   a surface that sees the whole disk is E cos θ. It is sampled uniformly in that cone, and rays
   escaping the scene inside the cone see it (``eval_escaped``), with MIS.
+
+Per-lane code: ``backend/kernels/lights/sun.py``. 1 − cos a is computed here as 2 sin²(a/2),
+exact for tiny suns (see that module on precision).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..mathutil import dot
+from ..kernels.lights import common as _kc
+from ..kernels.lights import sun as _ks
 from . import register
-from .base import Light, LightSample
-from .common import cone_pdf, column, parse_common, power_luminance, sample_cone, unit
+from .base import Light
+from .common import column, parse_common, power_luminance, unit
 
 
 class SunLight(Light):
@@ -37,7 +41,7 @@ class SunLight(Light):
             # 1 − cos a = 2 sin²(a/2), exact for tiny suns.
             self.one_minus_cos = 2.0 * np.sin(0.5 * half) ** 2
             self.radiance = self.irradiance / (np.pi * np.sin(half) ** 2)
-            self.pdf_value = float(cone_pdf(self.one_minus_cos))
+            self.pdf_value = 1.0 / (2.0 * np.pi * self.one_minus_cos)   # [1/sr]
         self.scene_radius = 1.0
 
     def prepare(self, scene_center, scene_radius):
@@ -47,29 +51,16 @@ class SunLight(Light):
         # The flux through the scene's bounding disk (as pbrt-v4 for distant lights).
         return power_luminance(self.color, self.strength) * np.pi * self.scene_radius ** 2
 
-    def sample(self, p, u) -> LightSample:
-        n = p.shape[0]
-        dist = np.full(n, np.inf)
-        if self.is_delta:
-            wi = np.broadcast_to(self.direction, (n, 3)).copy()
-            return LightSample(wi, dist, np.broadcast_to(self.irradiance, (n, 3)).copy(), np.zeros(n))
-        axis = np.broadcast_to(self.direction, (n, 3))
-        wi = sample_cone(axis, np.full(n, self.one_minus_cos), u)
-        value = np.broadcast_to(self.radiance / self.pdf_value, (n, 3)).copy()
-        return LightSample(wi, dist, value, np.full(n, self.pdf_value))
-
-    def _inside(self, d):
-        return (1.0 - dot(d, self.direction)) <= self.one_minus_cos
-
-    def eval_escaped(self, d):
-        if self.is_delta:
-            return np.zeros((d.shape[0], 3))
-        return np.where(self._inside(d)[:, None], self.radiance, 0.0)
-
-    def pdf_escaped(self, d):
-        if self.is_delta:
-            return np.zeros(d.shape[0])
-        return np.where(self._inside(d), self.pdf_value, 0.0)
+    def pack(self, b) -> None:
+        row = b.light(_kc.SUN, delta=self.is_delta, infinite=True, visible_camera=self.visible_camera)
+        row.select_uniform()
+        row.put(_ks.S_DIR, self.direction)
+        row.put(_ks.S_IRRADIANCE, self.irradiance)
+        row.i[_ks.I_DELTA] = int(self.is_delta)
+        if not self.is_delta:
+            row.put(_ks.S_RADIANCE, self.radiance)
+            row.f[_ks.S_OMC] = self.one_minus_cos
+            row.f[_ks.S_PDF] = self.pdf_value
 
 
 @register("sun")

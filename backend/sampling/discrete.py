@@ -1,7 +1,14 @@
-"""Discrete and piecewise-constant distributions (light selection, environment maps)."""
+"""Discrete and piecewise-constant distributions (light selection, environment maps).
+
+Construction (load time) is NumPy; sampling and densities loop the per-lane code of
+``backend/kernels/discrete.py`` (its docstring has the conventions and the block layout) over
+arrays, so these classes and the light kernels share one implementation.
+"""
 from __future__ import annotations
 
 import numpy as np
+
+from ..kernels import sampling_batch as _b
 
 
 class Discrete1D:
@@ -19,19 +26,21 @@ class Discrete1D:
         self.pmf = w / total
         self.cdf = np.concatenate([[0.0], np.cumsum(self.pmf)])
         self.cdf[-1] = 1.0
+        #: [cdf | pmf], the kernels' 1-D block (kernels/discrete.py)
+        self.block = np.ascontiguousarray(np.concatenate([self.cdf, self.pmf]))
 
     def __len__(self) -> int:
         return self.pmf.size
 
     def sample(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Returns (index, probability, u remapped to [0, 1) within the chosen bin)."""
-        idx = np.searchsorted(self.cdf, u, side="right") - 1
-        idx = np.clip(idx, 0, self.pmf.size - 1)
-        # Zero-probability bins can only be hit at exact cdf ties: move to the next non-empty bin.
-        p = self.pmf[idx]
-        width = np.where(p > 0, p, 1.0)
-        u_rem = np.clip((u - self.cdf[idx]) / width, 0.0, np.nextafter(1.0, 0.0))
-        return idx, p, u_rem
+        u = np.ascontiguousarray(u, dtype=np.float64)
+        flat = u.reshape(-1)
+        idx = np.empty(flat.size, np.int64)
+        p = np.empty(flat.size)
+        u_rem = np.empty(flat.size)
+        _b.sample_1d(self.block, self.pmf.size, flat, idx, p, u_rem)
+        return idx.reshape(u.shape), p.reshape(u.shape), u_rem.reshape(u.shape)
 
 
 class PiecewiseConstant2D:
@@ -59,23 +68,20 @@ class PiecewiseConstant2D:
         self.cond_cdf = np.concatenate([np.zeros((self.h, 1)), np.cumsum(cond, axis=1)], axis=1)
         self.cond_cdf[:, -1] = 1.0
         self.cond_pmf = cond
-        # Row r's CDF shifted by r: one increasing array, so a single searchsorted serves all
-        # lanes (no (N, W) temporaries for large environment maps).
-        self._flat_cdf = (np.arange(self.h)[:, None] + self.cond_cdf).ravel()
+        #: the kernels' 2-D block (kernels/discrete.py)
+        self.block = np.ascontiguousarray(np.concatenate([
+            self.density.ravel(), self.marginal.block, self.cond_cdf.ravel(), self.cond_pmf.ravel()]))
 
     def sample(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """u (N, 2) -> (points (N, 2) in [0,1)^2 as (x=u, y=v), pdf (N,))."""
-        row, _, u_row = self.marginal.sample(u[:, 1])
-        k = np.searchsorted(self._flat_cdf, row + u[:, 0], side="right") - 1
-        col = np.clip(k - row * (self.w + 1), 0, self.w - 1)
-        p = self.cond_pmf[row, col]
-        frac = np.clip((u[:, 0] - self.cond_cdf[row, col]) / np.where(p > 0, p, 1.0),
-                       0.0, np.nextafter(1.0, 0.0))
-        x = (col + frac) / self.w
-        y = (row + u_row) / self.h
-        return np.stack([x, y], axis=-1), self.density[row, col]
+        u = np.ascontiguousarray(u, dtype=np.float64).reshape(-1, 2)
+        xy = np.empty((u.shape[0], 2))
+        pdf = np.empty(u.shape[0])
+        _b.sample_2d(self.block, self.h, self.w, u, xy, pdf)
+        return xy, pdf
 
     def pdf(self, xy: np.ndarray) -> np.ndarray:
-        col = np.clip((xy[:, 0] * self.w).astype(np.int64), 0, self.w - 1)
-        row = np.clip((xy[:, 1] * self.h).astype(np.int64), 0, self.h - 1)
-        return self.density[row, col]
+        xy = np.ascontiguousarray(xy, dtype=np.float64).reshape(-1, 2)
+        out = np.empty(xy.shape[0])
+        _b.pdf_2d(self.block, self.h, self.w, xy, out)
+        return out

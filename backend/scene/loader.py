@@ -342,28 +342,17 @@ def build_mesh_light(soup: TriangleSoup, materials: list):
     if tri.size == 0:
         return None
     from ..lights.mesh import MeshLight
-    radiance_at = None
+    textured = {}
     if any(not materials[mi].emission.is_constant for mi in emissive) and soup.uvs is not None:
-        radiance_at = _emission_lookup(soup, materials, tri)
-    light = MeshLight(soup.vertices[tri].astype(np.float64), radiance, two_sided=True,
-                      radiance_at=radiance_at)
+        # Exact emission at sampled points: each triangle's UV corners and its material's
+        # emission parameter (one slot per emissive material), evaluated per lane by the kernel.
+        slot_of = np.full(len(materials), -1, np.int64)
+        slot_of[emissive] = np.arange(len(emissive))
+        textured = dict(uvs=soup.uvs64[tri], emission=[materials[mi].emission for mi in emissive],
+                        slots=slot_of[soup.material[tri]])
+    light = MeshLight(soup.vertices[tri].astype(np.float64), radiance, two_sided=True, **textured)
     light.triangle_ids = tri  # global triangle index of each emitter
     return light
-
-
-def _emission_lookup(soup: TriangleSoup, materials: list, emitter_tris: np.ndarray):
-    """Exact emitted radiance at barycentric points of emitter triangles (textured emission)."""
-    def radiance_at(tri_local: np.ndarray, bary: np.ndarray) -> np.ndarray:
-        glob = emitter_tris[tri_local]
-        uv = np.einsum("nij,ni->nj", soup.uvs64[glob], bary)
-        mats = soup.material[glob]
-        out = np.zeros((glob.size, 3))
-        for mi in np.unique(mats):
-            sel = mats == mi
-            value = np.asarray(materials[mi].emission.bind(uv[sel]), dtype=np.float64)
-            out[sel] = np.broadcast_to(value.reshape(-1, 3), (int(sel.sum()), 3))
-        return out
-    return radiance_at
 
 
 def scene_bounds(soup: TriangleSoup, lights: list, camera) -> tuple[np.ndarray, float]:

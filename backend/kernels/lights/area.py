@@ -1,0 +1,263 @@
+"""Area lights per lane (rectangle, square, disk, ellipse), as Cycles ≥ 4.0, plus directional
+area lights and the collimated (spread 0) limit.
+
+Geometry (src/scene/light.cpp): the emitter is centred on the object's origin, spans
+``size`` × ``size_y`` along the object's local X and Y *including the object's scale* (Blender's
+``Light.area(matrix_world=...)``), and emits from one side, towards local −Z. Shear is ignored
+(the Y axis is orthogonalised against X). Emitter coordinates (lu, lv, h) of a point are its
+components along the unit axes u, v and the emission normal n, relative to the centre.
+
+Units: with ``normalize`` (default) the radiance scale is L0 = P / (π A_world), so a Lambertian
+emitter radiates exactly P watts; without it L0 = P/π (Cycles' ``invarea`` = 1). The radiance
+leaving at angle θ to the normal is ``A_SCALE`` × f(θ) with ``A_SCALE`` = L0/K (profiles.py).
+
+Angular profile (profiles.py): ``spread`` (Blender's area light spread, Cycles' soft-box
+falloff), or ``cutoff_angle`` / ``beam_width`` (the directional area light, smoothstep in
+angle). spread = 0 is Cycles' collimated limit (``sample_collimated``): a delta light shining
+straight down the normal; a point in front of the emitter whose projection falls on it receives
+the irradiance P/A × colour (P × colour without ``normalize``) from direction −n.
+
+Sampling for next-event estimation (``plan``): only the part of the emitter that can reach the
+shading point is sampled. A point at height h in front of the light receives light only from the
+disk of radius h·tan(cutoff) around its projection; a point whose disk box misses the emitter
+gets no sample at all (value 0, no shadow ray). Otherwise the smallest of these is sampled: the
+cutoff cone of directions itself, ∝ the emitted power (the cone table; its footprint is that
+disk), the disk's bounding box clipped to the emitter, uniformly in solid angle (spherical
+rectangle, Ureña et al. 2013), or a whole ellipse by area. Below ``MIN_SOLID_ANGLE`` the
+spherical rectangle gives way to uniform area sampling of the same box. ``pdf_hit`` redoes the
+same choice, so MIS sees the exact density. float64 throughout: the solid angle of a small light
+far away (1e-8 sr) is a difference of angles.
+"""
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from .. import spherical_rect as _sr
+from ..vec import dot
+from ..warp import disk_concentric
+from . import profiles as _prof
+from .common import FIRST, I_FIRST, INF, ZERO3, get3, unit_or_zero
+
+# Below this solid angle [sr] the spherical-rectangle map is no better than area sampling and
+# its angles lose relative precision: sample by area instead.
+MIN_SOLID_ANGLE = 1e-8
+
+MODE_NONE, MODE_SPHRECT, MODE_AREA_RECT, MODE_ELLIPSE, MODE_CONE = 0, 1, 2, 3, 4
+
+# float columns
+A_CENTER = FIRST         # 3 [m]
+A_U = FIRST + 3          # 3: unit axis u (local X)
+A_V = FIRST + 6          # 3: unit axis v (local Y orthogonalised against X)
+A_N = FIRST + 9          # 3: unit emission normal (local −Z)
+A_HALF_U = FIRST + 12    # half extents along u, v [m] (world, scale included)
+A_HALF_V = FIRST + 13
+A_AREA = FIRST + 14      # [m²]
+A_SCALE = FIRST + 15     # 3: L0/K [W m⁻² sr⁻¹]; collimated: the irradiance [W/m²]
+A_TAN_MAX = FIRST + 18   # tan(cutoff) of the profile, inf without a cutoff
+A_SPREAD_TAN = FIRST + 19    # SPREAD: tan(spread/2)
+A_CUTOFF = FIRST + 20    # SMOOTH_CONE: cutoff, beam [rad]
+A_BEAM = FIRST + 21
+A_MU_LO = FIRST + 22     # cone table: lowest μ = cos θ and bin width in μ
+A_WIDTH = FIRST + 23
+
+# int columns
+I_ELLIPSE = I_FIRST
+I_EMITS = I_FIRST + 1    # 0: zero area or power (never sampled or hit)
+I_PROFILE = I_FIRST + 2  # profiles.LAMBERTIAN / SPREAD / SMOOTH_CONE
+I_CONE_OFF = I_FIRST + 3     # aux offset of the cone table
+I_CONE_BINS = I_FIRST + 4    # 0: no cone table (no cutoff)
+
+_NO_RECT = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@njit(cache=True)
+def _local(prm, x):
+    c = get3(prm, A_CENTER)
+    r = (x[0] - c[0], x[1] - c[1], x[2] - c[2])
+    return dot(r, get3(prm, A_U)), dot(r, get3(prm, A_V)), dot(r, get3(prm, A_N))
+
+
+@njit(cache=True)
+def _point(prm, lu, lv):
+    c = get3(prm, A_CENTER)
+    u = get3(prm, A_U)
+    v = get3(prm, A_V)
+    return (c[0] + lu * u[0] + lv * v[0], c[1] + lu * u[1] + lv * v[1], c[2] + lu * u[2] + lv * v[2])
+
+
+@njit(cache=True)
+def inside(prm, ip, lu, lv):
+    hu = prm[A_HALF_U]
+    hv = prm[A_HALF_V]
+    if ip[I_ELLIPSE] != 0:
+        a = lu / hu if hu != 0.0 else 0.0
+        b = lv / hv if hv != 0.0 else 0.0
+        return a * a + b * b <= 1.0
+    return abs(lu) <= hu and abs(lv) <= hv
+
+
+@njit(cache=True)
+def radiance(prm, ip, cos_out):
+    """Radiance leaving the emitter at cos θ to its normal."""
+    f = _prof.evaluate(ip[I_PROFILE], prm[A_SPREAD_TAN], prm[A_CUTOFF], prm[A_BEAM], cos_out)
+    return (prm[A_SCALE] * f, prm[A_SCALE + 1] * f, prm[A_SCALE + 2] * f)
+
+
+@njit(cache=True)
+def plan(prm, ip, p):
+    """The sampling choice at point p: (mode, pu, pv, h, region u0, u1, v0, v1 in emitter
+    coordinates, spherical rectangle (MODE_SPHRECT), its solid angle [sr] or 0)."""
+    pu, pv, h = _local(prm, p)
+    hu = prm[A_HALF_U]
+    hv = prm[A_HALF_V]
+    u0, u1, v0, v1 = -hu, hu, -hv, hv
+    tan_max = prm[A_TAN_MAX]
+    clipped = tan_max < INF
+    rc = 0.0
+    if clipped:
+        # Only the disk of radius h·tan(cutoff) around the projection can reach p.
+        rc = max(h, 0.0) * tan_max
+        u0 = max(u0, pu - rc)
+        u1 = min(u1, pu + rc)
+        v0 = max(v0, pv - rc)
+        v1 = min(v1, pv + rc)
+    mode = MODE_NONE
+    if h > 0.0 and u1 > u0 and v1 > v0 and ip[I_EMITS] != 0:
+        mode = MODE_SPHRECT
+        box = (u1 - u0) * (v1 - v0)
+        area = prm[A_AREA]
+        ellipse = ip[I_ELLIPSE] != 0
+        if ellipse and not box < area:
+            mode = MODE_ELLIPSE          # whole ellipse by area unless the cone's box is smaller
+        if clipped:
+            # The cone itself (sampled ∝ the emitted power) when its footprint disk is smaller
+            # than the box the other modes would sample: no waste when it lies on the emitter.
+            if math.pi * rc * rc < (min(box, area) if ellipse else box):
+                mode = MODE_CONE
+    sr = _NO_RECT
+    solid = 0.0
+    if mode == MODE_SPHRECT:
+        # corner (u0, v0) relative to p; only |z0| matters to the spherical rectangle
+        sr = _sr.spherical_rect(u0 - pu, v0 - pv, -h, u1 - u0, v1 - v0)
+        solid = sr[8]
+        if solid < MIN_SOLID_ANGLE:
+            mode = MODE_AREA_RECT
+            solid = 0.0
+    return mode, pu, pv, h, u0, u1, v0, v1, sr, solid
+
+
+@njit(cache=True)
+def sample(prm, ip, aux, p, u0, u1):
+    """(wi, dist, value = radiance/pdf, solid-angle pdf); value and pdf 0 where p gets nothing."""
+    mode, pu, pv, h, a0, a1, b0, b1, sr, solid = plan(prm, ip, p)
+    if mode == MODE_NONE:
+        return ZERO3, 0.0, ZERO3, 0.0
+    ellipse = ip[I_ELLIPSE] != 0
+    check_inside = ellipse
+    pdf = 0.0            # solid angle; the area modes convert below
+    area_pdf = 0.0
+    lu = 0.0
+    lv = 0.0
+    if mode == MODE_SPHRECT:
+        xu, yv = _sr.sample(sr, u0, u1)
+        lu = pu + xu
+        lv = pv + yv
+        x = _point(prm, lu, lv)
+        pdf = 1.0 / solid
+    elif mode == MODE_AREA_RECT:
+        lu = a0 + u0 * (a1 - a0)
+        lv = b0 + u1 * (b1 - b0)
+        x = _point(prm, lu, lv)
+        ra = (a1 - a0) * (b1 - b0)
+        area_pdf = 1.0 / ra if ra != 0.0 else 0.0
+    elif mode == MODE_ELLIPSE:
+        dx, dy = disk_concentric(u0, u1)
+        lu = dx * prm[A_HALF_U]
+        lv = dy * prm[A_HALF_V]
+        x = _point(prm, lu, lv)
+        area_pdf = 1.0 / prm[A_AREA]
+        check_inside = False         # inside by construction
+    else:
+        # MODE_CONE: emission direction e at cos μ to the normal; the ray from p goes along −e
+        mu, phi, pdf = _prof.cone_sample(aux, ip[I_CONE_OFF], ip[I_CONE_BINS], prm[A_MU_LO],
+                                         prm[A_WIDTH], u0, u1)
+        s = math.sqrt(max(0.0, 1.0 - mu * mu))
+        sc = s * math.cos(phi)
+        ss = s * math.sin(phi)
+        n = get3(prm, A_N)
+        u = get3(prm, A_U)
+        v = get3(prm, A_V)
+        k = h / mu
+        x = (p[0] - k * (mu * n[0] + sc * u[0] + ss * v[0]),
+             p[1] - k * (mu * n[1] + sc * u[1] + ss * v[1]),
+             p[2] - k * (mu * n[2] + sc * u[2] + ss * v[2]))
+        lu, lv, _ = _local(prm, x)
+        check_inside = True          # cone directions may miss the emitter
+    wi, t = unit_or_zero((x[0] - p[0], x[1] - p[1], x[2] - p[2]))
+    cos_out = -dot(wi, get3(prm, A_N))
+    if area_pdf > 0.0:
+        pdf = area_pdf * t * t / cos_out if cos_out != 0.0 else 0.0
+    if not (t > 0.0 and cos_out > 0.0 and pdf > 0.0):
+        return wi, 0.0, ZERO3, 0.0
+    if check_inside and not inside(prm, ip, lu, lv):
+        return wi, 0.0, ZERO3, 0.0
+    le = radiance(prm, ip, cos_out)
+    inv = 1.0 / pdf
+    return wi, t, (le[0] * inv, le[1] * inv, le[2] * inv), pdf
+
+
+@njit(cache=True)
+def intersect(prm, ip, o, d, tmax):
+    ou, ov, h = _local(prm, o)
+    denom = dot(d, get3(prm, A_N))
+    if not (denom < 0.0 and h > 0.0 and ip[I_EMITS] != 0):
+        return INF
+    t = h / -denom
+    lu = ou + t * dot(d, get3(prm, A_U))       # emitter coordinates of o + t·d
+    lv = ov + t * dot(d, get3(prm, A_V))
+    if t > 0.0 and t < tmax and inside(prm, ip, lu, lv):
+        return t
+    return INF
+
+
+@njit(cache=True)
+def eval_hit(prm, ip, o, d, t):
+    return radiance(prm, ip, -dot(d, get3(prm, A_N)))
+
+
+@njit(cache=True)
+def pdf_hit(prm, ip, aux, o, d, t):
+    """Solid-angle density of ``sample(o)`` for direction d hitting the emitter at o + t d."""
+    cos_out = -dot(d, get3(prm, A_N))
+    if not cos_out > 0.0:
+        return 0.0
+    mode, pu, pv, h, a0, a1, b0, b1, sr, solid = plan(prm, ip, o)
+    if mode == MODE_NONE:
+        return 0.0
+    if mode == MODE_CONE:
+        return _prof.cone_pdf(aux, ip[I_CONE_OFF], ip[I_CONE_BINS], prm[A_MU_LO], prm[A_WIDTH], cos_out)
+    if mode == MODE_ELLIPSE:
+        return t * t / (prm[A_AREA] * cos_out)
+    if prm[A_TAN_MAX] < INF:
+        # a clipped region: the hit must lie in it (computed as ``intersect`` does)
+        lu = pu + t * dot(d, get3(prm, A_U))
+        lv = pv + t * dot(d, get3(prm, A_V))
+        if not (lu >= a0 and lu <= a1 and lv >= b0 and lv <= b1):
+            return 0.0
+    if mode == MODE_SPHRECT:
+        return 1.0 / solid
+    ra = (a1 - a0) * (b1 - b0)
+    return t * t / (ra * cos_out) if ra != 0.0 else 0.0
+
+
+@njit(cache=True)
+def sample_collimated(prm, ip, p):
+    """Spread 0: irradiance ``A_SCALE`` along −n where p's projection falls on the emitter."""
+    pu, pv, h = _local(prm, p)
+    n = get3(prm, A_N)
+    wi = (-n[0], -n[1], -n[2])
+    if h > 0.0 and inside(prm, ip, pu, pv):
+        return wi, h, get3(prm, A_SCALE), 0.0
+    return wi, 0.0, ZERO3, 0.0

@@ -1,0 +1,147 @@
+"""The per-lane light interface the integrator kernels call (one light table ``lt``, table.py;
+the scene's ``TextureTable`` ``tx``, kernels/textures.py). World space, float64, directions are
+unit 3-tuples pointing away from the shading point.
+
+* ``sample(lt, tx, li, p, u0, u1) -> (wi, dist, value, pdf, is_delta)``: a direction towards
+  light ``li`` from point p for next-event estimation. ``value`` is the incident radiance divided
+  by the solid-angle pdf (delta lights: the irradiance-like weight, e.g. I/d²), so the
+  contribution is f·|cos| × value; ``pdf`` excludes the selection probability and is 0 for delta
+  lights; ``dist`` is the distance to the sampled point (inf for infinitely far lights: trace the
+  shadow ray to infinity); value and pdf are 0 where the light cannot reach p (no shadow ray).
+* ``intersect(lt, li, o, d, tmax) -> t``: first hit in (0, tmax) of a finite hittable light
+  (area, sphere, soft-falloff disk), inf otherwise and for every other kind.
+* ``eval_hit(lt, li, o, d, t) -> rgb``, ``pdf_hit(lt, li, o, d, t) -> pdf``: radiance arriving
+  at o along d from the hit at o + t d, and the solid-angle density ``sample(o)`` gives d.
+* ``eval_escaped(lt, li, d)``, ``pdf_escaped(lt, li, d)``: the same for rays escaping the scene
+  in direction d (sun with an angle, constant world, environment map; 0 for the others).
+* ``mesh_pdf_hit(lt, li, o, d, t, local_tri)``: the density of a hit on emitter triangle
+  ``local_tri`` of mesh light li (``emitter_of_prim`` maps a scene primitive to both).
+* ``select(lt, p, u) -> (li, prob)``, ``select_prob(lt, p, li)``: light selection (selection.py).
+
+Units and conventions of each kind are in its module (point.py, spot.py, ies.py, area.py,
+profiles.py, sun.py, environment.py, mesh.py).
+"""
+from __future__ import annotations
+
+from numba import njit
+
+from ..warp import INV_4PI
+from . import area as _area
+from . import environment as _env
+from . import mesh as _mesh
+from . import point as _point
+from . import selection as _sel
+from . import sun as _sun
+from .common import AREA, COLLIMATED, CONSTANT, ENVIRONMENT, INF, MESH, POINT, SUN, ZERO3
+
+
+@njit(cache=True)
+def sample(lt, tx, li, p, u0, u1):
+    k = lt.kind[li]
+    prm = lt.params[li]
+    ip = lt.iparams[li]
+    if k == POINT:
+        wi, dist, value, pdf = _point.sample(prm, ip, lt.aux, p, u0, u1)
+    elif k == AREA:
+        wi, dist, value, pdf = _area.sample(prm, ip, lt.aux, p, u0, u1)
+    elif k == SUN:
+        wi, dist, value, pdf = _sun.sample(prm, ip, u0, u1)
+    elif k == ENVIRONMENT:
+        wi, dist, value, pdf = _env.env_sample(prm, ip, lt.aux, u0, u1)
+    elif k == MESH:
+        wi, dist, value, pdf = _mesh.sample(ip, lt.aux, lt.iaux, tx, p, u0, u1)
+    elif k == CONSTANT:
+        wi, dist, value, pdf = _env.constant_sample(prm, u0, u1)
+    elif k == COLLIMATED:
+        wi, dist, value, pdf = _area.sample_collimated(prm, ip, p)
+    else:
+        wi, dist, value, pdf = ZERO3, 0.0, ZERO3, 0.0
+    return wi, dist, value, pdf, lt.is_delta[li]
+
+
+@njit(cache=True)
+def intersect(lt, li, o, d, tmax):
+    k = lt.kind[li]
+    if k == AREA:
+        return _area.intersect(lt.params[li], lt.iparams[li], o, d, tmax)
+    if k == POINT:
+        return _point.intersect(lt.params[li], lt.iparams[li], o, d, tmax)
+    return INF
+
+
+@njit(cache=True)
+def eval_hit(lt, li, o, d, t):
+    k = lt.kind[li]
+    if k == AREA:
+        return _area.eval_hit(lt.params[li], lt.iparams[li], o, d, t)
+    if k == POINT:
+        return _point.eval_hit(lt.params[li], lt.iparams[li], lt.aux, o, d, t)
+    return ZERO3
+
+
+@njit(cache=True)
+def pdf_hit(lt, li, o, d, t):
+    k = lt.kind[li]
+    if k == AREA:
+        return _area.pdf_hit(lt.params[li], lt.iparams[li], lt.aux, o, d, t)
+    if k == POINT:
+        return _point.pdf_hit(lt.params[li], lt.iparams[li], o, d, t)
+    return 0.0
+
+
+@njit(cache=True)
+def eval_escaped(lt, li, d):
+    k = lt.kind[li]
+    if k == ENVIRONMENT:
+        return _env.env_eval(lt.params[li], lt.iparams[li], lt.aux, d)
+    if k == SUN:
+        return _sun.eval_escaped(lt.params[li], lt.iparams[li], d)
+    if k == CONSTANT:
+        return _env.constant_eval(lt.params[li])
+    return ZERO3
+
+
+@njit(cache=True)
+def pdf_escaped(lt, li, d):
+    k = lt.kind[li]
+    if k == ENVIRONMENT:
+        return _env.env_pdf(lt.params[li], lt.iparams[li], lt.aux, d)
+    if k == SUN:
+        return _sun.pdf_escaped(lt.params[li], lt.iparams[li], d)
+    if k == CONSTANT:
+        return INV_4PI
+    return 0.0
+
+
+@njit(cache=True)
+def mesh_pdf_hit(lt, li, o, d, t, local_tri):
+    if lt.kind[li] != MESH:
+        return 0.0
+    return _mesh.pdf_hit_triangle(lt.iparams[li], lt.aux, o, d, t, local_tri)
+
+
+@njit(cache=True)
+def mesh_eval(lt, li, d, local_tri):
+    """Per-triangle radiance of an emitter triangle (its value at the UV centroid if textured)."""
+    if lt.kind[li] != MESH:
+        return ZERO3
+    return _mesh.eval_triangle(lt.iparams[li], lt.aux, d, local_tri)
+
+
+@njit(cache=True)
+def emitter_of_prim(lt, prim):
+    """(mesh light index, local triangle index) of scene primitive ``prim``; (−1, −1) if it emits
+    nothing."""
+    if prim < 0 or prim >= lt.prim_light.shape[0]:
+        return -1, -1
+    return lt.prim_light[prim], lt.prim_local[prim]
+
+
+@njit(cache=True)
+def select(lt, p, u):
+    return _sel.select(lt, p, u)
+
+
+@njit(cache=True)
+def select_prob(lt, p, li):
+    return _sel.select_prob(lt, p, li)
