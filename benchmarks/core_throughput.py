@@ -38,12 +38,12 @@ def main(argv=None) -> int:
     block = choose_spp_block(pixels.size, args.spp)
     items = []
     for r in range(int(np.ceil(args.spp / block))):
-        items += plan_round(pixels, min(block, args.spp - r * block), r, 1)
+        items += plan_round(pixels, min(block, args.spp - r * block), r, 1, r * block)
     t0 = time.perf_counter()
     c0 = time.process_time()
-    for key, band, spp, seed in items:
+    for key, band, spp, seed, sample0 in items:
         rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, *key])))
-        tracer.render(band, spp, rng)
+        tracer.render(band, spp, rng, sample0)
     t_render = time.perf_counter() - t0
     c_render = time.process_time() - c0
     batches = accel.recorder

@@ -11,54 +11,12 @@ import pytest
 pytest.importorskip("backend.render")
 
 from backend.ies.profile import IESProfile
-from backend.materials import REGISTRY as MATERIALS
-from backend.materials.base import BSDF, BSDFSample, Material
-from backend.sampling.warp import square_to_cosine_hemisphere
 from ies_reference import rotation_matrix
 from render_util import region_means, render, scene
 
 IES_DIR = Path(__file__).parent / "data" / "ies"
 K_SIGMA = 4.0
 EFFICACY = 177.83
-
-
-# A Lambertian BSDF owned by this test, so it depends on no material module (main has none yet).
-class _LambertBSDF(BSDF):
-    def __init__(self, n, rho):
-        self.n, self.rho = n, rho
-
-    def eval(self, wi, wo, rng, mode=0):
-        ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-        return np.where(ok, wo[:, 2] / np.pi, 0.0)[:, None] * self.rho[None, :]
-
-    def pdf(self, wi, wo, rng, mode=0):
-        return np.where((wi[:, 2] > 0) & (wo[:, 2] > 0), wo[:, 2] / np.pi, 0.0)
-
-    def sample(self, wi, rng, mode=0):
-        wo = square_to_cosine_hemisphere(rng.random((wi.shape[0], 2)))
-        ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-        weight = np.where(ok[:, None], self.rho[None, :], 0.0)
-        return BSDFSample(wo, weight, np.where(ok, wo[:, 2] / np.pi, 0.0), np.zeros(wi.shape[0], bool))
-
-    def albedo(self):
-        return self.rho[None, :]
-
-    def take(self, idx):
-        idx = np.asarray(idx)
-        return _LambertBSDF(int(idx.sum()) if idx.dtype == bool else idx.size, self.rho)
-
-
-class _Lambert(Material):
-    type_name = "test_ies_lambert"
-
-    def __init__(self, rho):
-        self.rho = rho
-
-    def bind(self, ctx):
-        return _LambertBSDF(ctx.n, self.rho)
-
-
-MATERIALS.setdefault("test_ies_lambert", lambda node: _Lambert(node.rgb("color")))
 
 
 def _ortho_down(half, height=5.0):
@@ -82,7 +40,7 @@ def test_rendered_plane_matches_analytic_irradiance(name, axis, angle):
     light = {"type": "point", "to_world": M.tolist(), "power": P, "color": [1, 1, 1],
              "ies": {"file": str(IES_DIR / name)}}
     data = scene(size, size, _ortho_down(half),
-                 {"plane": {"type": "test_ies_lambert", "color": rho}},
+                 {"plane": {"type": "diffuse", "color": rho}},
                  {"plane": {"shape": "rectangle", "size": [2 * half + 1, 2 * half + 1]}},
                  [{"mesh": "plane", "materials": ["plane"]}], lights=[light],
                  render={"spp": 16, "max_bounces": 0, "seed": 11},

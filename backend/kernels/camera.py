@@ -56,7 +56,7 @@ def filter_offset(cdf, grid, width, u):
     return (x - 0.5) * width
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _aperture(cam, u0, u1):
     blades = int(cam[29])
     if blades < 3:

@@ -50,7 +50,7 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
                                    "visible_camera"])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def power_heuristic(a, b):
     """a²/(a² + b²), 0/0 → 0."""
     a2 = a * a
@@ -58,7 +58,7 @@ def power_heuristic(a, b):
     return a2 / den if den > 0.0 else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _offset(p, ng, d):
     """p moved off the surface along ±ng, to the side d points to."""
     side = 1.0 if ng[0] * d[0] + ng[1] * d[1] + ng[2] * d[2] >= 0.0 else -1.0
@@ -66,7 +66,7 @@ def _offset(p, ng, d):
     return (p[0] + s * ng[0], p[1] + s * ng[1], p[2] + s * ng[2])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _clamped(c, clamp, segment):
     """Cycles-style sample clamping of indirect contributions (off when clamp ≤ 0)."""
     if clamp > 0.0 and segment > 0:
@@ -77,14 +77,14 @@ def _clamped(c, clamp, segment):
     return c
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _add(L, slot, c):
     L[slot, 0] += c[0]
     L[slot, 1] += c[1]
     L[slot, 2] += c[2]
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _mis_hit(LT, li, pdf_light, prev_pdf, prev_delta, o):
     """MIS weight of emission found by BSDF sampling against light sampling from o."""
     if prev_delta:
@@ -92,25 +92,25 @@ def _mis_hit(LT, li, pdf_light, prev_pdf, prev_delta, o):
     return power_heuristic(prev_pdf, ld.select_prob(LT, o, li) * pdf_light)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _interp3(tab, prim, b1, b2):
     return (tab[prim, 0] + b1 * tab[prim, 3] + b2 * tab[prim, 6],
             tab[prim, 1] + b1 * tab[prim, 4] + b2 * tab[prim, 7],
             tab[prim, 2] + b1 * tab[prim, 5] + b2 * tab[prim, 8])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _normalize(a):
     n = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
     return (a[0] / n, a[1] / n, a[2] / n) if n > 0.0 else a
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _valid_reflection_normal(wi, ns, ng):
     """Bend an interpolated shading normal so the mirror direction of wi stays above the
     geometric surface (the idea of Cycles' ensure_valid_specular_reflection, own derivation):
@@ -134,7 +134,7 @@ def _valid_reflection_normal(wi, ns, ng):
     return (h[0] * sg, h[1] * sg, h[2] * sg)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _frame(n, tangent):
     """(s, t, n): Gram-Schmidt the UV tangent against n; Duff et al.'s frame where it is
     undefined (no UVs: zero tangent)."""
@@ -151,19 +151,19 @@ def _frame(n, tangent):
     return s, t
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _local(s, t, n, v):
     return (_dot(v, s), _dot(v, t), _dot(v, n))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _world(s, t, n, v):
     return (v[0] * s[0] + v[1] * t[0] + v[2] * n[0],
             v[0] * s[1] + v[1] * t[1] + v[2] * n[1],
             v[0] * s[2] + v[1] * t[2] + v[2] * n[2])
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, sh_slot, sh_o32, sh_d32, sh_t32,
                  sh_c, counts):
     k = counts[1]
@@ -178,7 +178,7 @@ def _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, sh_slot, sh_o32, sh_d32
     counts[1] = k + 1
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _nee(S, segment, slot, beta, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p, f, bsdf_pdf,
          sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts):
     """Light-sample contribution: MIS (power heuristic) against BSDF sampling, divided by the
@@ -190,7 +190,7 @@ def _nee(S, segment, slot, beta, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p
         _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, delta,
               nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, counts):
     """The next ray: leak guard, Russian roulette (survivors divided by the survival

@@ -79,19 +79,19 @@ def build_material_table(materials: list, packer: ParamPacker) -> MaterialTable:
                          np.stack([r.tex for r in rows]))
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _rgb(mt, tx, m, slot, u, v):
     # Elements, not a slice: a view would take a reference (an atomic increment) per call.
     vals = mt.values
     return param_rgb(tx, (vals[m, slot], vals[m, slot + 1], vals[m, slot + 2]), mt.tex[m, slot], u, v)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _scalar(mt, tx, m, slot, u, v):
     return param_scalar(tx, mt.values[m, slot], mt.tex[m, slot], u, v)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def emission(mt, tx, m, u, v):
     """Emitted radiance [W m⁻² sr⁻¹] of material m at (u, v), both faces."""
     if not mt.emits[m]:
@@ -99,7 +99,7 @@ def emission(mt, tx, m, u, v):
     return _rgb(mt, tx, m, EMISSION, u, v)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def bind(mt, tx, m, u, v):
     """The 12-tuple of lane parameters (see the module docstring)."""
     kind = mt.kind[m]
@@ -128,7 +128,7 @@ def bind(mt, tx, m, u, v):
     return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def is_delta_only(kind, p):
     """Every lobe is a delta (no light sampling needed): smooth metals and glass, black."""
     if kind == CONDUCTOR:
@@ -138,7 +138,7 @@ def is_delta_only(kind, p):
     return kind == BLACK
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def eval_pdf(kind, dist, masking, p, mode, wi, wo):
     """(f·|cos θo| RGB, pdf) of the non-delta part."""
     if kind == DIFFUSE:
@@ -152,7 +152,7 @@ def eval_pdf(kind, dist, masking, p, mode, wi, wo):
     return (0.0, 0.0, 0.0), 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def sample(kind, dist, masking, p, mode, wi, u0, u1, u2):
     """(wo, weight RGB, pdf, is_delta); weight 0 ends the path."""
     if kind == DIFFUSE:
@@ -166,7 +166,7 @@ def sample(kind, dist, masking, p, mode, wi, u0, u1, u2):
     return (0.0, 0.0, 1.0 if wi[2] >= 0.0 else -1.0), (0.0, 0.0, 0.0), 0.0, False
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def albedo(kind, p):
     """RGB reflectance estimate for the denoising AOV."""
     if kind == DIFFUSE:

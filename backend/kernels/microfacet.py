@@ -38,7 +38,7 @@ _TINY = 1e-300
 INV_PI = 1.0 / math.pi
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def D(dist, au, av, m):
     """Normal distribution (per steradian of m; ∫ D cos θm dm = 1); 0 for m.z ≤ 0."""
     x, y, z = m
@@ -57,14 +57,14 @@ def D(dist, au, av, m):
     return d / zz if zz > 0.0 else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def alpha2_tan2(au, av, w):
     """α(φ)² tan²θ of direction w (≥ 0, finite for w.z = 0)."""
     num = au * au * w[0] * w[0] + av * av * w[1] * w[1]
     return num / max(w[2] * w[2], _TINY)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def smith_lambda(dist, au, av, w):
     """Smith Λ(w), exact for both distributions."""
     s = alpha2_tan2(au, av, w)
@@ -80,12 +80,12 @@ def smith_lambda(dist, au, av, w):
     return max(lam, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def visible_side(w, m):
     return (w[0] * m[0] + w[1] * m[1] + w[2] * m[2]) * w[2] > 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def G1(dist, au, av, w, m):
     """Exact Smith masking χ⁺/(1 + Λ(w))."""
     if not visible_side(w, m):
@@ -93,7 +93,7 @@ def G1(dist, au, av, w, m):
     return 1.0 / (1.0 + smith_lambda(dist, au, av, w))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def G1_separable(dist, au, av, w, m):
     if dist == GGX:
         return G1(dist, au, av, w, m)
@@ -106,7 +106,7 @@ def G1_separable(dist, au, av, w, m):
     return 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def G(dist, masking, au, av, wi, wo, m):
     """Masking-shadowing G2(wi, wo, m) of the chosen form (reflection or transmission)."""
     if masking == SEPARABLE:
@@ -116,7 +116,7 @@ def G(dist, masking, au, av, wi, wo, m):
     return 1.0 / (1.0 + smith_lambda(dist, au, av, wi) + smith_lambda(dist, au, av, wo))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _normalize(x, y, z):
     n = math.sqrt(x * x + y * y + z * z)
     if n > 0.0:
@@ -124,7 +124,7 @@ def _normalize(x, y, z):
     return (x, y, z)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def sample_ndf(dist, au, av, u0, u1):
     """m with density D(m) cos θm (solid angle)."""
     u0 = min(u0, 1.0 - 2.0 ** -53)
@@ -137,12 +137,12 @@ def sample_ndf(dist, au, av, u0, u1):
     return _normalize(-r * math.cos(phi) * au, -r * math.sin(phi) * av, 1.0)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def pdf_ndf(dist, au, av, m):
     return D(dist, au, av, m) * max(m[2], 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _beckmann_visible_slopes(ws, u0, u1):
     """Visible slopes of the α = 1 Beckmann distribution seen from unit ws (shading frame)."""
     cos_t = min(max(ws[2], 0.0), 1.0)
@@ -183,7 +183,7 @@ def _beckmann_visible_slopes(ws, u0, u1):
     return cphi * x - sphi * y, sphi * x + cphi * y
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def sample_visible(dist, au, av, wi, u0, u1):
     """m ∝ G1(wi, m) max(0, wi·m) D(m)/wi.z for wi in the upper hemisphere (wi.z ≥ 0)."""
     ws = _normalize(au * wi[0], av * wi[1], max(wi[2], 0.0))
@@ -207,7 +207,7 @@ def sample_visible(dist, au, av, wi, u0, u1):
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def pdf_visible(dist, au, av, wi, m):
     """Density of ``sample_visible`` per steradian of m; wi in the upper hemisphere."""
     if wi[2] <= 0.0:

@@ -50,7 +50,7 @@ class ParamPacker:
         return build_table(self._images)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def param_rgb(tx, values, tex_id, u, v):
     """RGB parameter at (u, v): ``values`` is a 3-tuple (constant or texture factor)."""
     if tex_id >= 0:
@@ -59,7 +59,7 @@ def param_rgb(tx, values, tex_id, u, v):
     return (values[0], values[1], values[2])
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def param_scalar(tx, value, tex_id, u, v):
     if tex_id >= 0:
         return lookup(tx, tex_id, u, v)[0] * value

@@ -39,28 +39,28 @@ _S11 = np.uint64(11)
 _INV53 = 1.0 / 9007199254740992.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _mix(z):
     z = (z ^ (z >> _S30)) * _C0
     z = (z ^ (z >> _S27)) * _C1
     return z ^ (z >> _S31)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def path_key(seed, pixel, sample):
     """The 64-bit key of one path (all of its dimensions hash from it)."""
     h = _mix(np.uint64(seed) * _M0 + np.uint64(pixel))
     return _mix(h ^ (np.uint64(sample) * _M1))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def uniform(key, dim):
     """A double in [0, 1) for a path key and a dimension."""
     h = _mix(key ^ (np.uint64(dim) * _M2 + _M0))
     return np.float64(h >> _S11) * _INV53
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def bounce_dim(bounce, slot):
     return BOUNCE_BASE + bounce * BOUNCE_DIMS + slot
 

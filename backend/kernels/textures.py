@@ -37,7 +37,7 @@ def build_table(images: list) -> TextureTable:
                         np.array([img.shape[2] for img in images], np.int32))
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _texel(tx, t, x, y):
     c = tx.channels[t]
     base = tx.offset[t] + (y * tx.width[t] + x) * c
@@ -47,7 +47,7 @@ def _texel(tx, t, x, y):
     return (v0, np.float64(tx.texels[base + 1]), np.float64(tx.texels[base + 2]))
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def lookup(tx, t, u, v):
     """Bilinear, repeating lookup of texture ``t`` at (u, v); texel centres at (i + 0.5)/w."""
     w = tx.width[t]

@@ -7,6 +7,17 @@ from __future__ import annotations
 import numpy as np
 
 
+# A minimal LM-63 photometry (one horizontal angle, three vertical ones).
+_IES = """IESNA:LM-63-2002
+TILT=NONE
+1 1000 1 3 1 1 2 0.1 0.1 0
+1 1 100
+0 45 90
+0
+1000 600 100
+"""
+
+
 def _quad(z, s=1.0):
     return {"positions": [[-s, -s, z], [s, -s, z], [s, s, z], [-s, s, z]], "indices": [[0, 1, 2], [0, 2, 3]]}
 
@@ -28,8 +39,17 @@ def scene_dict() -> dict:
     names = list(materials)
     meshes = {f"q{i}": _quad(-0.1 * i, 1.0 + 0.2 * i) for i in range(len(names))}
     objects = [{"name": n, "mesh": f"q{i}", "materials": [n]} for i, n in enumerate(names)]
-    lights = [{"type": "point", "to_world": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 3], [0, 0, 0, 1]],
-               "power": 10.0}]
+    up = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 3], [0, 0, 0, 1]]
+    lights = [{"type": "point", "to_world": up, "power": 10.0},
+              {"type": "point", "to_world": up, "power": 10.0, "radius": 0.2},
+              {"type": "point", "to_world": up, "power": 10.0, "radius": 0.2, "soft_falloff": True},
+              {"type": "spot", "to_world": up, "power": 10.0, "spot_size": 60.0, "ies": {"data": _IES}},
+              {"type": "area", "to_world": up, "shape": "rectangle", "size": 0.5, "size_y": 0.3, "power": 5.0},
+              {"type": "area", "to_world": up, "shape": "disk", "size": 0.5, "power": 5.0, "spread": 60.0},
+              {"type": "area", "to_world": up, "shape": "square", "size": 0.5, "power": 5.0,
+               "cutoff_angle": 40.0, "beam_width": 20.0},
+              {"type": "area", "to_world": up, "shape": "square", "size": 0.5, "power": 5.0, "spread": 0.0},
+              {"type": "sun", "to_world": up, "strength": 1.0, "angle": 2.0}]
     return {"format": "lamina-scene", "version": 1, "film": {"width": 4, "height": 4},
             "camera": {"type": "perspective", "to_world": eye, "frame": frame},
             "render": {"spp": 2, "max_bounces": 3, "seed": 1}, "materials": materials,
@@ -37,11 +57,32 @@ def scene_dict() -> dict:
             "world": {"type": "constant", "color": [0.2, 0.2, 0.2]}}
 
 
+def _env_world(folder) -> dict:
+    """An environment-map world (written to a temporary file: the loader reads images by path)."""
+    import OpenImageIO as oiio
+    path = f"{folder}/sky.exr"
+    pixels = np.linspace(0.1, 2.0, 8 * 4 * 3, dtype=np.float32).reshape(4, 8, 3)
+    out = oiio.ImageOutput.create(path)
+    out.open(path, oiio.ImageSpec(8, 4, 3, oiio.FLOAT))
+    out.write_image(pixels)
+    out.close()
+    return {"type": "environment", "file": path}
+
+
 def warm_up() -> None:
+    import tempfile
+
+    from ..film import FilmAccumulator
     from ..geometry.accel import Accelerator
     from ..integrator import PathTracer
     from ..scene.loader import load_scene_data
-    scene = load_scene_data(scene_dict(), "<kernel warm-up>")
-    tracer = PathTracer(scene, Accelerator(scene.soup))
-    rng = np.random.default_rng(0)
-    tracer.render(np.arange(16, dtype=np.int64), 2, rng, 0)
+    with tempfile.TemporaryDirectory(prefix="lamina-warmup-") as folder:
+        for world in (None, _env_world(folder)):
+            data = scene_dict()
+            if world is not None:
+                data["world"] = world
+            scene = load_scene_data(data, "<kernel warm-up>")
+            tracer = PathTracer(scene, Accelerator(scene.soup))
+            pixels = np.arange(16, dtype=np.int64)
+            result = tracer.render(pixels, 2, np.random.default_rng(0), 0)
+            FilmAccumulator(4, 4).add(pixels, result)

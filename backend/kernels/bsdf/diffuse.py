@@ -12,7 +12,7 @@ from ..warp import cosine_hemisphere
 INV_PI = 1.0 / math.pi
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def eval_pdf(color, wi, wo):
     if wi[2] * wo[2] > 0.0:
         c = abs(wo[2]) * INV_PI
@@ -20,7 +20,7 @@ def eval_pdf(color, wi, wo):
     return (0.0, 0.0, 0.0), 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def sample(color, wi, u0, u1):
     wo = cosine_hemisphere(u0, u1)
     if wi[2] < 0.0:

@@ -272,7 +272,10 @@ def user_folder(tmp):
     folder = library.user_dir()
     expected = bpy.utils.extension_path_user(PACKAGE, path="presets")
     saved = sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file())
-    env = engine._preset_env()
+    env = engine._user_env()
+    # The kernel cache would be the extension's own folder: share the test session's cache
+    # instead (a second cold compile here would only cost time; test_extension covers it).
+    env.pop("LAMINA_KERNEL_CACHE", None)
     # A scene that names the user preset renders in the backend child process...
     scene = Path(tmp) / "user-preset-scene.json"
     scene.write_text(json.dumps({
