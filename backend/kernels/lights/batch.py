@@ -16,15 +16,14 @@ from numba import njit
 
 from . import dispatch as _dispatch
 from . import ies as _ies
-from . import mesh as _mesh
 from . import point as _point
 from . import profiles as _prof
 from . import selection as _sel
 from .spot import attenuation
 
-#: Options of a lane loop: cached, no reference counting (the loops allocate nothing; the arrays
-#: belong to the caller for the whole call).
-LANE_LOOP = dict(cache=True, _nrt=False)
+#: Options of a lane loop: cached, GIL released (threads may share a scene), no reference
+#: counting (the loops allocate nothing; the arrays belong to the caller for the whole call).
+LANE_LOOP = dict(cache=True, nogil=True, _nrt=False)
 
 
 @njit(cache=True, inline="always")

@@ -18,10 +18,14 @@ unit 3-tuples pointing away from the shading point.
   ``local_tri`` of mesh light li (``emitter_of_prim`` maps a scene primitive to both).
 * ``select(lt, p, u) -> (li, prob)``, ``select_prob(lt, p, li)``: light selection (selection.py).
 
-All of these are inlined into the calling kernel (``inline="always"``): the light table is a tuple
-of ~16 arrays, and passing it through a real call costs more than most lights' sampling (measured:
-~150 ns per call for the tuple against ~60 ns for a point light's sample); inlined, the caller
-calls the kind's own function with the table's arrays and the row index (common.py: no row views).
+All of these are inlined into the calling kernel (``inline="always"``) and call the kind's own
+function with the table's arrays and the light's row index (common.py: no row views). Reading an
+array out of the table (``lt.params``) inside a lane is a new reference for Numba: an atomic
+increment and a decrement call per array, which LLVM cannot remove around calls that are not
+inlined. Measured on 1M lanes (benchmarks/light_kernels.py, one point light): 145 ns per sample
+with reference counting, 40 ns without. A lane loop should therefore be compiled with
+``_nrt=False`` (it allocates nothing; batch.py's ``LANE_LOOP``), or read the table's arrays into
+locals once, outside the loop, and call the kind modules directly.
 
 Units and conventions of each kind are in its module (point.py, spot.py, ies.py, area.py,
 profiles.py, sun.py, environment.py, mesh.py).

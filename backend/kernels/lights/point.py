@@ -21,6 +21,10 @@ that is narrower: directions outside the spot cone carry no light anyway ("sprea
 
 IES: intensity I(ω) = P × candela(ω_local)/177.83 W/sr, i.e. the factor 4π·cd/177.83 on P/(4π)
 (``P_IES_SCALE`` = 4π/177.83; backend/ies/light.py).
+
+Precision: the sphere's visible cone is kept as 1 − cos α, from sin²α = r²/d² without
+cancellation (common.sin2_to_one_minus_cos), never as cos α: a 1 cm sphere 100 m away has
+1 − cos α ≈ 5e-9, of which cos α would keep one digit. float64 throughout.
 """
 from __future__ import annotations
 
@@ -28,7 +32,7 @@ import math
 
 from numba import njit
 
-from ..vec import coordinate_system, cross, dot, length
+from ..vec import coordinate_system, cross, dot
 from ..warp import INV_4PI, cone_pdf, disk_concentric, uniform_sphere
 from . import ies as _ies
 from .common import (FIRST, I_FIRST, INF, ZERO3, get3, mat3, ray_sphere, sample_cone,

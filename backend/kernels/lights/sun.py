@@ -15,8 +15,6 @@ digits of the cone's size; sampling draws 1 − cos θ directly (warp.uniform_co
 """
 from __future__ import annotations
 
-import math
-
 from numba import njit
 
 from ..vec import dot
