@@ -12,7 +12,7 @@ time: the figures hold on a shared machine), one thread.
 Compile: the light batch entry points plus one probe kernel that calls every dispatch function
 once per lane (what an integrator kernel that calls them compiles), from an empty cache folder
 (``backend.kernels.cache.configure()``'s folder is deleted first), then again from the cache in a
-fresh process.
+fresh process; wall and CPU seconds (CPU is the figure that holds on a shared machine).
 """
 from __future__ import annotations
 
@@ -191,17 +191,23 @@ def compile_all() -> float:
 
 
 def cold_compile() -> None:
+    import resource
+
     from backend.kernels import cache
     folder = cache.configure()
     print(f"kernel cache folder: {folder} (deleted)")
     shutil.rmtree(folder, ignore_errors=True)
     code = "import benchmarks.light_kernels as b; print(f'{b.compile_all():.1f}')"
     for label in ("cold (empty cache)", "warm (from the cache, new process)"):
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                              env=dict(os.environ))
         total = time.perf_counter() - t0
-        print(f"{label}: {out.stdout.strip()} s compiling/loading, {total:.1f} s whole process")
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        print(f"{label}: {out.stdout.strip()} s compiling/loading (wall), whole process "
+              f"{total:.1f} s wall, {cpu:.1f} s CPU")
 
 
 def main(argv=None):

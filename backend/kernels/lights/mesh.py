@@ -27,7 +27,7 @@ from __future__ import annotations
 from numba import njit
 
 from .. import discrete as _d
-from ..textures import lookup
+from ..params import param_rgb
 from ..vec import dot
 from ..warp import triangle_barycentric
 from .common import I_FIRST, ZERO3, aux3, unit_or_zero
@@ -63,13 +63,7 @@ def emitted(I, li, aux, iaux, tx, tri, b0, b1, b2):
     v = b0 * aux[q + 1] + b1 * aux[q + 3] + b2 * aux[q + 5]
     slot = iaux[I[li, I_SLOT_OFF] + tri]
     e = I[li, I_EMIT_OFF] + 3 * slot
-    tex = iaux[I[li, I_EMIT_TEX_OFF] + slot]
-    # kernels/params.param_rgb's rule (texture × values, or the values), read from aux in place:
-    # a per-lane view aux[e:e+3] would cost two reference-count updates.
-    if tex >= 0:
-        t = lookup(tx, tex, u, v)
-        return (t[0] * aux[e], t[1] * aux[e + 1], t[2] * aux[e + 2])
-    return (aux[e], aux[e + 1], aux[e + 2])
+    return param_rgb(tx, aux[e:e + 3], iaux[I[li, I_EMIT_TEX_OFF] + slot], u, v)
 
 
 @njit(cache=True)
