@@ -73,25 +73,25 @@ _NO_RECT = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 @njit(cache=True)
-def _local(prm, x):
-    c = get3(prm, A_CENTER)
+def _local(P, li, x):
+    c = get3(P, li, A_CENTER)
     r = (x[0] - c[0], x[1] - c[1], x[2] - c[2])
-    return dot(r, get3(prm, A_U)), dot(r, get3(prm, A_V)), dot(r, get3(prm, A_N))
+    return dot(r, get3(P, li, A_U)), dot(r, get3(P, li, A_V)), dot(r, get3(P, li, A_N))
 
 
 @njit(cache=True)
-def _point(prm, lu, lv):
-    c = get3(prm, A_CENTER)
-    u = get3(prm, A_U)
-    v = get3(prm, A_V)
+def _point(P, li, lu, lv):
+    c = get3(P, li, A_CENTER)
+    u = get3(P, li, A_U)
+    v = get3(P, li, A_V)
     return (c[0] + lu * u[0] + lv * v[0], c[1] + lu * u[1] + lv * v[1], c[2] + lu * u[2] + lv * v[2])
 
 
 @njit(cache=True)
-def inside(prm, ip, lu, lv):
-    hu = prm[A_HALF_U]
-    hv = prm[A_HALF_V]
-    if ip[I_ELLIPSE] != 0:
+def inside(P, I, li, lu, lv):
+    hu = P[li, A_HALF_U]
+    hv = P[li, A_HALF_V]
+    if I[li, I_ELLIPSE] != 0:
         a = lu / hu if hu != 0.0 else 0.0
         b = lv / hv if hv != 0.0 else 0.0
         return a * a + b * b <= 1.0
@@ -99,21 +99,21 @@ def inside(prm, ip, lu, lv):
 
 
 @njit(cache=True)
-def radiance(prm, ip, cos_out):
+def radiance(P, I, li, cos_out):
     """Radiance leaving the emitter at cos θ to its normal."""
-    f = _prof.evaluate(ip[I_PROFILE], prm[A_SPREAD_TAN], prm[A_CUTOFF], prm[A_BEAM], cos_out)
-    return (prm[A_SCALE] * f, prm[A_SCALE + 1] * f, prm[A_SCALE + 2] * f)
+    f = _prof.evaluate(I[li, I_PROFILE], P[li, A_SPREAD_TAN], P[li, A_CUTOFF], P[li, A_BEAM], cos_out)
+    return (P[li, A_SCALE] * f, P[li, A_SCALE + 1] * f, P[li, A_SCALE + 2] * f)
 
 
 @njit(cache=True)
-def plan(prm, ip, p):
+def plan(P, I, li, p):
     """The sampling choice at point p: (mode, pu, pv, h, region u0, u1, v0, v1 in emitter
     coordinates, spherical rectangle (MODE_SPHRECT), its solid angle [sr] or 0)."""
-    pu, pv, h = _local(prm, p)
-    hu = prm[A_HALF_U]
-    hv = prm[A_HALF_V]
+    pu, pv, h = _local(P, li, p)
+    hu = P[li, A_HALF_U]
+    hv = P[li, A_HALF_V]
     u0, u1, v0, v1 = -hu, hu, -hv, hv
-    tan_max = prm[A_TAN_MAX]
+    tan_max = P[li, A_TAN_MAX]
     clipped = tan_max < INF
     rc = 0.0
     if clipped:
@@ -124,11 +124,11 @@ def plan(prm, ip, p):
         v0 = max(v0, pv - rc)
         v1 = min(v1, pv + rc)
     mode = MODE_NONE
-    if h > 0.0 and u1 > u0 and v1 > v0 and ip[I_EMITS] != 0:
+    if h > 0.0 and u1 > u0 and v1 > v0 and I[li, I_EMITS] != 0:
         mode = MODE_SPHRECT
         box = (u1 - u0) * (v1 - v0)
-        area = prm[A_AREA]
-        ellipse = ip[I_ELLIPSE] != 0
+        area = P[li, A_AREA]
+        ellipse = I[li, I_ELLIPSE] != 0
         if ellipse and not box < area:
             mode = MODE_ELLIPSE          # whole ellipse by area unless the cone's box is smaller
         if clipped:
@@ -149,12 +149,12 @@ def plan(prm, ip, p):
 
 
 @njit(cache=True)
-def sample(prm, ip, aux, p, u0, u1):
+def sample(P, I, li, aux, p, u0, u1):
     """(wi, dist, value = radiance/pdf, solid-angle pdf); value and pdf 0 where p gets nothing."""
-    mode, pu, pv, h, a0, a1, b0, b1, sr, solid = plan(prm, ip, p)
+    mode, pu, pv, h, a0, a1, b0, b1, sr, solid = plan(P, I, li, p)
     if mode == MODE_NONE:
         return ZERO3, 0.0, ZERO3, 0.0
-    ellipse = ip[I_ELLIPSE] != 0
+    ellipse = I[li, I_ELLIPSE] != 0
     check_inside = ellipse
     pdf = 0.0            # solid angle; the area modes convert below
     area_pdf = 0.0
@@ -164,86 +164,86 @@ def sample(prm, ip, aux, p, u0, u1):
         xu, yv = _sr.sample(sr, u0, u1)
         lu = pu + xu
         lv = pv + yv
-        x = _point(prm, lu, lv)
+        x = _point(P, li, lu, lv)
         pdf = 1.0 / solid
     elif mode == MODE_AREA_RECT:
         lu = a0 + u0 * (a1 - a0)
         lv = b0 + u1 * (b1 - b0)
-        x = _point(prm, lu, lv)
+        x = _point(P, li, lu, lv)
         ra = (a1 - a0) * (b1 - b0)
         area_pdf = 1.0 / ra if ra != 0.0 else 0.0
     elif mode == MODE_ELLIPSE:
         dx, dy = disk_concentric(u0, u1)
-        lu = dx * prm[A_HALF_U]
-        lv = dy * prm[A_HALF_V]
-        x = _point(prm, lu, lv)
-        area_pdf = 1.0 / prm[A_AREA]
+        lu = dx * P[li, A_HALF_U]
+        lv = dy * P[li, A_HALF_V]
+        x = _point(P, li, lu, lv)
+        area_pdf = 1.0 / P[li, A_AREA]
         check_inside = False         # inside by construction
     else:
         # MODE_CONE: emission direction e at cos μ to the normal; the ray from p goes along −e
-        mu, phi, pdf = _prof.cone_sample(aux, ip[I_CONE_OFF], ip[I_CONE_BINS], prm[A_MU_LO],
-                                         prm[A_WIDTH], u0, u1)
+        mu, phi, pdf = _prof.cone_sample(aux, I[li, I_CONE_OFF], I[li, I_CONE_BINS], P[li, A_MU_LO],
+                                         P[li, A_WIDTH], u0, u1)
         s = math.sqrt(max(0.0, 1.0 - mu * mu))
         sc = s * math.cos(phi)
         ss = s * math.sin(phi)
-        n = get3(prm, A_N)
-        u = get3(prm, A_U)
-        v = get3(prm, A_V)
+        n = get3(P, li, A_N)
+        u = get3(P, li, A_U)
+        v = get3(P, li, A_V)
         k = h / mu
         x = (p[0] - k * (mu * n[0] + sc * u[0] + ss * v[0]),
              p[1] - k * (mu * n[1] + sc * u[1] + ss * v[1]),
              p[2] - k * (mu * n[2] + sc * u[2] + ss * v[2]))
-        lu, lv, _ = _local(prm, x)
+        lu, lv, _ = _local(P, li, x)
         check_inside = True          # cone directions may miss the emitter
     wi, t = unit_or_zero((x[0] - p[0], x[1] - p[1], x[2] - p[2]))
-    cos_out = -dot(wi, get3(prm, A_N))
+    cos_out = -dot(wi, get3(P, li, A_N))
     if area_pdf > 0.0:
         pdf = area_pdf * t * t / cos_out if cos_out != 0.0 else 0.0
     if not (t > 0.0 and cos_out > 0.0 and pdf > 0.0):
         return wi, 0.0, ZERO3, 0.0
-    if check_inside and not inside(prm, ip, lu, lv):
+    if check_inside and not inside(P, I, li, lu, lv):
         return wi, 0.0, ZERO3, 0.0
-    le = radiance(prm, ip, cos_out)
+    le = radiance(P, I, li, cos_out)
     inv = 1.0 / pdf
     return wi, t, (le[0] * inv, le[1] * inv, le[2] * inv), pdf
 
 
 @njit(cache=True)
-def intersect(prm, ip, o, d, tmax):
-    ou, ov, h = _local(prm, o)
-    denom = dot(d, get3(prm, A_N))
-    if not (denom < 0.0 and h > 0.0 and ip[I_EMITS] != 0):
+def intersect(P, I, li, o, d, tmax):
+    ou, ov, h = _local(P, li, o)
+    denom = dot(d, get3(P, li, A_N))
+    if not (denom < 0.0 and h > 0.0 and I[li, I_EMITS] != 0):
         return INF
     t = h / -denom
-    lu = ou + t * dot(d, get3(prm, A_U))       # emitter coordinates of o + t·d
-    lv = ov + t * dot(d, get3(prm, A_V))
-    if t > 0.0 and t < tmax and inside(prm, ip, lu, lv):
+    lu = ou + t * dot(d, get3(P, li, A_U))       # emitter coordinates of o + t·d
+    lv = ov + t * dot(d, get3(P, li, A_V))
+    if t > 0.0 and t < tmax and inside(P, I, li, lu, lv):
         return t
     return INF
 
 
 @njit(cache=True)
-def eval_hit(prm, ip, o, d, t):
-    return radiance(prm, ip, -dot(d, get3(prm, A_N)))
+def eval_hit(P, I, li, o, d, t):
+    return radiance(P, I, li, -dot(d, get3(P, li, A_N)))
 
 
 @njit(cache=True)
-def pdf_hit(prm, ip, aux, o, d, t):
+def pdf_hit(P, I, li, aux, o, d, t):
     """Solid-angle density of ``sample(o)`` for direction d hitting the emitter at o + t d."""
-    cos_out = -dot(d, get3(prm, A_N))
+    cos_out = -dot(d, get3(P, li, A_N))
     if not cos_out > 0.0:
         return 0.0
-    mode, pu, pv, h, a0, a1, b0, b1, sr, solid = plan(prm, ip, o)
+    mode, pu, pv, h, a0, a1, b0, b1, sr, solid = plan(P, I, li, o)
     if mode == MODE_NONE:
         return 0.0
     if mode == MODE_CONE:
-        return _prof.cone_pdf(aux, ip[I_CONE_OFF], ip[I_CONE_BINS], prm[A_MU_LO], prm[A_WIDTH], cos_out)
+        return _prof.cone_pdf(aux, I[li, I_CONE_OFF], I[li, I_CONE_BINS], P[li, A_MU_LO], P[li, A_WIDTH], cos_out)
     if mode == MODE_ELLIPSE:
-        return t * t / (prm[A_AREA] * cos_out)
-    if prm[A_TAN_MAX] < INF:
+        return t * t / (P[li, A_AREA] * cos_out)
+    if P[li, A_TAN_MAX] < INF:
         # a clipped region: the hit must lie in it (computed as ``intersect`` does)
-        lu = pu + t * dot(d, get3(prm, A_U))
-        lv = pv + t * dot(d, get3(prm, A_V))
+        lu = pu + t * dot(d, get3(P, li, A_U))
+        lv = pv + t * dot(d, get3(P, li, A_V))
         if not (lu >= a0 and lu <= a1 and lv >= b0 and lv <= b1):
             return 0.0
     if mode == MODE_SPHRECT:
@@ -253,11 +253,11 @@ def pdf_hit(prm, ip, aux, o, d, t):
 
 
 @njit(cache=True)
-def sample_collimated(prm, ip, p):
+def sample_collimated(P, I, li, p):
     """Spread 0: irradiance ``A_SCALE`` along −n where p's projection falls on the emitter."""
-    pu, pv, h = _local(prm, p)
-    n = get3(prm, A_N)
+    pu, pv, h = _local(P, li, p)
+    n = get3(P, li, A_N)
     wi = (-n[0], -n[1], -n[2])
-    if h > 0.0 and inside(prm, ip, pu, pv):
-        return wi, h, get3(prm, A_SCALE), 0.0
+    if h > 0.0 and inside(P, I, li, pu, pv):
+        return wi, h, get3(P, li, A_SCALE), 0.0
     return wi, 0.0, ZERO3, 0.0

@@ -18,6 +18,15 @@ unit 3-tuples pointing away from the shading point.
   ``local_tri`` of mesh light li (``emitter_of_prim`` maps a scene primitive to both).
 * ``select(lt, p, u) -> (li, prob)``, ``select_prob(lt, p, li)``: light selection (selection.py).
 
+All of these are inlined into the calling kernel (``inline="always"``) and call the kind's own
+function with the table's arrays and the light's row index (common.py: no row views). Reading an
+array out of the table (``lt.params``) inside a lane is a new reference for Numba: an atomic
+increment and a decrement call per array, which LLVM cannot remove around calls that are not
+inlined. Measured on 1M lanes (benchmarks/light_kernels.py, one point light): 145 ns per sample
+with reference counting, 40 ns without. A lane loop should therefore be compiled with
+``_nrt=False`` (it allocates nothing; batch.py's ``LANE_LOOP``), or read the table's arrays into
+locals once, outside the loop, and call the kind modules directly.
+
 Units and conventions of each kind are in its module (point.py, spot.py, ies.py, area.py,
 profiles.py, sun.py, environment.py, mesh.py).
 """
@@ -35,100 +44,100 @@ from . import sun as _sun
 from .common import AREA, COLLIMATED, CONSTANT, ENVIRONMENT, INF, MESH, POINT, SUN, ZERO3
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def sample(lt, tx, li, p, u0, u1):
     k = lt.kind[li]
-    prm = lt.params[li]
-    ip = lt.iparams[li]
+    P = lt.params
+    I = lt.iparams
     if k == POINT:
-        wi, dist, value, pdf = _point.sample(prm, ip, lt.aux, p, u0, u1)
+        wi, dist, value, pdf = _point.sample(P, I, li, lt.aux, p, u0, u1)
     elif k == AREA:
-        wi, dist, value, pdf = _area.sample(prm, ip, lt.aux, p, u0, u1)
+        wi, dist, value, pdf = _area.sample(P, I, li, lt.aux, p, u0, u1)
     elif k == SUN:
-        wi, dist, value, pdf = _sun.sample(prm, ip, u0, u1)
+        wi, dist, value, pdf = _sun.sample(P, I, li, u0, u1)
     elif k == ENVIRONMENT:
-        wi, dist, value, pdf = _env.env_sample(prm, ip, lt.aux, u0, u1)
+        wi, dist, value, pdf = _env.env_sample(P, I, li, lt.aux, u0, u1)
     elif k == MESH:
-        wi, dist, value, pdf = _mesh.sample(ip, lt.aux, lt.iaux, tx, p, u0, u1)
+        wi, dist, value, pdf = _mesh.sample(I, li, lt.aux, lt.iaux, tx, p, u0, u1)
     elif k == CONSTANT:
-        wi, dist, value, pdf = _env.constant_sample(prm, u0, u1)
+        wi, dist, value, pdf = _env.constant_sample(P, li, u0, u1)
     elif k == COLLIMATED:
-        wi, dist, value, pdf = _area.sample_collimated(prm, ip, p)
+        wi, dist, value, pdf = _area.sample_collimated(P, I, li, p)
     else:
         wi, dist, value, pdf = ZERO3, 0.0, ZERO3, 0.0
     return wi, dist, value, pdf, lt.is_delta[li]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def intersect(lt, li, o, d, tmax):
     k = lt.kind[li]
     if k == AREA:
-        return _area.intersect(lt.params[li], lt.iparams[li], o, d, tmax)
+        return _area.intersect(lt.params, lt.iparams, li, o, d, tmax)
     if k == POINT:
-        return _point.intersect(lt.params[li], lt.iparams[li], o, d, tmax)
+        return _point.intersect(lt.params, lt.iparams, li, o, d, tmax)
     return INF
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def eval_hit(lt, li, o, d, t):
     k = lt.kind[li]
     if k == AREA:
-        return _area.eval_hit(lt.params[li], lt.iparams[li], o, d, t)
+        return _area.eval_hit(lt.params, lt.iparams, li, o, d, t)
     if k == POINT:
-        return _point.eval_hit(lt.params[li], lt.iparams[li], lt.aux, o, d, t)
+        return _point.eval_hit(lt.params, lt.iparams, li, lt.aux, o, d, t)
     return ZERO3
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def pdf_hit(lt, li, o, d, t):
     k = lt.kind[li]
     if k == AREA:
-        return _area.pdf_hit(lt.params[li], lt.iparams[li], lt.aux, o, d, t)
+        return _area.pdf_hit(lt.params, lt.iparams, li, lt.aux, o, d, t)
     if k == POINT:
-        return _point.pdf_hit(lt.params[li], lt.iparams[li], o, d, t)
+        return _point.pdf_hit(lt.params, lt.iparams, li, o, d, t)
     return 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def eval_escaped(lt, li, d):
     k = lt.kind[li]
     if k == ENVIRONMENT:
-        return _env.env_eval(lt.params[li], lt.iparams[li], lt.aux, d)
+        return _env.env_eval(lt.params, lt.iparams, li, lt.aux, d)
     if k == SUN:
-        return _sun.eval_escaped(lt.params[li], lt.iparams[li], d)
+        return _sun.eval_escaped(lt.params, lt.iparams, li, d)
     if k == CONSTANT:
-        return _env.constant_eval(lt.params[li])
+        return _env.constant_eval(lt.params, li)
     return ZERO3
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def pdf_escaped(lt, li, d):
     k = lt.kind[li]
     if k == ENVIRONMENT:
-        return _env.env_pdf(lt.params[li], lt.iparams[li], lt.aux, d)
+        return _env.env_pdf(lt.params, lt.iparams, li, lt.aux, d)
     if k == SUN:
-        return _sun.pdf_escaped(lt.params[li], lt.iparams[li], d)
+        return _sun.pdf_escaped(lt.params, lt.iparams, li, d)
     if k == CONSTANT:
         return INV_4PI
     return 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def mesh_pdf_hit(lt, li, o, d, t, local_tri):
     if lt.kind[li] != MESH:
         return 0.0
-    return _mesh.pdf_hit_triangle(lt.iparams[li], lt.aux, o, d, t, local_tri)
+    return _mesh.pdf_hit_triangle(lt.iparams, li, lt.aux, o, d, t, local_tri)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def mesh_eval(lt, li, d, local_tri):
     """Per-triangle radiance of an emitter triangle (its value at the UV centroid if textured)."""
     if lt.kind[li] != MESH:
         return ZERO3
-    return _mesh.eval_triangle(lt.iparams[li], lt.aux, d, local_tri)
+    return _mesh.eval_triangle(lt.iparams, li, lt.aux, d, local_tri)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def emitter_of_prim(lt, prim):
     """(mesh light index, local triangle index) of scene primitive ``prim``; (−1, −1) if it emits
     nothing."""
@@ -137,11 +146,11 @@ def emitter_of_prim(lt, prim):
     return lt.prim_light[prim], lt.prim_local[prim]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def select(lt, p, u):
     return _sel.select(lt, p, u)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def select_prob(lt, p, li):
     return _sel.select_prob(lt, p, li)

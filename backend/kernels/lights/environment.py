@@ -44,24 +44,24 @@ TWO_PI_SQ = 2.0 * math.pi * math.pi
 
 # ---------------------------------------------------------------- constant world
 @njit(cache=True)
-def constant_sample(prm, u0, u1):
+def constant_sample(P, li, u0, u1):
     wi = uniform_sphere(u0, u1)
     inv = 1.0 / INV_4PI
-    return wi, INF, (prm[W_RADIANCE] * inv, prm[W_RADIANCE + 1] * inv, prm[W_RADIANCE + 2] * inv), INV_4PI
+    return wi, INF, (P[li, W_RADIANCE] * inv, P[li, W_RADIANCE + 1] * inv, P[li, W_RADIANCE + 2] * inv), INV_4PI
 
 
 @njit(cache=True)
-def constant_eval(prm):
-    return get3(prm, W_RADIANCE)
+def constant_eval(P, li):
+    return get3(P, li, W_RADIANCE)
 
 
 # ---------------------------------------------------------------- environment map
 @njit(cache=True)
-def lookup(aux, ip, x, y):
+def lookup(aux, I, li, x, y):
     """Bilinear radiance at image coordinates x (column, wraps) and y (row from top, clamps)."""
-    h = ip[I_H]
-    w = ip[I_W]
-    off = ip[I_TEX_OFF]
+    h = I[li, I_H]
+    w = I[li, I_W]
+    off = I[li, I_TEX_OFF]
     fx = x * w - 0.5
     fy = min(max(y * h - 0.5, 0.0), h - 1.0)
     if not (math.isfinite(fx) and math.isfinite(fy)):
@@ -86,9 +86,9 @@ def lookup(aux, ip, x, y):
 
 
 @njit(cache=True)
-def direction_to_xy(prm, d):
+def direction_to_xy(P, li, d):
     """World direction → (x, y) in [0, 1]², x = u, y = θ/π, and the unit map-frame direction."""
-    loc, _ = unit_or_zero(mat3(prm, E_TO_LOCAL, d))
+    loc, _ = unit_or_zero(mat3(P, li, E_TO_LOCAL, d))
     u = 0.5 - math.atan2(loc[1], loc[0]) / (2.0 * math.pi)
     u = u - math.floor(u)
     y = math.acos(min(max(loc[2], -1.0), 1.0)) / math.pi
@@ -96,39 +96,39 @@ def direction_to_xy(prm, d):
 
 
 @njit(cache=True)
-def xy_to_direction(prm, x, y):
+def xy_to_direction(P, li, x, y):
     """(world direction, sin θ) of image coordinates (x, y)."""
     theta = math.pi * y
     phi = math.pi - 2.0 * math.pi * x          # inverse of u = 0.5 − φ/2π
     s = math.sin(theta)
     loc = (s * math.cos(phi), s * math.sin(phi), math.cos(theta))
-    wi, _ = unit_or_zero(mat3(prm, E_TO_WORLD, loc))
+    wi, _ = unit_or_zero(mat3(P, li, E_TO_WORLD, loc))
     return wi, s
 
 
 @njit(cache=True)
-def env_sample(prm, ip, aux, u0, u1):
-    x, y, pdf_xy = _d.sample_2d(aux, ip[I_DIST_OFF], ip[I_H], ip[I_W], u0, u1)
-    wi, sin_t = xy_to_direction(prm, x, y)
+def env_sample(P, I, li, aux, u0, u1):
+    x, y, pdf_xy = _d.sample_2d(aux, I[li, I_DIST_OFF], I[li, I_H], I[li, I_W], u0, u1)
+    wi, sin_t = xy_to_direction(P, li, x, y)
     den = TWO_PI_SQ * sin_t
     pdf = pdf_xy / den if den != 0.0 else 0.0
     if not pdf > 0.0:
         return wi, INF, (0.0, 0.0, 0.0), pdf
-    le = lookup(aux, ip, x, y)
+    le = lookup(aux, I, li, x, y)
     inv = 1.0 / pdf
     return wi, INF, (le[0] * inv, le[1] * inv, le[2] * inv), pdf
 
 
 @njit(cache=True)
-def env_eval(prm, ip, aux, d):
-    x, y, _ = direction_to_xy(prm, d)
-    return lookup(aux, ip, x, y)
+def env_eval(P, I, li, aux, d):
+    x, y, _ = direction_to_xy(P, li, d)
+    return lookup(aux, I, li, x, y)
 
 
 @njit(cache=True)
-def env_pdf(prm, ip, aux, d):
-    x, y, loc = direction_to_xy(prm, d)
+def env_pdf(P, I, li, aux, d):
+    x, y, loc = direction_to_xy(P, li, d)
     sin_t = math.hypot(loc[0], loc[1])      # precise near the poles, unlike √(1 − z²)
-    pdf_xy = _d.pdf_2d(aux, ip[I_DIST_OFF], ip[I_H], ip[I_W], x, y)
+    pdf_xy = _d.pdf_2d(aux, I[li, I_DIST_OFF], I[li, I_H], I[li, I_W], x, y)
     den = TWO_PI_SQ * sin_t
     return pdf_xy / den if den != 0.0 else 0.0

@@ -30,7 +30,7 @@ from .. import discrete as _d
 from ..params import param_rgb
 from ..vec import dot
 from ..warp import triangle_barycentric
-from .common import I_FIRST, ZERO3, get3, unit_or_zero
+from .common import I_FIRST, ZERO3, aux3, unit_or_zero
 
 TRI_STRIDE = 16
 T_V0, T_E1, T_E2, T_N, T_AREA, T_RAD = 0, 3, 6, 9, 12, 13
@@ -47,65 +47,65 @@ I_EMIT_TEX_OFF = I_FIRST + 8
 
 
 @njit(cache=True)
-def _cos_light(ip, aux, r, d):
+def _cos_light(I, li, aux, r, d):
     """Cosine between the emitter's front and the direction back from it (|·| if two-sided)."""
-    c = -dot(d, get3(aux, r + T_N))
-    return abs(c) if ip[I_TWO_SIDED] != 0 else c
+    c = -dot(d, aux3(aux, r + T_N))
+    return abs(c) if I[li, I_TWO_SIDED] != 0 else c
 
 
 @njit(cache=True)
-def emitted(ip, aux, iaux, tx, tri, b0, b1, b2):
+def emitted(I, li, aux, iaux, tx, tri, b0, b1, b2):
     """Radiance of triangle ``tri`` at barycentrics (b0, b1, b2) of (v0, v1, v2)."""
-    if ip[I_TEXTURED] == 0:
-        return get3(aux, ip[I_TRI_OFF] + tri * TRI_STRIDE + T_RAD)
-    q = ip[I_UV_OFF] + tri * 6
+    if I[li, I_TEXTURED] == 0:
+        return aux3(aux, I[li, I_TRI_OFF] + tri * TRI_STRIDE + T_RAD)
+    q = I[li, I_UV_OFF] + tri * 6
     u = b0 * aux[q] + b1 * aux[q + 2] + b2 * aux[q + 4]
     v = b0 * aux[q + 1] + b1 * aux[q + 3] + b2 * aux[q + 5]
-    slot = iaux[ip[I_SLOT_OFF] + tri]
-    e = ip[I_EMIT_OFF] + 3 * slot
-    return param_rgb(tx, aux[e:e + 3], iaux[ip[I_EMIT_TEX_OFF] + slot], u, v)
+    slot = iaux[I[li, I_SLOT_OFF] + tri]
+    e = I[li, I_EMIT_OFF] + 3 * slot
+    return param_rgb(tx, aux[e:e + 3], iaux[I[li, I_EMIT_TEX_OFF] + slot], u, v)
 
 
 @njit(cache=True)
-def sample(ip, aux, iaux, tx, p, u0, u1):
-    if ip[I_DIST_OFF] < 0:
+def sample(I, li, aux, iaux, tx, p, u0, u1):
+    if I[li, I_DIST_OFF] < 0:
         return ZERO3, 0.0, ZERO3, 0.0
-    tri, prob, u_rem = _d.sample_1d(aux, ip[I_DIST_OFF], ip[I_COUNT], u0)
+    tri, prob, u_rem = _d.sample_1d(aux, I[li, I_DIST_OFF], I[li, I_COUNT], u0)
     b0, b1 = triangle_barycentric(u_rem, u1)
     b2 = 1.0 - b0 - b1
-    r = ip[I_TRI_OFF] + tri * TRI_STRIDE
+    r = I[li, I_TRI_OFF] + tri * TRI_STRIDE
     # The point b0·v0 + b1·v1 + b2·v2, from v0 and the edges.
     x = (aux[r] + b1 * aux[r + T_E1] + b2 * aux[r + T_E2],
          aux[r + 1] + b1 * aux[r + T_E1 + 1] + b2 * aux[r + T_E2 + 1],
          aux[r + 2] + b1 * aux[r + T_E1 + 2] + b2 * aux[r + T_E2 + 2])
     wi, t = unit_or_zero((x[0] - p[0], x[1] - p[1], x[2] - p[2]))
-    cos_l = _cos_light(ip, aux, r, wi)
+    cos_l = _cos_light(I, li, aux, r, wi)
     den = aux[r + T_AREA] * cos_l
     pdf = prob * t * t / den if den != 0.0 else 0.0
     if not (cos_l > 0.0 and t > 0.0 and pdf > 0.0):
         return wi, 0.0, ZERO3, 0.0
-    le = emitted(ip, aux, iaux, tx, tri, b0, b1, b2)
+    le = emitted(I, li, aux, iaux, tx, tri, b0, b1, b2)
     inv = 1.0 / pdf
     return wi, t, (le[0] * inv, le[1] * inv, le[2] * inv), pdf
 
 
 @njit(cache=True)
-def pdf_hit_triangle(ip, aux, o, d, t, tri):
+def pdf_hit_triangle(I, li, aux, o, d, t, tri):
     """Solid-angle pdf of ``sample(o)`` for the point o + t d on emitter triangle ``tri``."""
-    if ip[I_DIST_OFF] < 0 or tri < 0 or tri >= ip[I_COUNT]:
+    if I[li, I_DIST_OFF] < 0 or tri < 0 or tri >= I[li, I_COUNT]:
         return 0.0
-    r = ip[I_TRI_OFF] + tri * TRI_STRIDE
-    cos_l = _cos_light(ip, aux, r, d)
+    r = I[li, I_TRI_OFF] + tri * TRI_STRIDE
+    cos_l = _cos_light(I, li, aux, r, d)
     den = aux[r + T_AREA] * cos_l
     if not (cos_l > 0.0 and den != 0.0):
         return 0.0
-    return _d.pmf_1d(aux, ip[I_DIST_OFF], ip[I_COUNT], tri) * t * t / den
+    return _d.pmf_1d(aux, I[li, I_DIST_OFF], I[li, I_COUNT], tri) * t * t / den
 
 
 @njit(cache=True)
-def eval_triangle(ip, aux, d, tri):
+def eval_triangle(I, li, aux, d, tri):
     """Per-triangle radiance of ``tri`` seen along ray direction d (0 from behind a one-sided one)."""
-    r = ip[I_TRI_OFF] + tri * TRI_STRIDE
-    c = -dot(d, get3(aux, r + T_N))
-    front = abs(c) > 0.0 if ip[I_TWO_SIDED] != 0 else c > 0.0
-    return get3(aux, r + T_RAD) if front else ZERO3
+    r = I[li, I_TRI_OFF] + tri * TRI_STRIDE
+    c = -dot(d, aux3(aux, r + T_N))
+    front = abs(c) > 0.0 if I[li, I_TWO_SIDED] != 0 else c > 0.0
+    return aux3(aux, r + T_RAD) if front else ZERO3

@@ -21,6 +21,10 @@ that is narrower: directions outside the spot cone carry no light anyway ("sprea
 
 IES: intensity I(ω) = P × candela(ω_local)/177.83 W/sr, i.e. the factor 4π·cd/177.83 on P/(4π)
 (``P_IES_SCALE`` = 4π/177.83; backend/ies/light.py).
+
+Precision: the sphere's visible cone is kept as 1 − cos α, from sin²α = r²/d² without
+cancellation (common.sin2_to_one_minus_cos), never as cos α: a 1 cm sphere 100 m away has
+1 − cos α ≈ 5e-9, of which cos α would keep one digit. float64 throughout.
 """
 from __future__ import annotations
 
@@ -28,7 +32,7 @@ import math
 
 from numba import njit
 
-from ..vec import coordinate_system, cross, dot, length
+from ..vec import coordinate_system, cross, dot
 from ..warp import INV_4PI, cone_pdf, disk_concentric, uniform_sphere
 from . import ies as _ies
 from .common import (FIRST, I_FIRST, INF, ZERO3, get3, mat3, ray_sphere, sample_cone,
@@ -61,18 +65,18 @@ SHAPE_DISK = 2
 
 
 @njit(cache=True)
-def directional_factor(prm, ip, aux, w_out):
+def directional_factor(P, I, li, aux, w_out):
     """Factor on the emission travelling along world direction ``w_out`` (1 without spot/IES)."""
-    spot = ip[I_SPOT] != 0
-    nh = ip[I_IES_NH]
+    spot = I[li, I_SPOT] != 0
+    nh = I[li, I_IES_NH]
     if not spot and nh == 0:
         return 1.0
-    loc, _ = unit_or_zero(mat3(prm, P_TO_LOCAL, w_out))
+    loc, _ = unit_or_zero(mat3(P, li, P_TO_LOCAL, w_out))
     f = 1.0
     if spot:
-        f = attenuation(-loc[2], prm[P_COS_HALF], prm[P_SPOT_SMOOTH])
+        f = attenuation(-loc[2], P[li, P_COS_HALF], P[li, P_SPOT_SMOOTH])
     if nh > 0:
-        f *= prm[P_IES_SCALE] * _ies.intensity(aux, ip[I_IES_OFF], nh, ip[I_IES_NV], ip[I_IES_FLAGS], loc)
+        f *= P[li, P_IES_SCALE] * _ies.intensity(aux, I[li, I_IES_OFF], nh, I[li, I_IES_NV], I[li, I_IES_FLAGS], loc)
     return f
 
 
@@ -82,13 +86,13 @@ def _scaled(c, s):
 
 
 @njit(cache=True)
-def _cones(prm, d2):
+def _cones(P, li, d2):
     """(outside the sphere?, 1 − cos of the sphere's cone, use the spread cone?)."""
-    r = prm[P_RADIUS]
+    r = P[li, P_RADIUS]
     r2 = r * r
     outside = d2 > r2
     omc_sphere = sin2_to_one_minus_cos(r2 / d2 if d2 != 0.0 else 0.0)
-    spread = prm[P_SPREAD_OMC]
+    spread = P[li, P_SPREAD_OMC]
     use_spread = outside and spread >= 0.0 and spread < omc_sphere
     return outside, omc_sphere, use_spread
 
@@ -110,26 +114,26 @@ def _sphere_distance(oc, wi, r2, outside, must_hit):
 
 
 @njit(cache=True)
-def sample(prm, ip, aux, p, u0, u1):
+def sample(P, I, li, aux, p, u0, u1):
     """(wi, dist, value, pdf); value = radiance/pdf, or I/d² for the delta light (pdf 0)."""
-    pos = get3(prm, P_POS)
-    shape = ip[I_SHAPE]
+    pos = get3(P, li, P_POS)
+    shape = I[li, I_SHAPE]
     if shape == SHAPE_DELTA:
         v = (pos[0] - p[0], pos[1] - p[1], pos[2] - p[2])
         d2 = dot(v, v)
         wi, dist = unit_or_zero(v)
-        s = directional_factor(prm, ip, aux, (-wi[0], -wi[1], -wi[2])) * (1.0 / d2 if d2 != 0.0 else 0.0)
-        return wi, dist, _scaled(get3(prm, P_INTENSITY), s), 0.0
+        s = directional_factor(P, I, li, aux, (-wi[0], -wi[1], -wi[2])) * (1.0 / d2 if d2 != 0.0 else 0.0)
+        return wi, dist, _scaled(get3(P, li, P_INTENSITY), s), 0.0
     oc = (p[0] - pos[0], p[1] - pos[1], p[2] - pos[2])
     d2 = dot(oc, oc)
-    r = prm[P_RADIUS]
-    rad = get3(prm, P_RADIANCE)
+    r = P[li, P_RADIUS]
+    rad = get3(P, li, P_RADIANCE)
     if shape == SHAPE_SPHERE:
-        outside, omc_sphere, use_spread = _cones(prm, d2)
+        outside, omc_sphere, use_spread = _cones(P, li, d2)
         if outside:
             if use_spread:
-                axis = get3(prm, P_SPREAD_AXIS)
-                omc = prm[P_SPREAD_OMC]
+                axis = get3(P, li, P_SPREAD_AXIS)
+                omc = P[li, P_SPREAD_OMC]
             else:
                 axis, _ = unit_or_zero((-oc[0], -oc[1], -oc[2]))
                 omc = omc_sphere
@@ -141,7 +145,7 @@ def sample(prm, ip, aux, p, u0, u1):
         t = _sphere_distance(oc, wi, r * r, outside, not use_spread)
         if not (t < INF) or not pdf > 0.0:
             return wi, 0.0, ZERO3, 0.0
-        f = directional_factor(prm, ip, aux, (-wi[0], -wi[1], -wi[2])) if outside else 1.0
+        f = directional_factor(P, I, li, aux, (-wi[0], -wi[1], -wi[2])) if outside else 1.0
         return wi, t, _scaled(rad, f / pdf), pdf
     # soft-falloff disk facing the point, sampled by area
     light_n, _ = unit_or_zero(oc)
@@ -156,17 +160,17 @@ def sample(prm, ip, aux, p, u0, u1):
     pdf = t * t / den if den != 0.0 else 0.0
     if not (cos_l > 0.0 and t > 0.0 and d2 > 0.0 and pdf > 0.0):
         return wi, t, ZERO3, 0.0
-    f = directional_factor(prm, ip, aux, (-wi[0], -wi[1], -wi[2]))
+    f = directional_factor(P, I, li, aux, (-wi[0], -wi[1], -wi[2]))
     return wi, t, _scaled(rad, f / pdf), pdf
 
 
 @njit(cache=True)
-def intersect(prm, ip, o, d, tmax):
-    shape = ip[I_SHAPE]
+def intersect(P, I, li, o, d, tmax):
+    shape = I[li, I_SHAPE]
     if shape == SHAPE_DELTA:
         return INF
-    pos = get3(prm, P_POS)
-    r = prm[P_RADIUS]
+    pos = get3(P, li, P_POS)
+    r = P[li, P_RADIUS]
     if shape == SHAPE_SPHERE:
         return ray_sphere(o, d, pos, r, tmax)
     oc = (o[0] - pos[0], o[1] - pos[1], o[2] - pos[2])
@@ -182,40 +186,40 @@ def intersect(prm, ip, o, d, tmax):
 
 
 @njit(cache=True)
-def eval_hit(prm, ip, aux, o, d, t):
+def eval_hit(P, I, li, aux, o, d, t):
     """Radiance arriving at o from direction d (emitted at o + t d)."""
-    shape = ip[I_SHAPE]
+    shape = I[li, I_SHAPE]
     if shape == SHAPE_DELTA:
         return ZERO3
-    rad = get3(prm, P_RADIANCE)
+    rad = get3(P, li, P_RADIANCE)
     if shape == SHAPE_SPHERE:
-        pos = get3(prm, P_POS)
+        pos = get3(P, li, P_POS)
         oc = (o[0] - pos[0], o[1] - pos[1], o[2] - pos[2])
-        r = prm[P_RADIUS]
+        r = P[li, P_RADIUS]
         if not dot(oc, oc) > r * r:
             return rad        # inside the sphere: no directional factor (as Cycles)
-    return _scaled(rad, directional_factor(prm, ip, aux, (-d[0], -d[1], -d[2])))
+    return _scaled(rad, directional_factor(P, I, li, aux, (-d[0], -d[1], -d[2])))
 
 
 @njit(cache=True)
-def pdf_hit(prm, ip, o, d, t):
+def pdf_hit(P, I, li, o, d, t):
     """Solid-angle density with which ``sample(o)`` produces direction d."""
-    shape = ip[I_SHAPE]
+    shape = I[li, I_SHAPE]
     if shape == SHAPE_DELTA:
         return 0.0
-    pos = get3(prm, P_POS)
+    pos = get3(P, li, P_POS)
     oc = (o[0] - pos[0], o[1] - pos[1], o[2] - pos[2])
     d2 = dot(oc, oc)
     if shape == SHAPE_SPHERE:
-        outside, omc_sphere, use_spread = _cones(prm, d2)
+        outside, omc_sphere, use_spread = _cones(P, li, d2)
         if use_spread:
-            axis = get3(prm, P_SPREAD_AXIS)
-            omc = prm[P_SPREAD_OMC]
+            axis = get3(P, li, P_SPREAD_AXIS)
+            omc = P[li, P_SPREAD_OMC]
             return cone_pdf(omc) if (1.0 - dot(d, axis)) <= omc else 0.0
         return cone_pdf(omc_sphere) if outside else INV_4PI
     light_n, _ = unit_or_zero(oc)
     cos_l = -dot(light_n, d)
-    r = prm[P_RADIUS]
+    r = P[li, P_RADIUS]
     den = math.pi * r * r * cos_l
     if cos_l > 0.0 and den != 0.0:
         return t * t / den

@@ -15,7 +15,8 @@ Two modes (scene ``render.light_selection``; the table's ``local_selection``):
   Where no light reaches a point the global table is used (the contributions are 0 anyway).
 
 Lights whose power is zero are never picked and have probability 0 for MIS. Probabilities are
-exact (they are what MIS uses). Cost: a loop over the lights per lane (two for ``select``).
+exact (they are what MIS uses). Cost: a loop over the lights per lane (two for ``select``):
+~10 ns per light and pass.
 """
 from __future__ import annotations
 
@@ -30,34 +31,68 @@ from .common import C_POWER, C_SEL_AREA, C_SEL_NORMAL, C_SEL_POS, C_SEL_SIZE2, I
 INV_PI = 1.0 / math.pi
 
 
-@njit(cache=True)
-def received_power(lt, j, p):
-    """Power of light j as received at point p (W/m² scale; see the module docstring)."""
-    prm = lt.params[j]
-    power = prm[C_POWER]
+@njit(cache=True, inline="always")
+def received_power_row(P, j, how, radius, p):
+    """Power of light j (parameter matrix P, selection kind ``how``) as received at point p
+    (W/m² scale; see the module docstring); ``radius`` = the scene radius R [m]."""
+    power = P[j, C_POWER]
     if not power > 0.0:
         return 0.0
-    how = lt.iparams[j, I_SEL]
     if how == SEL_UNIFORM:
-        return power * INV_PI / (lt.sel_radius * lt.sel_radius)
-    rel = (p[0] - prm[C_SEL_POS], p[1] - prm[C_SEL_POS + 1], p[2] - prm[C_SEL_POS + 2])
+        return power * INV_PI / (radius * radius)
+    rel = (p[0] - P[j, C_SEL_POS], p[1] - P[j, C_SEL_POS + 1], p[2] - P[j, C_SEL_POS + 2])
     d2 = dot(rel, rel)
     if how == SEL_ONE_SIDED:
-        h = rel[0] * prm[C_SEL_NORMAL] + rel[1] * prm[C_SEL_NORMAL + 1] + rel[2] * prm[C_SEL_NORMAL + 2]
+        h = rel[0] * P[j, C_SEL_NORMAL] + rel[1] * P[j, C_SEL_NORMAL + 1] + rel[2] * P[j, C_SEL_NORMAL + 2]
         if not h > 0.0:
             return 0.0
         cos_e = min(max(h / math.sqrt(max(d2, 1e-300)), 0.0), 1.0)
         # Near the emitter the received scale saturates at its own area (no 1/d² blow-up).
-        return power * max(cos_e, 0.05) * INV_PI / max(d2, prm[C_SEL_AREA])
-    return power * 0.25 * INV_PI / max(d2, prm[C_SEL_SIZE2])
+        return power * max(cos_e, 0.05) * INV_PI / max(d2, P[j, C_SEL_AREA])
+    return power * 0.25 * INV_PI / max(d2, P[j, C_SEL_SIZE2])
+
+
+@njit(cache=True, inline="always")
+def received_power(lt, j, p):
+    """Power of light j as received at point p (W/m² scale)."""
+    return received_power_row(lt.params, j, lt.iparams[j, I_SEL], lt.sel_radius, p)
 
 
 @njit(cache=True)
-def _weight(lt, j, p, by_power):
-    return lt.params[j, C_POWER] if by_power else received_power(lt, j, p)
+def _total(params, iparams, active, radius, p):
+    total = 0.0
+    for k in range(active.shape[0]):
+        j = active[k]
+        total += received_power_row(params, j, iparams[j, I_SEL], radius, p)
+    return total
 
 
 @njit(cache=True)
+def _select_local(params, iparams, active, radius, p, u):
+    total = _total(params, iparams, active, radius, p)
+    by_power = not total > 0.0
+    if by_power:
+        # nothing reaches p: the global table (the contributions are 0 anyway)
+        total = 0.0
+        for k in range(active.shape[0]):
+            total += params[active[k], C_POWER]
+    c = 0.0
+    for k in range(active.shape[0]):
+        j = active[k]
+        w = params[j, C_POWER] if by_power else received_power_row(params, j, iparams[j, I_SEL], radius, p)
+        c += w
+        if u < c / total:           # a bin of zero width is never the first with u < cdf
+            return j, w / total
+    # u at the very top (rounding of the cdf): the last bin of positive weight
+    for k in range(active.shape[0] - 1, -1, -1):
+        j = active[k]
+        w = params[j, C_POWER] if by_power else received_power_row(params, j, iparams[j, I_SEL], radius, p)
+        if w > 0.0:
+            return j, w / total
+    return -1, 0.0
+
+
+@njit(cache=True, inline="always")
 def select(lt, p, u):
     """(light index, its probability) for a uniform u in [0, 1); (−1, 0) if nothing emits."""
     na = lt.sel_active.shape[0]
@@ -66,40 +101,17 @@ def select(lt, p, u):
     if lt.local_selection == 0:
         k, prob, _ = _d.sample_1d(lt.sel_dist, 0, na, u)
         return lt.sel_active[k], prob
-    total = 0.0
-    for k in range(na):
-        total += received_power(lt, lt.sel_active[k], p)
-    by_power = not total > 0.0
-    if by_power:
-        total = 0.0
-        for k in range(na):
-            total += lt.params[lt.sel_active[k], C_POWER]
-    c = 0.0
-    for k in range(na):
-        j = lt.sel_active[k]
-        w = _weight(lt, j, p, by_power)
-        c += w
-        if u < c / total:           # a bin of zero width is never the first with u < cdf
-            return j, w / total
-    # u at the very top (rounding of the cdf): the last bin of positive weight
-    for k in range(na - 1, -1, -1):
-        j = lt.sel_active[k]
-        w = _weight(lt, j, p, by_power)
-        if w > 0.0:
-            return j, w / total
-    return -1, 0.0
+    return _select_local(lt.params, lt.iparams, lt.sel_active, lt.sel_radius, p, u)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def select_prob(lt, p, li):
     """Probability that ``select`` at point p returns light li (for MIS of light hits)."""
     if li < 0 or not lt.params[li, C_POWER] > 0.0:
         return 0.0
     if lt.local_selection == 0:
         return lt.sel_pmf[li]
-    total = 0.0
-    for k in range(lt.sel_active.shape[0]):
-        total += received_power(lt, lt.sel_active[k], p)
+    total = _total(lt.params, lt.iparams, lt.sel_active, lt.sel_radius, p)
     if total > 0.0:
         return received_power(lt, li, p) / total
     return lt.sel_pmf[li]

@@ -15,8 +15,6 @@ digits of the cone's size; sampling draws 1 − cos θ directly (warp.uniform_co
 """
 from __future__ import annotations
 
-import math
-
 from numba import njit
 
 from ..vec import dot
@@ -31,30 +29,30 @@ I_DELTA = I_FIRST        # 1: angle 0
 
 
 @njit(cache=True)
-def sample(prm, ip, u0, u1):
-    axis = get3(prm, S_DIR)
-    if ip[I_DELTA] != 0:
-        return axis, INF, get3(prm, S_IRRADIANCE), 0.0
-    wi = sample_cone(axis, prm[S_OMC], u0, u1)
-    pdf = prm[S_PDF]
+def sample(P, I, li, u0, u1):
+    axis = get3(P, li, S_DIR)
+    if I[li, I_DELTA] != 0:
+        return axis, INF, get3(P, li, S_IRRADIANCE), 0.0
+    wi = sample_cone(axis, P[li, S_OMC], u0, u1)
+    pdf = P[li, S_PDF]
     inv = 1.0 / pdf
-    return wi, INF, (prm[S_RADIANCE] * inv, prm[S_RADIANCE + 1] * inv, prm[S_RADIANCE + 2] * inv), pdf
+    return wi, INF, (P[li, S_RADIANCE] * inv, P[li, S_RADIANCE + 1] * inv, P[li, S_RADIANCE + 2] * inv), pdf
 
 
 @njit(cache=True)
-def _inside(prm, d):
-    return (1.0 - dot(d, get3(prm, S_DIR))) <= prm[S_OMC]
+def _inside(P, li, d):
+    return (1.0 - dot(d, get3(P, li, S_DIR))) <= P[li, S_OMC]
 
 
 @njit(cache=True)
-def eval_escaped(prm, ip, d):
-    if ip[I_DELTA] != 0 or not _inside(prm, d):
+def eval_escaped(P, I, li, d):
+    if I[li, I_DELTA] != 0 or not _inside(P, li, d):
         return ZERO3
-    return get3(prm, S_RADIANCE)
+    return get3(P, li, S_RADIANCE)
 
 
 @njit(cache=True)
-def pdf_escaped(prm, ip, d):
-    if ip[I_DELTA] != 0 or not _inside(prm, d):
+def pdf_escaped(P, I, li, d):
+    if I[li, I_DELTA] != 0 or not _inside(P, li, d):
         return 0.0
-    return prm[S_PDF]
+    return P[li, S_PDF]
