@@ -72,14 +72,14 @@ I_CONE_BINS = I_FIRST + 4    # 0: no cone table (no cutoff)
 _NO_RECT = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _local(P, li, x):
     c = get3(P, li, A_CENTER)
     r = (x[0] - c[0], x[1] - c[1], x[2] - c[2])
     return dot(r, get3(P, li, A_U)), dot(r, get3(P, li, A_V)), dot(r, get3(P, li, A_N))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _point(P, li, lu, lv):
     c = get3(P, li, A_CENTER)
     u = get3(P, li, A_U)
@@ -87,7 +87,7 @@ def _point(P, li, lu, lv):
     return (c[0] + lu * u[0] + lv * v[0], c[1] + lu * u[1] + lv * v[1], c[2] + lu * u[2] + lv * v[2])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def inside(P, I, li, lu, lv):
     hu = P[li, A_HALF_U]
     hv = P[li, A_HALF_V]
@@ -98,14 +98,14 @@ def inside(P, I, li, lu, lv):
     return abs(lu) <= hu and abs(lv) <= hv
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def radiance(P, I, li, cos_out):
     """Radiance leaving the emitter at cos θ to its normal."""
     f = _prof.evaluate(I[li, I_PROFILE], P[li, A_SPREAD_TAN], P[li, A_CUTOFF], P[li, A_BEAM], cos_out)
     return (P[li, A_SCALE] * f, P[li, A_SCALE + 1] * f, P[li, A_SCALE + 2] * f)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def plan(P, I, li, p):
     """The sampling choice at point p: (mode, pu, pv, h, region u0, u1, v0, v1 in emitter
     coordinates, spherical rectangle (MODE_SPHRECT), its solid angle [sr] or 0)."""
@@ -148,7 +148,7 @@ def plan(P, I, li, p):
     return mode, pu, pv, h, u0, u1, v0, v1, sr, solid
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def sample(P, I, li, aux, p, u0, u1):
     """(wi, dist, value = radiance/pdf, solid-angle pdf); value and pdf 0 where p gets nothing."""
     mode, pu, pv, h, a0, a1, b0, b1, sr, solid = plan(P, I, li, p)
@@ -208,7 +208,7 @@ def sample(P, I, li, aux, p, u0, u1):
     return wi, t, (le[0] * inv, le[1] * inv, le[2] * inv), pdf
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def intersect(P, I, li, o, d, tmax):
     ou, ov, h = _local(P, li, o)
     denom = dot(d, get3(P, li, A_N))
@@ -222,12 +222,12 @@ def intersect(P, I, li, o, d, tmax):
     return INF
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def eval_hit(P, I, li, o, d, t):
     return radiance(P, I, li, -dot(d, get3(P, li, A_N)))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def pdf_hit(P, I, li, aux, o, d, t):
     """Solid-angle density of ``sample(o)`` for direction d hitting the emitter at o + t d."""
     cos_out = -dot(d, get3(P, li, A_N))
@@ -252,7 +252,7 @@ def pdf_hit(P, I, li, aux, o, d, t):
     return t * t / (ra * cos_out) if ra != 0.0 else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def sample_collimated(P, I, li, p):
     """Spread 0: irradiance ``A_SCALE`` along −n where p's projection falls on the emitter."""
     pu, pv, h = _local(P, li, p)

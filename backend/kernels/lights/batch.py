@@ -26,17 +26,17 @@ from .spot import attenuation
 LANE_LOOP = dict(cache=True, nogil=True, _nrt=False)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _l(li, i):
     return li[i if li.shape[0] > 1 else 0]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _v(a, i):
     return (a[i, 0], a[i, 1], a[i, 2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _put(a, i, v):
     a[i, 0] = v[0]
     a[i, 1] = v[1]

@@ -44,7 +44,7 @@ from . import sun as _sun
 from .common import AREA, COLLIMATED, CONSTANT, ENVIRONMENT, INF, MESH, POINT, SUN, ZERO3
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def sample(lt, tx, li, p, u0, u1):
     k = lt.kind[li]
     P = lt.params
@@ -68,7 +68,7 @@ def sample(lt, tx, li, p, u0, u1):
     return wi, dist, value, pdf, lt.is_delta[li]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def intersect(lt, li, o, d, tmax):
     k = lt.kind[li]
     if k == AREA:
@@ -78,7 +78,7 @@ def intersect(lt, li, o, d, tmax):
     return INF
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def eval_hit(lt, li, o, d, t):
     k = lt.kind[li]
     if k == AREA:
@@ -88,7 +88,7 @@ def eval_hit(lt, li, o, d, t):
     return ZERO3
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def pdf_hit(lt, li, o, d, t):
     k = lt.kind[li]
     if k == AREA:
@@ -98,7 +98,7 @@ def pdf_hit(lt, li, o, d, t):
     return 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def eval_escaped(lt, li, d):
     k = lt.kind[li]
     if k == ENVIRONMENT:
@@ -110,7 +110,7 @@ def eval_escaped(lt, li, d):
     return ZERO3
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def pdf_escaped(lt, li, d):
     k = lt.kind[li]
     if k == ENVIRONMENT:
@@ -122,14 +122,14 @@ def pdf_escaped(lt, li, d):
     return 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def mesh_pdf_hit(lt, li, o, d, t, local_tri):
     if lt.kind[li] != MESH:
         return 0.0
     return _mesh.pdf_hit_triangle(lt.iparams, li, lt.aux, o, d, t, local_tri)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def mesh_eval(lt, li, d, local_tri):
     """Per-triangle radiance of an emitter triangle (its value at the UV centroid if textured)."""
     if lt.kind[li] != MESH:
@@ -137,7 +137,7 @@ def mesh_eval(lt, li, d, local_tri):
     return _mesh.eval_triangle(lt.iparams, li, lt.aux, d, local_tri)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def emitter_of_prim(lt, prim):
     """(mesh light index, local triangle index) of scene primitive ``prim``; (−1, −1) if it emits
     nothing."""
@@ -146,11 +146,11 @@ def emitter_of_prim(lt, prim):
     return lt.prim_light[prim], lt.prim_local[prim]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def select(lt, p, u):
     return _sel.select(lt, p, u)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def select_prob(lt, p, li):
     return _sel.select_prob(lt, p, li)

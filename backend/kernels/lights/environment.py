@@ -43,20 +43,20 @@ TWO_PI_SQ = 2.0 * math.pi * math.pi
 
 
 # ---------------------------------------------------------------- constant world
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def constant_sample(P, li, u0, u1):
     wi = uniform_sphere(u0, u1)
     inv = 1.0 / INV_4PI
     return wi, INF, (P[li, W_RADIANCE] * inv, P[li, W_RADIANCE + 1] * inv, P[li, W_RADIANCE + 2] * inv), INV_4PI
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def constant_eval(P, li):
     return get3(P, li, W_RADIANCE)
 
 
 # ---------------------------------------------------------------- environment map
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def lookup(aux, I, li, x, y):
     """Bilinear radiance at image coordinates x (column, wraps) and y (row from top, clamps)."""
     h = I[li, I_H]
@@ -85,7 +85,7 @@ def lookup(aux, I, li, x, y):
             (aux[a + 2] * gx + aux[b + 2] * ax) * gy + (aux[c + 2] * gx + aux[d + 2] * ax) * ay)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def direction_to_xy(P, li, d):
     """World direction → (x, y) in [0, 1]², x = u, y = θ/π, and the unit map-frame direction."""
     loc, _ = unit_or_zero(mat3(P, li, E_TO_LOCAL, d))
@@ -95,7 +95,7 @@ def direction_to_xy(P, li, d):
     return u, y, loc
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def xy_to_direction(P, li, x, y):
     """(world direction, sin θ) of image coordinates (x, y)."""
     theta = math.pi * y
@@ -106,7 +106,7 @@ def xy_to_direction(P, li, x, y):
     return wi, s
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def env_sample(P, I, li, aux, u0, u1):
     x, y, pdf_xy = _d.sample_2d(aux, I[li, I_DIST_OFF], I[li, I_H], I[li, I_W], u0, u1)
     wi, sin_t = xy_to_direction(P, li, x, y)
@@ -119,13 +119,13 @@ def env_sample(P, I, li, aux, u0, u1):
     return wi, INF, (le[0] * inv, le[1] * inv, le[2] * inv), pdf
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def env_eval(P, I, li, aux, d):
     x, y, _ = direction_to_xy(P, li, d)
     return lookup(aux, I, li, x, y)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def env_pdf(P, I, li, aux, d):
     x, y, loc = direction_to_xy(P, li, d)
     sin_t = math.hypot(loc[0], loc[1])      # precise near the poles, unlike √(1 − z²)

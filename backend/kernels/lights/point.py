@@ -64,7 +64,7 @@ SHAPE_SPHERE = 1
 SHAPE_DISK = 2
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def directional_factor(P, I, li, aux, w_out):
     """Factor on the emission travelling along world direction ``w_out`` (1 without spot/IES)."""
     spot = I[li, I_SPOT] != 0
@@ -80,12 +80,12 @@ def directional_factor(P, I, li, aux, w_out):
     return f
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _scaled(c, s):
     return (c[0] * s, c[1] * s, c[2] * s)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _cones(P, li, d2):
     """(outside the sphere?, 1 − cos of the sphere's cone, use the spread cone?)."""
     r = P[li, P_RADIUS]
@@ -97,7 +97,7 @@ def _cones(P, li, d2):
     return outside, omc_sphere, use_spread
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _sphere_distance(oc, wi, r2, outside, must_hit):
     """Distance along unit wi from o (oc = o − centre) to the sphere; inf on a miss.
 
@@ -113,7 +113,7 @@ def _sphere_distance(oc, wi, r2, outside, must_hit):
     return t if t > 0.0 else INF
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def sample(P, I, li, aux, p, u0, u1):
     """(wi, dist, value, pdf); value = radiance/pdf, or I/d² for the delta light (pdf 0)."""
     pos = get3(P, li, P_POS)
@@ -164,7 +164,7 @@ def sample(P, I, li, aux, p, u0, u1):
     return wi, t, _scaled(rad, f / pdf), pdf
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def intersect(P, I, li, o, d, tmax):
     shape = I[li, I_SHAPE]
     if shape == SHAPE_DELTA:
@@ -185,7 +185,7 @@ def intersect(P, I, li, o, d, tmax):
     return INF
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def eval_hit(P, I, li, aux, o, d, t):
     """Radiance arriving at o from direction d (emitted at o + t d)."""
     shape = I[li, I_SHAPE]
@@ -201,7 +201,7 @@ def eval_hit(P, I, li, aux, o, d, t):
     return _scaled(rad, directional_factor(P, I, li, aux, (-d[0], -d[1], -d[2])))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def pdf_hit(P, I, li, o, d, t):
     """Solid-angle density with which ``sample(o)`` produces direction d."""
     shape = I[li, I_SHAPE]

@@ -31,7 +31,7 @@ from .common import C_POWER, C_SEL_AREA, C_SEL_NORMAL, C_SEL_POS, C_SEL_SIZE2, I
 INV_PI = 1.0 / math.pi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def received_power_row(P, j, how, radius, p):
     """Power of light j (parameter matrix P, selection kind ``how``) as received at point p
     (W/m² scale; see the module docstring); ``radius`` = the scene radius R [m]."""
@@ -52,13 +52,13 @@ def received_power_row(P, j, how, radius, p):
     return power * 0.25 * INV_PI / max(d2, P[j, C_SEL_SIZE2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def received_power(lt, j, p):
     """Power of light j as received at point p (W/m² scale)."""
     return received_power_row(lt.params, j, lt.iparams[j, I_SEL], lt.sel_radius, p)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _total(params, iparams, active, radius, p):
     total = 0.0
     for k in range(active.shape[0]):
@@ -67,7 +67,7 @@ def _total(params, iparams, active, radius, p):
     return total
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _select_local(params, iparams, active, radius, p, u):
     total = _total(params, iparams, active, radius, p)
     by_power = not total > 0.0
@@ -92,7 +92,7 @@ def _select_local(params, iparams, active, radius, p, u):
     return -1, 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def select(lt, p, u):
     """(light index, its probability) for a uniform u in [0, 1); (−1, 0) if nothing emits."""
     na = lt.sel_active.shape[0]
@@ -104,7 +104,7 @@ def select(lt, p, u):
     return _select_local(lt.params, lt.iparams, lt.sel_active, lt.sel_radius, p, u)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def select_prob(lt, p, li):
     """Probability that ``select`` at point p returns light li (for MIS of light hits)."""
     if li < 0 or not lt.params[li, C_POWER] > 0.0:

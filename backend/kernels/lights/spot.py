@@ -18,7 +18,7 @@ import math
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def attenuation(cos_axis, cos_half_angle, spot_smooth):
     """Cycles' spot falloff of the local cosine to the cone axis.
 
