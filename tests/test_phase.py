@@ -153,7 +153,12 @@ def test_hg_g_zero_and_clamp():
     assert np.allclose(HenyeyGreenstein(1.0).eval(a, b), HenyeyGreenstein(0.999).eval(a, b), rtol=1e-14)
     # Tiny g: sampling formula has no 1/g; compare its cosines with the textbook inverse CDF.
     g = 1e-9
-    u = np.random.default_rng(6).random((1000, 2))
+    # The uniforms the sampler draws: lane i's counter-based stream (kernels/rng.py) under the
+    # seed the wrapper draws from the generator.
+    from backend.kernels.rng import fill_uniform
+    from backend.layered.phase.base import draw_seed
+    u = np.empty((1000, 2))
+    fill_uniform(draw_seed(np.random.default_rng(6)), np.arange(1000), np.zeros(1000, np.int64), 0, u)
     s = HenyeyGreenstein(g).sample(np.tile([0, 0, 1.0], (1000, 1)), np.random.default_rng(6))
     assert np.allclose(s.d_out[:, 2], 1 - 2 * u[:, 0], atol=1e-8)
 

@@ -91,7 +91,9 @@ def around3(axis: np.ndarray, cos_t, sin_t, phi) -> np.ndarray:
 
 
 class Phase:
-    """A phase function bound to lanes (or constant). Subclasses implement the five methods.
+    """A phase function bound to lanes (or constant): a thin wrapper over the compiled per-lane
+    code (backend/kernels/layered/phase.py, the same code the layered walk runs). Subclasses give
+    their parameter rows (``_bind_rows``: (1 | n, phase.SIZE) float64) and ``take``.
 
     ``directional`` is True when ``sigma_scale`` is not identically 1 (microflake media): the
     walk must then evaluate σt per direction.
@@ -104,50 +106,78 @@ class Phase:
 
     def __init__(self):
         self.stats = SamplingStats()
+        self._P = None
 
     # Lanes: None for a phase whose parameters are all constants (any n works).
     @property
     def n(self) -> int | None:
         return None
 
-    def eval(self, d_in: np.ndarray, d_out: np.ndarray) -> np.ndarray:
+    def _bind_rows(self) -> np.ndarray:
         raise NotImplementedError
+
+    def rows(self) -> np.ndarray:
+        """The parameter rows the compiled code reads (bound once, shared by calls)."""
+        if getattr(self, "_P", None) is None:
+            self._P = self._bind_rows()
+        return self._P
+
+    def eval(self, d_in: np.ndarray, d_out: np.ndarray) -> np.ndarray:
+        from ...kernels.layered import phase_batch
+        a, b = _pair_rows(d_in, d_out)
+        out = np.empty(a.shape[0])
+        phase_batch.eval_batch(self.rows(), fiber_table(), a, b, out)
+        return out
 
     def pdf(self, d_in: np.ndarray, d_out: np.ndarray) -> np.ndarray:
         return self.eval(d_in, d_out)
 
     def sample(self, d_in: np.ndarray, rng: np.random.Generator) -> PhaseSample:
-        raise NotImplementedError
+        from ...kernels.layered import phase_batch
+        a = np.ascontiguousarray(np.asarray(d_in, dtype=np.float64).reshape(-1, 3))
+        n = a.shape[0]
+        d_out, weight, pdf = np.empty((n, 3)), np.empty(n), np.empty(n)
+        counts = np.zeros(2, np.int64)
+        phase_batch.sample_batch(self.rows(), fiber_table(), a, draw_seed(rng), self._max_candidates(),
+                                 np.zeros(2, np.uint64), d_out, weight, pdf, counts)
+        self.stats.samples += n
+        self.stats.failures += int(counts[0])
+        self.stats.iterations += int(counts[1])
+        return PhaseSample(d_out, weight, pdf)
+
+    def _max_candidates(self) -> int:
+        return 1
 
     def sigma_scale(self, d: np.ndarray) -> np.ndarray:
-        return np.ones(d.shape[0])
-
-    def sample3(self, d_in: np.ndarray, rng: np.random.Generator, s_in=None):
-        """The layered walk's form of ``sample``: ``d_in`` (3, m). Returns (d_out (3, m),
-        weight (m,), pdf (m,), reverse pdf p(−d_out → −d_in) (m,), sigma_scale(d_out) (m,) or
-        None for a non-directional phase). ``s_in``: sigma_scale(d_in) if the caller has it."""
-        ps = self.sample(np.ascontiguousarray(d_in.T), rng)
-        rev = self.pdf(-ps.d_out, np.ascontiguousarray(-d_in.T))
-        s_out = self.sigma_scale(ps.d_out) if self.directional else None
-        return np.ascontiguousarray(ps.d_out.T), ps.weight, ps.pdf, rev, s_out
-
-    def sigma3(self, d: np.ndarray) -> np.ndarray:
-        """``sigma_scale`` for (3, m) directions."""
-        return self.sigma_scale(np.ascontiguousarray(d.T))
-
-    def connect(self, a: np.ndarray, b: np.ndarray, s_a=None, s_b=None):
-        """For the layered connections: ``a``, ``b`` (3, m) unit directions both pointing *away*
-        from the scattering point (a = towards the previous vertex, b = towards the next one).
-        Returns (p(−a → b), p(−b → a)): the value (= the sampling density) of scattering light
-        arriving along −a into b, and the density of the reverse choice. ``s_a``, ``s_b``: the
-        callers' ``sigma_scale`` of a and b when the phase is directional (saves recomputing
-        them), else ignored. This generic version goes through ``eval``/``pdf``."""
-        at, bt = np.ascontiguousarray(a.T), np.ascontiguousarray(b.T)
-        return self.eval(-at, bt), self.pdf(-bt, at)
+        d = np.ascontiguousarray(np.asarray(d, dtype=np.float64).reshape(-1, 3))
+        if not self.directional:
+            return np.ones(d.shape[0])
+        from ...kernels.layered import phase_batch
+        out = np.empty(d.shape[0])
+        phase_batch.scale_batch(self.rows(), fiber_table(), d, out)
+        return out
 
     def take(self, idx) -> "Phase":
         raise NotImplementedError
 
     def _child(self, other: "Phase") -> "Phase":
         other.stats = self.stats
+        other._P = None
         return other
+
+
+def _pair_rows(a, b):
+    a = np.asarray(a, dtype=np.float64).reshape(-1, 3)
+    b = np.asarray(b, dtype=np.float64).reshape(-1, 3)
+    n = max(a.shape[0], b.shape[0])
+    return (np.ascontiguousarray(np.broadcast_to(a, (n, 3))), np.ascontiguousarray(np.broadcast_to(b, (n, 3))))
+
+
+def draw_seed(rng: np.random.Generator) -> np.uint64:
+    """A 63-bit seed for the counter-based streams of a batch call, drawn from a NumPy generator."""
+    return np.uint64(rng.integers(0, 1 << 63))
+
+
+def fiber_table() -> np.ndarray:
+    from .fiber import kernel_table
+    return kernel_table()

@@ -49,21 +49,21 @@ from pathlib import Path
 
 import numpy as np
 
-from ...mathutil import coordinate_system, cross, dot
-from .base import (Phase, PhaseSample, lane_count, lanes, scalar_lanes, unit_or,
-                   vector_lanes)
+from ...kernels.layered import phase as _kp
+from ...mathutil import dot
+from .base import Phase, lane_count, lanes, scalar_lanes, unit_or, vector_lanes
 
-S_MIN, S_MAX = 1e-3, 4.0   # stddev range (clamped); Mitsuba's fiber table spans 4e-8 … 4
-MAX_ROUNDS = 128           # rejection cap per sample
-UNIFORM_ABOVE = 0.7        # stddev above which x is proposed uniformly (better acceptance)
-EXTRA = 4                  # candidates per lane in the rounds after the first (acceptance ≳ 0.2)
+S_MIN, S_MAX = _kp.S_MIN, _kp.S_MAX   # stddev range (clamped); Mitsuba's fiber table spans 4e-8 … 4
+MAX_ROUNDS = 128           # rejection cap per sample (rounds of the former NumPy sampler; the
+EXTRA = 4                  # per-lane sampler draws 1 + (MAX_ROUNDS − 1)·EXTRA candidates at most)
+UNIFORM_ABOVE = _kp.UNIFORM_ABOVE  # stddev above which x is proposed uniformly (better acceptance)
 
 # Table layout: rows uniform in ln s, columns uniform in q; one ghost row/column on each side
 # so the 4-point stencil never leaves the table (σ is even in θ and in θ − π/2, so ghost
 # columns are just evaluated at |θ| or π − θ).
 _LN_S0, _LN_S1 = math.log(S_MIN), math.log(S_MAX)
-_ROWS = 161
-_COLS = 161
+_ROWS = _kp.ROWS
+_COLS = _kp.COLS
 _H_S = (_LN_S1 - _LN_S0) / (_ROWS - 1)
 _H_Q = 1.0 / (_COLS - 1)
 
@@ -233,16 +233,20 @@ def ln_gauss_norm(s) -> np.ndarray:
     return sum(w[a] * ln_norm[i + a] for a in range(4))
 
 
+@lru_cache(maxsize=1)
+def kernel_table() -> np.ndarray:
+    """The table as the compiled code reads it (kernels/layered/phase.py ``FT``): the ghosted σ
+    rows, then the ln N(s) row."""
+    sigma, ln_norm = _table()
+    return np.ascontiguousarray(np.vstack([sigma, ln_norm[None, :]]), dtype=np.float64)
+
+
 # ------------------------------------------------------------------------------ phase
-def sin_between(d: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """|d × t| for unit rows (accurate near parallel, unlike √(1 − (d·t)²))."""
-    x = cross(d, np.broadcast_to(t, d.shape))
-    return np.sqrt(dot(x, x))
-
-
 class MicroflakeFiber(Phase):
     """Guo et al.'s fiber microflake phase. ``stddev`` () or (n,); ``orientation`` (3,), (1, 3) or
-    (n, 3) fiber axes in the layer frame (normalised here; a zero axis falls back to +x)."""
+    (n, 3) fiber axes in the layer frame (normalised here; a zero axis falls back to +x). The
+    per-lane maths (σ lookup, exact rejection sampler) is compiled:
+    backend/kernels/layered/phase.py."""
 
     type_name = "microflake"
     directional = True
@@ -252,30 +256,21 @@ class MicroflakeFiber(Phase):
         self.stddev = clamp_stddev(scalar_lanes(stddev))
         self.axis = unit_or(vector_lanes(orientation), [1.0, 0.0, 0.0])
         self._ln_norm = ln_gauss_norm(self.stddev)
-        self._row = table_row(self.stddev) if self.stddev.ndim == 0 else None
-        self._scalars()
-        self._fr = None
-
-    def _scalars(self):
-        """Per-phase constants of a constant stddev (None otherwise) for the hot paths."""
-        s = self.stddev
-        if s.ndim == 0:
-            sv = float(s)
-            self._inv_s = 1.0 / sv
-            self._q_scale = (_COLS - 1) / math.asinh(0.5 * math.pi / sv)   # q in column units
-            self._s_scalar = sv
-        else:
-            self._inv_s = self._q_scale = self._s_scalar = None
 
     @property
     def n(self):
         return lane_count(self.stddev, self.axis)
 
-    def _sigma(self, d: np.ndarray) -> np.ndarray:
-        return fiber_sigma(self.stddev, dot(d, self.axis), sin_between(d, self.axis), self._row)
+    def _bind_rows(self):
+        from ...kernels.layered.phase_batch import bind_fiber_rows
+        s = np.ascontiguousarray(self.stddev.reshape(-1))
+        m = max(s.size, self.axis.shape[0])
+        P = np.zeros((m, _kp.SIZE))
+        bind_fiber_rows(s, np.ascontiguousarray(self.axis), kernel_table(), P)
+        return P
 
-    def sigma_scale(self, d):
-        return 2.0 * self._sigma(d)
+    def _max_candidates(self) -> int:
+        return 1 + (MAX_ROUNDS - 1) * EXTRA
 
     def distribution(self, m: np.ndarray) -> np.ndarray:
         """D(m), normalised to 1 over the sphere."""
@@ -283,166 +278,9 @@ class MicroflakeFiber(Phase):
         s = self.stddev
         return np.exp(-x * x / (2.0 * s * s) - self._ln_norm) / (2.0 * np.pi)
 
-    def eval(self, d_in, d_out):
-        h = d_out - d_in  # ωi + ωo with ωi = −d_in
-        length = np.sqrt(dot(h, h))
-        ok = length > 1e-12  # exact forward scattering: h undefined, a set of measure zero
-        h = h / np.where(ok, length, 1.0)[:, None]
-        sigma = self._sigma(d_in)
-        value = self.distribution(h) / (2.0 * np.maximum(sigma, 1e-300))
-        return np.where(ok, value, 0.0)
-
-    def connect(self, a, b, s_a=None, s_b=None):
-        # h = normalise(d_out − d_in) = normalise(a + b); p(−a → b) = D(h)/(2σ(a)) = D(h)/s(a).
-        s_a = self.sigma_scale(np.ascontiguousarray(a.T)) if s_a is None else s_a
-        s_b = self.sigma_scale(np.ascontiguousarray(b.T)) if s_b is None else s_b
-        hx, hy, hz = a[0] + b[0], a[1] + b[1], a[2] + b[2]
-        l2 = hx * hx + hy * hy + hz * hz
-        ok = l2 > 1e-24  # exact forward scattering: h undefined, a set of measure zero
-        ax = self.axis.T  # (3, 1|m)
-        x = hx * ax[0] + hy * ax[1] + hz * ax[2]
-        s = self.stddev
-        d = np.exp(-(x * x) / (np.where(ok, l2, 1.0) * (2.0 * s * s)) - self._ln_norm) * (0.5 / np.pi)
-        d = np.where(ok, d, 0.0)
-        return d / np.maximum(s_a, 1e-300), d / np.maximum(s_b, 1e-300)
-
-    def sigma3(self, d):
-        """sigma_scale for (3, m) directions."""
-        ax = self.axis.T
-        c = d[0] * ax[0] + d[1] * ax[1] + d[2] * ax[2]
-        x = d[1] * ax[2] - d[2] * ax[1]
-        y = d[2] * ax[0] - d[0] * ax[2]
-        z = d[0] * ax[1] - d[1] * ax[0]
-        sn = np.sqrt(x * x + y * y + z * z)
-        if self._row is None:
-            return 2.0 * fiber_sigma(self.stddev, c, sn, None)
-        # Constant stddev (already clamped): fiber_sigma's table read with the row and the
-        # q-scale precomputed (this runs once or twice per walk iteration and medium).
-        row, q_scale = self._row, self._q_scale
-        theta = np.arctan2(sn, np.abs(c))
-        q = np.arcsinh(theta * self._inv_s) * q_scale
-        j = np.minimum(q.astype(np.int64), _COLS - 2)   # q ≥ 0: truncation is the floor
-        wj = _lagrange4(q - j)
-        return 2.0 * (wj[0] * row[j] + wj[1] * row[j + 1] + wj[2] * row[j + 2] + wj[3] * row[j + 3])
-
-    def _frame(self):
-        """Unit fiber axes t and two unit vectors e1, e2 completing a frame, each (3, 1|n)."""
-        if self._fr is None:
-            t = self.axis.T
-            e1, e2 = coordinate_system(np.ascontiguousarray(self.axis))
-            self._fr = (t, np.ascontiguousarray(e1.T), np.ascontiguousarray(e2.T))
-        return self._fr
-
-    def sample(self, d_in, rng):
-        d_out, weight, pdf, _, _ = self.sample3(np.ascontiguousarray(d_in.T), rng)
-        return PhaseSample(np.ascontiguousarray(d_out.T), weight, pdf)
-
-    def sample3(self, d_in, rng, s_in=None):
-        """Rejection sampling of the visible flake normal (module docstring), on (3, m). Round 1
-        proposes one candidate per lane; later rounds, on the few rejected lanes, propose
-        ``EXTRA`` candidates each and keep the first accepted (fewer rounds of overhead). The
-        density is D(m)/s(d_in) from the accepted normal (h = ±m for a mirror reflection)."""
-        m = d_in.shape[1]
-        wi = -d_in
-        t, e1, e2 = self._frame()
-        sv = self._s_scalar
-        # A constant stddev keeps s and the proposal kind scalars (no per-lane gathers/selects).
-        s_all = sv if sv is not None else np.broadcast_to(self.stddev, (m,))
-        # ωi in the fiber frame: c = ωi·t, (p1, p2) = (ωi·e1, ωi·e2), sθ = |ωi × t| = |(p1, p2)|.
-        c_all = wi[0] * t[0] + wi[1] * t[1] + wi[2] * t[2]
-        p1_all = wi[0] * e1[0] + wi[1] * e1[1] + wi[2] * e1[2]
-        p2_all = wi[0] * e2[0] + wi[1] * e2[1] + wi[2] * e2[2]
-        sn_all = np.sqrt(p1_all * p1_all + p2_all * p2_all)
-        x_acc = cphi_acc = sphi_acc = np.zeros(m)
-        done = np.zeros(m, dtype=bool)
-        todo = None if m else np.zeros(0, dtype=np.int64)   # None: every lane (round 1)
-        rounds = 0
-        while (todo is None or todo.size) and rounds < MAX_ROUNDS:
-            reps = 1 if rounds == 0 else EXTRA
-            rounds += 1
-            if todo is None:
-                sk, ck, snk, p1k, p2k = s_all, c_all, sn_all, p1_all, p2_all
-                k = m
-            else:
-                lanes_k = np.tile(todo, reps)
-                k = lanes_k.size
-                sk = s_all if sv is not None else s_all[lanes_k]
-                ck, snk = c_all[lanes_k], sn_all[lanes_k]
-                p1k, p2k = p1_all[lanes_k], p2_all[lanes_k]
-            ack = np.abs(ck)
-            u = rng.random((5, k))
-            uniform = (sv > UNIFORM_ABOVE) if sv is not None else sk > UNIFORM_ABOVE
-            # Gaussian branch: x ∝ e^{−x²/2s²}(|c||x| + sθ) = a mixture with weights |c|·2s²
-            # (Rayleigh part, |x| e^{−x²/2s²}) and sθ·s√(2π) (normal part); both drawn as
-            # s·√(−2 ln(1 − u)) times a random sign or cos 2πu' (Box–Muller).
-            if sv is not None and uniform:
-                x = 2.0 * u[1] - 1.0
-            else:
-                wa = ack * (2.0 * sk * sk)
-                wb = snk * (sk * math.sqrt(2.0 * math.pi))
-                pick_a = u[0] * (wa + wb) < wa
-                rho = sk * np.sqrt(-2.0 * np.log1p(-u[1]))
-                x = rho * np.where(pick_a, np.where(u[4] < 0.5, 1.0, -1.0), np.cos(2.0 * np.pi * u[4]))
-                if sv is None:
-                    x = np.where(uniform, 2.0 * u[1] - 1.0, x)
-            inside = np.abs(x) <= 1.0
-            x = np.clip(x, -1.0, 1.0)
-            r = np.sqrt(np.maximum(0.0, (1.0 - x) * (1.0 + x)))
-            phi = 2.0 * np.pi * u[2]
-            cph, sph = np.cos(phi), np.sin(phi)
-            vis = np.abs(x * ck + r * (cph * p1k + sph * p2k))
-            lim = u[3]
-            if sv is None:
-                bound = np.where(uniform, ack + snk, ack * np.abs(x) + snk)  # ≥ |ωi·m|
-                lim = lim * bound * np.exp(np.where(uniform, x * x / (2.0 * sk * sk), 0.0))
-            elif uniform:
-                lim = lim * (ack + snk) * np.exp(x * x / (2.0 * sv * sv))
-            else:
-                lim = lim * (ack * np.abs(x) + snk)
-            ok = inside & (vis > lim)
-            if todo is None:
-                # Round 1 proposes for every lane in order: its arrays are the accumulators.
-                x_acc, cphi_acc, sphi_acc, done = x, cph, sph, ok
-                todo = np.flatnonzero(~ok)
-            else:
-                okr = ok.reshape(reps, -1)
-                first = np.argmax(okr, axis=0)
-                any_ok = okr[first, np.arange(todo.size)]
-                pick = first * todo.size + np.arange(todo.size)
-                sel = pick[any_ok]
-                idx = todo[any_ok]
-                todo = todo[~any_ok]
-                x_acc[idx], cphi_acc[idx], sphi_acc[idx] = x[sel], cph[sel], sph[sel]
-                done[idx] = True
-        self.stats.samples += m
-        self.stats.failures += int(todo.size)
-        self.stats.iterations += rounds
-        r = np.sqrt(np.maximum(0.0, (1.0 - x_acc) * (1.0 + x_acc)))
-        mx = x_acc * t[0] + r * (cphi_acc * e1[0] + sphi_acc * e2[0])
-        my = x_acc * t[1] + r * (cphi_acc * e1[1] + sphi_acc * e2[1])
-        mz = x_acc * t[2] + r * (cphi_acc * e1[2] + sphi_acc * e2[2])
-        wm2 = 2.0 * (wi[0] * mx + wi[1] * my + wi[2] * mz)
-        d_out = np.stack([wm2 * mx - wi[0], wm2 * my - wi[1], wm2 * mz - wi[2]])
-        all_done = not todo.size
-        if not all_done:
-            d_out = np.where(done, d_out, d_in)
-        s = self.stddev
-        D = np.exp(-x_acc * x_acc / (2.0 * s * s) - self._ln_norm) * (0.5 / np.pi)
-        s_in = self.sigma3(d_in) if s_in is None else s_in
-        s_out = self.sigma3(d_out)
-        pdf = D / np.maximum(s_in, 1e-300)
-        rev = D / np.maximum(s_out, 1e-300)
-        if all_done:
-            return d_out, np.ones(m), pdf, rev, s_out
-        return d_out, done * 1.0, np.where(done, pdf, 0.0), np.where(done, rev, 0.0), s_out
-
     def take(self, idx):
         other = MicroflakeFiber.__new__(MicroflakeFiber)
         other.stddev = lanes(self.stddev, idx)
         other.axis = lanes(self.axis, idx)
         other._ln_norm = lanes(self._ln_norm, idx)
-        other._row = self._row
-        other._inv_s, other._q_scale, other._s_scalar = self._inv_s, self._q_scale, self._s_scalar
-        # The frame depends on the axis only: shared when the axis is one constant row.
-        other._fr = self._fr if other.axis.shape[0] == 1 else None
         return self._child(other)

@@ -29,8 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...mathutil import dot
-from .base import Phase, PhaseSample, around, lane_count, lanes, unit_or, vector_lanes
+from .base import Phase, lane_count, lanes, unit_or, vector_lanes
 
 ROUGHNESS_MIN = 1e-3
 
@@ -72,7 +71,8 @@ def cholesky(s6: np.ndarray) -> np.ndarray:
 
 
 class SGGX(Phase):
-    """SGGX phase with matrix ``s6`` of shape (6,), (1, 6) or (n, 6) (see module docstring)."""
+    """SGGX phase with matrix ``s6`` of shape (6,), (1, 6) or (n, 6) (see module docstring); the
+    per-lane maths is compiled (backend/kernels/layered/phase.py)."""
 
     type_name = "sggx"
     directional = True
@@ -95,79 +95,22 @@ class SGGX(Phase):
     def n(self):
         return lane_count(self.s6)
 
-    def _bt(self, w: np.ndarray) -> np.ndarray:
-        """Bᵀ w (rows)."""
-        b = self.b
-        return np.stack([b[:, 0] * w[:, 0] + b[:, 1] * w[:, 1] + b[:, 3] * w[:, 2],
-                         b[:, 2] * w[:, 1] + b[:, 4] * w[:, 2],
-                         b[:, 5] * w[:, 2]], axis=1)
+    def _bind_rows(self):
+        from ...kernels.layered import phase as kp
+        from ...kernels.layered.phase_batch import bind_sggx_rows
+        P = np.zeros((self.s6.shape[0], kp.SIZE))
+        bind_sggx_rows(np.ascontiguousarray(self.s6), P)
+        return P
 
-    def _b(self, u: np.ndarray) -> np.ndarray:
-        """B u (rows)."""
-        b = self.b
-        return np.stack([b[:, 0] * u[:, 0],
-                         b[:, 1] * u[:, 0] + b[:, 2] * u[:, 1],
-                         b[:, 3] * u[:, 0] + b[:, 4] * u[:, 1] + b[:, 5] * u[:, 2]], axis=1)
-
-    def _b_inv(self, m: np.ndarray) -> np.ndarray:
-        """B⁻¹ m by forward substitution."""
+    def distribution(self, m: np.ndarray) -> np.ndarray:
+        """Heitz's D(m) (integrates to 4 over the sphere)."""
         b = self.b
         y0 = m[:, 0] / b[:, 0]
         y1 = (m[:, 1] - b[:, 1] * y0) / b[:, 2]
         y2 = (m[:, 2] - b[:, 3] * y0 - b[:, 4] * y1) / b[:, 5]
-        return np.stack([y0, y1, y2], axis=1)
-
-    def sigma_scale(self, d):
-        v = self._bt(d)
-        return np.sqrt(dot(v, v))
-
-    def distribution(self, m: np.ndarray) -> np.ndarray:
-        """Heitz's D(m) (integrates to 4 over the sphere)."""
-        y = self._b_inv(m)
-        q = dot(y, y)  # mᵀ S⁻¹ m ≥ 1/λmax(S) > 0 for unit m
-        det_sqrt = self.b[:, 0] * self.b[:, 2] * self.b[:, 5]
+        q = y0 * y0 + y1 * y1 + y2 * y2  # mᵀ S⁻¹ m ≥ 1/λmax(S) > 0 for unit m
+        det_sqrt = b[:, 0] * b[:, 2] * b[:, 5]
         return 1.0 / (np.pi * det_sqrt * q * q)
-
-    def eval(self, d_in, d_out):
-        h = d_out - d_in
-        length = np.sqrt(dot(h, h))
-        ok = length > 1e-12  # exact forward scattering: h undefined (measure zero)
-        h = h / np.where(ok, length, 1.0)[:, None]
-        sigma = self.sigma_scale(d_in)
-        value = self.distribution(h) / (4.0 * np.maximum(sigma, 1e-300))
-        return np.where(ok, value, 0.0)
-
-    def connect(self, a, b, s_a=None, s_b=None):
-        # h = a + b (unnormalised): D(ĥ) = |h|⁴ / (π √det S (hᵀ S⁻¹ h)²); p(−a → b) = D(ĥ)/(4 s(a)).
-        s_a = self.sigma_scale(np.ascontiguousarray(a.T)) if s_a is None else s_a
-        s_b = self.sigma_scale(np.ascontiguousarray(b.T)) if s_b is None else s_b
-        h0, h1, h2 = a[0] + b[0], a[1] + b[1], a[2] + b[2]
-        l2 = h0 * h0 + h1 * h1 + h2 * h2
-        ok = l2 > 1e-24  # exact forward scattering: h undefined (measure zero)
-        bb = self.b.T  # (6, 1|m)
-        y0 = h0 / bb[0]
-        y1 = (h1 - bb[1] * y0) / bb[2]
-        y2 = (h2 - bb[3] * y0 - bb[4] * y1) / bb[5]
-        q = y0 * y0 + y1 * y1 + y2 * y2
-        det_sqrt = bb[0] * bb[2] * bb[5]
-        d = np.where(ok, (l2 * l2) / np.where(ok, np.pi * det_sqrt * q * q, 1.0), 0.0) * 0.25
-        return d / np.maximum(s_a, 1e-300), d / np.maximum(s_b, 1e-300)
-
-    def sample(self, d_in, rng):
-        n = d_in.shape[0]
-        wi = -d_in
-        axis = unit_or(self._bt(wi), [0.0, 0.0, 1.0])
-        axis = np.broadcast_to(axis, (n, 3))
-        u = rng.random((n, 2))
-        # Cosine-weighted hemisphere about ``axis``: cos θ = √(1 − u0).
-        cos_t = np.sqrt(1.0 - u[:, 0])
-        sin_t = np.sqrt(u[:, 0])
-        v = around(np.ascontiguousarray(axis), cos_t, sin_t, 2.0 * np.pi * u[:, 1])
-        m = unit_or(self._b(v), [0.0, 0.0, 1.0])
-        d_out = 2.0 * dot(wi, m)[:, None] * m - wi
-        pdf = self.eval(d_in, d_out)
-        self.stats.samples += n
-        return PhaseSample(d_out, np.ones(n), pdf)
 
     def take(self, idx):
         other = SGGX.__new__(SGGX)

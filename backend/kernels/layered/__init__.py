@@ -1,0 +1,15 @@
+"""The layered BSDF (Guo, Hašan, Zhao 2018) as compiled per-lane code: each lane walks its own
+stack to its own end.
+
+Modules (import them through ``backend.kernels``, which configures the kernel cache first):
+* ``phase``   phase functions of the slab media (isotropic, Henyey–Greenstein, von Mises–Fisher,
+              Guo's fiber microflakes with their projected-area table, SGGX), per lane;
+* ``iface``   the interfaces as the walk needs them: sample and eval with both sampling
+              densities (importance transport), per-interface normal maps;
+* ``table``   the stack table (one per scene) and ``bind`` (a lane's stack at its (u, v));
+* ``walk``    the random walk through a bound stack, with its MIS records;
+* ``estimators``  eval (bidirectional, unidirectional), the approximate and the stochastic pdf,
+              sample, the integrator's combined light connection + continuation, albedo;
+* ``batch``   array entry points for NumPy callers (``backend/layered``: the BSDF inspector,
+              tests) — loops over lanes calling the same per-lane code as the integrator.
+"""
