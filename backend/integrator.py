@@ -1,15 +1,13 @@
 """Wavefront unidirectional path tracer with next-event estimation and MIS (power heuristic):
 the orchestration. The per-lane work is compiled (``backend/kernels/integrator.py``, whose
 docstring describes one bounce); this module builds the typed tables once per scene and runs the
-bounce loop of a work item over queues: camera rays → [embree intersect → shade → (layered lanes:
-NumPy walks → finish) → embree occluded → add unblocked light] per bounce.
+bounce loop of a work item over queues: camera rays → [embree intersect → shade → embree
+occluded → add unblocked light] per bounce.
 
 A work item is a set of pixels × a range of sample indices; lane i is sample ``sample0 + i % spp``
 of pixel ``pixels[i // spp]``. Random numbers are counter-based (kernels/rng.py), keyed by
-(seed, pixel, sample, dimension), so an image does not depend on how the work is cut. The
-layered BSDF's walks (NumPy, until their compiled port) still draw from the work item's
-``rng``; work items are cut the same way for any worker count, so images stay bit-identical
-across worker counts.
+(seed, pixel, sample, dimension) — the layered walks included (a sub-stream per bounce) — so an
+image does not depend on how the work is cut.
 """
 from __future__ import annotations
 
@@ -19,9 +17,10 @@ from . import stats
 from .kernels import integrator as ki
 from .kernels import materials as km
 from .kernels.camera import camera_rays, camera_vector
+from .kernels.layered import batch as layered_batch
+from .kernels.layered.table import H_MAXV, StackBuilder
 from .kernels.lights.table import build_light_table
 from .kernels.params import ParamPacker
-from .materials.base import ShadingContext
 
 
 def _table(corners: np.ndarray) -> np.ndarray:
@@ -57,9 +56,13 @@ class PathTracer:
         self.max_segments = s.max_bounces + 2
         self.lights = list(scene.lights)
         packer = ParamPacker()
-        self.materials = build_material_table(scene.materials, packer)
+        stacks = StackBuilder(packer)
+        self.materials = build_material_table(scene.materials, packer, stacks)
         self.light_table = build_light_table(self.lights, packer, scene.radius, s.light_selection)
         self.textures = packer.table()
+        # Layered stacks: their table, and the walks' scratch size (records of two walks).
+        self.stacks = stacks.table(self.textures)
+        self.walk_capacity = int(max(self.stacks.head[:, H_MAXV].max(), 2))
         has_lights = any(l.power() > 0 for l in self.lights)
         mesh_light = self.lights.index(scene.mesh_light) if scene.mesh_light is not None else -1
         emitter = np.full(max(soup.count, 1), -1, np.int32)
@@ -85,13 +88,12 @@ class PathTracer:
         f = scene.pixel_filter
         self.filter = (f._cdf, f._grid, float(f.width))
         self.any_hidden = bool(soup.count) and not bool(soup.camera_visible.all())
-        self.deferred = [i for i, k in enumerate(self.materials.kind) if k == km.DEFERRED]
 
     # ------------------------------------------------------------------ work item
     def render(self, pixels: np.ndarray, spp: int, rng: np.random.Generator, sample0: int = 0) -> dict:
         """``spp`` samples (indices sample0 …) in each of ``pixels`` (flat, row 0 = top).
         Returns the per-lane samples (lane i: sample i % spp of pixel i // spp) for
-        ``FilmAccumulator.add``. ``rng`` feeds the layered BSDF's NumPy walks only."""
+        ``FilmAccumulator.add``. ``rng`` is not used (every random number is counter-based)."""
         scene = self.scene
         W, H = scene.width, scene.height
         P = pixels.size
@@ -115,11 +117,7 @@ class PathTracer:
         sh_d32 = np.empty((n, 3), np.float32)
         sh_t32 = np.empty(n, np.float32)
         sh_c = np.empty((n, 3))
-        df = None
-        if self.deferred:
-            df = (np.empty(n, np.int64), np.empty((n, 21)), np.empty((n, 14)))
-        else:
-            df = (np.empty(0, np.int64), np.empty((0, 21)), np.empty((0, 14)))
+        lw, lb, lr, lc = layered_batch.scratch(self.walk_capacity)
         counts = np.zeros(5, np.int64)
         killed = 0
         rays = 0
@@ -138,10 +136,7 @@ class PathTracer:
                      cur.slot[:active], cur.key[:active], cur.o[:active], cur.d[:active], cur.beta[:active],
                      cur.pdf[:active], cur.delta[:active], t_in, prim, t, b1, b2,
                      L, albedo, normal, alpha, *nxt.outputs(),
-                     sh_slot, sh_o32, sh_d32, sh_t32, sh_c, *df, counts)
-            if counts[2]:
-                self._shade_deferred(segment, int(counts[2]), df, cur, active, nxt,
-                                     (sh_slot, sh_o32, sh_d32, sh_t32, sh_c), counts, albedo, rng)
+                     sh_slot, sh_o32, sh_d32, sh_t32, sh_c, self.stacks, lw, lb, lr, lc, counts)
             ns = int(counts[1])
             if ns:
                 blocked = self.accel.occluded32(sh_o32[:ns], sh_d32[:ns], sh_t32[:ns])
@@ -152,51 +147,10 @@ class PathTracer:
             cur, nxt = nxt, cur
         if killed:
             stats.add("paths_nonfinite_killed", killed)
+        if lc[2]:
+            stats.add("layered_walk_cap_hits", int(lc[2]))
         # Per-lane samples: the film adds them in sample order (kernels/film.py).
         return {"lanes": (L, albedo, normal, alpha), "spp": spp, "rays": rays}
-
-    # ------------------------------------------------------------------ layered lanes
-    def _shade_deferred(self, segment, m, df, cur, active, nxt, shadow, counts, albedo, rng):
-        """Lanes on multi-interface layered stacks: the NumPy layered BSDF gives the light
-        connection, its pdf and the continuation sample; ``finish_deferred`` does the rest."""
-        lane, frame, light = df[0][:m], df[1][:m], df[2][:m]
-        mats = frame[:, 20].astype(np.int64)
-        order = np.argsort(mats, kind="stable")
-        lane, frame, light, mats = lane[order], frame[order], light[order], mats[order]
-        wi = np.ascontiguousarray(frame[:, 15:18])
-        uv = np.ascontiguousarray(frame[:, 18:20])
-        wo_nee = np.ascontiguousarray(light[:, 10:13])
-        live = light[:, 13] > 0
-        any_rough = bool(np.any(light[:, 8] == 0))
-        do_continue = segment < self.max_segments - 1
-        f = np.zeros((m, 3))
-        pdf = np.zeros(m)
-        s_wo, s_w, s_pdf, s_delta = np.zeros((m, 3)), np.zeros((m, 3)), np.zeros(m), np.zeros(m, bool)
-        bounds = np.concatenate([[0], np.flatnonzero(np.diff(mats)) + 1, [m]])
-        for a, b in zip(bounds[:-1], bounds[1:]):
-            g = slice(int(a), int(b))
-            bsdf = self.scene.materials[mats[a]].bind(ShadingContext(uv[g]))
-            # At a camera hit the continuation sample's reflected weight is an estimate of the
-            # albedo at the viewing angle (measured: 17 % of a one-slab sphere render saved).
-            from_sample = segment == 0 and do_continue and getattr(bsdf, "stochastic", False)
-            if segment == 0 and not from_sample:
-                slots = cur.slot[lane[g]]
-                albedo[slots] = np.broadcast_to(np.asarray(bsdf.albedo(), np.float64), (b - a, 3))
-            smp = None
-            if not bsdf.delta_only:
-                f[g], pg, smp = bsdf.nee_and_sample(wi[g], wo_nee[g], live[g], rng, any_rough, do_continue)
-                pdf[g] = pg
-            if do_continue:
-                if smp is None:
-                    smp = bsdf.sample(wi[g], rng)
-                s_wo[g], s_w[g], s_pdf[g], s_delta[g] = smp.wo, smp.weight, smp.pdf, smp.delta
-                if from_sample:
-                    reflected = (smp.wo[:, 2] * wi[g, 2]) > 0
-                    albedo[cur.slot[lane[g]]] = np.where(reflected[:, None], smp.weight, 0.0)
-        ki.finish_deferred(self.settings, segment, lane, frame, light, f, pdf,
-                           s_wo, s_w, s_pdf, s_delta, do_continue,
-                           cur.slot[:active], cur.key[:active], cur.beta[:active],
-                           *nxt.outputs(), *shadow, counts)
 
     # ------------------------------------------------------------------ geometry
     def _skip_hidden(self, o32, d32, t_in, prim, t, b1, b2, max_layers: int = 16):
@@ -223,5 +177,5 @@ class PathTracer:
         return prim, (t + t_base).astype(np.float32), b1, b2
 
 
-def build_material_table(materials, packer):
-    return km.build_material_table(materials, packer)
+def build_material_table(materials, packer, stacks=None):
+    return km.build_material_table(materials, packer, stacks)

@@ -12,9 +12,9 @@ Per bounce, for every lane whose ray embree has just traced (``shade``):
   4. next-event estimation: pick a light (power or local selection), sample it, evaluate the BSDF
      and the MIS weight (power heuristic), write a shadow ray with its contribution;
   5. continuation: sample the BSDF, Russian roulette, write the next ray (compacted).
-Lanes whose material is DEFERRED (multi-interface layered stacks, still NumPy) stop after step 3
-and the light sample of step 4; ``finish_deferred`` completes them from the layered BSDF's
-results with the same code (``_nee`` and ``_continue``).
+Lanes on multi-interface layered stacks (kind LAYERED) run steps 4b and 5 through one per-lane
+call (``kernels/layered/batch.shade_lane``: the light connection and the continuation sample
+from shared random walks), then the same ``_nee`` and ``_continue``.
 
 Path length: ``max_bounces`` has Cycles' meaning (0 = direct lighting only): a path has at most
 max_bounces + 2 segments (camera → … → light). Precision: shading state float64; rays go to
@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit
 
 from . import materials as km
+from .layered import batch as layered
 from .lights import dispatch as ld
 from .rng import (SLOT_BSDF, SLOT_BSDF_LOBE, SLOT_LIGHT, SLOT_LIGHT_PICK, SLOT_RR, bounce_dim,
                   uniform)
@@ -232,9 +233,11 @@ def shade(G, MT, TX, LT, S, segment,
           L, albedo, normal, alpha,
           nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta,
           sh_slot, sh_o32, sh_d32, sh_t32, sh_c,
-          df_lane, df_frame, df_light, counts):
+          ST, LW, LB, LR, LC, counts):
     """One bounce for every traced lane (see the module docstring). ``counts`` (int64[5]) gets
-    [next rays, shadow rays, deferred lanes, non-finite paths killed, 0]."""
+    [next rays, shadow rays, layered lanes, non-finite paths killed, 0]. ``ST``: the layered
+    stack table; ``LW``, ``LB``, ``LR``, ``LC``: the layered walks' scratch and counters
+    (kernels/layered/batch.py)."""
     camera = segment == 0
     last = segment == S.max_segments - 1
     can_nee = S.has_lights and segment + 1 < S.max_segments
@@ -323,7 +326,7 @@ def shade(G, MT, TX, LT, S, segment,
         tan = (G.tangent[pr, 0], G.tangent[pr, 1], G.tangent[pr, 2])
         fs, ft = _frame(ns, tan)
         wi_l = _local(fs, ft, ns, wi)
-        # 4a. light sample (shared with deferred lanes)
+        # 4a. light sample
         li = -1
         sel_p = 0.0
         wi_w = (0.0, 0.0, 1.0)
@@ -341,28 +344,21 @@ def shade(G, MT, TX, LT, S, segment,
                     uniform(key[i], bounce_dim(segment, SLOT_LIGHT) + 1))
                 wo_n = _local(fs, ft, ns, wi_w)
                 live = max(value[0], max(value[1], value[2])) > 0.0 and _dot(wi_w, ng) * wo_n[2] > 0.0
-        if kind == km.DEFERRED:
-            k = counts[2]
-            df_lane[k] = i
-            for j in range(3):
-                df_frame[k, j] = fs[j]
-                df_frame[k, 3 + j] = ft[j]
-                df_frame[k, 6 + j] = ns[j]
-                df_frame[k, 9 + j] = p[j]
-                df_frame[k, 12 + j] = ng[j]
-                df_frame[k, 15 + j] = wi_l[j]
-                df_light[k, j] = wi_w[j]
-                df_light[k, 4 + j] = value[j]
-                df_light[k, 10 + j] = wo_n[j]
-            df_light[k, 3] = dist
-            df_light[k, 7] = lpdf
-            df_light[k, 8] = 1.0 if is_delta else 0.0
-            df_light[k, 9] = sel_p
-            df_light[k, 13] = 1.0 if (live and can_nee) else 0.0
-            df_frame[k, 18] = u
-            df_frame[k, 19] = v
-            df_frame[k, 20] = m
-            counts[2] = k + 1
+        if kind == km.LAYERED:
+            # 4b + 5 for a layered stack: one per-lane call (shared walks).
+            counts[2] += 1
+            f, bpdf, wo, weight, spdf, sdelta, alb = layered.shade_lane(
+                ST, TX, int(MT.values[m, km.LAYER_ID]), u, v, wi_l, wo_n, live, not is_delta,
+                not last, camera, key[i], segment, LW, LB, LR, LC)
+            if camera:
+                albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = alb
+            if live:
+                _nee(S, segment, sl, bt, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p, f, bpdf,
+                     sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
+            if not last and (weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0):
+                _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
+                          spdf, sdelta, nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta,
+                          nx_pdf, nx_delta, counts)
             continue
         prm = km.bind(MT, TX, m, u, v)
         dist_code = MT.dist[m]
@@ -386,37 +382,6 @@ def shade(G, MT, TX, LT, S, segment,
                 _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
                           spdf, sdelta, nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta,
                           nx_pdf, nx_delta, counts)
-
-
-@njit(cache=True, _nrt=False, nogil=True)
-def finish_deferred(S, segment, df_lane, df_frame, df_light, f_nee, bsdf_pdf,
-                    s_wo, s_weight, s_pdf, s_delta, has_sample,
-                    slot, key, beta,
-                    nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta,
-                    sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts):
-    """Steps 4b and 5 for deferred lanes, from the layered BSDF's NEE value, pdf and sample."""
-    for k in range(df_lane.shape[0]):
-        i = df_lane[k]
-        sl = slot[i]
-        bt = (beta[i, 0], beta[i, 1], beta[i, 2])
-        fs = (df_frame[k, 0], df_frame[k, 1], df_frame[k, 2])
-        ft = (df_frame[k, 3], df_frame[k, 4], df_frame[k, 5])
-        ns = (df_frame[k, 6], df_frame[k, 7], df_frame[k, 8])
-        p = (df_frame[k, 9], df_frame[k, 10], df_frame[k, 11])
-        ng = (df_frame[k, 12], df_frame[k, 13], df_frame[k, 14])
-        if df_light[k, 13] > 0.0:
-            f = (f_nee[k, 0], f_nee[k, 1], f_nee[k, 2])
-            _nee(S, segment, sl, bt, p, ng, (df_light[k, 0], df_light[k, 1], df_light[k, 2]),
-                 df_light[k, 3], (df_light[k, 4], df_light[k, 5], df_light[k, 6]), df_light[k, 7],
-                 df_light[k, 8] > 0.0, df_light[k, 9], f, bsdf_pdf[k],
-                 sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
-        if has_sample:
-            wo = (s_wo[k, 0], s_wo[k, 1], s_wo[k, 2])
-            weight = (s_weight[k, 0], s_weight[k, 1], s_weight[k, 2])
-            if weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0:
-                _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
-                          s_pdf[k], s_delta[k], nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32,
-                          nx_beta, nx_pdf, nx_delta, counts)
 
 
 @njit(cache=True, _nrt=False, nogil=True)

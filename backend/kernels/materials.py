@@ -2,8 +2,9 @@
 
 ``MaterialTable`` (one row per scene material):
   kind      int32   DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK (emission only: reflects nothing) or
-                    DEFERRED (a multi-interface layered stack: shaded by backend/layered in NumPy
-                    until its own compiled port; the integrator hands these lanes over)
+                    LAYERED (a multi-interface layered stack: its id in the stack table
+                    (kernels/layered/table.py) sits in slot LAYER_ID; shaded per lane by
+                    kernels/layered/batch.shade_lane)
   dist, masking     microfacet codes (kernels/microfacet.py)
   two_sided bool    reflection-only materials are seen from both sides (the integrator turns the
                     frame towards the viewer); transmissive ones are not flipped
@@ -27,12 +28,13 @@ from .bsdf import conductor, dielectric, diffuse
 from .microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from .params import ParamPacker, param_rgb, param_scalar
 
-DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK, DEFERRED = 0, 1, 2, 3, 4
+DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK, LAYERED = 0, 1, 2, 3, 4
 NSLOT = 16
 EMISSION = 0                 # RGB, every kind
 COLOR = 3                    # diffuse: RGB albedo
 ETA, K, TINT, AU, AV = 3, 6, 9, 12, 13         # conductor: relative eta, k (RGB), tint, α
 D_ETA, D_TINT, D_AU, D_AV = 3, 4, 7, 8           # dielectric: relative eta, transmission colour, α
+LAYER_ID = 3                 # layered: the stack's row in the stack table
 
 MaterialTable = namedtuple("MaterialTable", ["kind", "dist", "masking", "two_sided", "emits",
                                              "values", "tex"])
@@ -41,8 +43,9 @@ MaterialTable = namedtuple("MaterialTable", ["kind", "dist", "masking", "two_sid
 class MaterialRow:
     """One material's row while the table is built (see ``Material.pack``)."""
 
-    def __init__(self, packer: ParamPacker):
+    def __init__(self, packer: ParamPacker, stacks=None):
         self.packer = packer
+        self.stacks = stacks          # the scene's layered stacks (kernels/layered/table.StackBuilder)
         self.kind = BLACK
         self.dist = 0
         self.masking = 0
@@ -61,10 +64,12 @@ class MaterialRow:
         self.masking = MASKING_CODES[masking]
 
 
-def build_material_table(materials: list, packer: ParamPacker) -> MaterialTable:
+def build_material_table(materials: list, packer: ParamPacker, stacks=None) -> MaterialTable:
+    """``stacks``: a kernels/layered/table.StackBuilder collecting the layered stacks (their rows
+    get kind LAYERED and the stack id)."""
     rows = []
     for m in materials:
-        row = MaterialRow(packer)
+        row = MaterialRow(packer, stacks)
         m.pack(row)
         row.two_sided = bool(m.two_sided)
         if getattr(m, "emission", None) is not None:
@@ -72,7 +77,7 @@ def build_material_table(materials: list, packer: ParamPacker) -> MaterialTable:
             row.emits = True
         rows.append(row)
     if not rows:
-        rows.append(MaterialRow(packer))
+        rows.append(MaterialRow(packer, stacks))
     return MaterialTable(np.array([r.kind for r in rows], np.int32), np.array([r.dist for r in rows], np.int32),
                          np.array([r.masking for r in rows], np.int32), np.array([r.two_sided for r in rows]),
                          np.array([r.emits for r in rows]), np.stack([r.values for r in rows]),

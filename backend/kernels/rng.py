@@ -25,7 +25,7 @@ SLOT_LIGHT = 1          # 2: point/direction on the light
 SLOT_BSDF_LOBE = 3      # 1: lobe choice (reflect / refract)
 SLOT_BSDF = 4           # 2: direction
 SLOT_RR = 6             # 1: Russian roulette
-SLOT_SPARE = 7          # 7..11: free (e.g. the layered walk's seed)
+SLOT_SPARE = 7          # the layered walks' sub-stream (stream_key); 8..11 free
 
 _M0 = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xD1B54A32D192ED03)
@@ -58,6 +58,14 @@ def uniform(key, dim):
     """A double in [0, 1) for a path key and a dimension."""
     h = _mix(key ^ (np.uint64(dim) * _M2 + _M0))
     return np.float64(h >> _S11) * _INV53
+
+
+@njit(cache=True, _nrt=False)
+def stream_key(key, dim):
+    """The key of a sub-stream of a path: ``uniform(stream_key(key, dim), k)`` for k = 0, 1, …
+    (the layered walks of a bounce draw from ``dim = bounce_dim(b, SLOT_SPARE)``, as many numbers
+    as their walks need)."""
+    return _mix(key ^ (np.uint64(dim) * _M2 + _M0))
 
 
 @njit(cache=True, _nrt=False)

@@ -25,7 +25,7 @@ from ..materials.base import Material, ShadingContext
 from ..scene.reader import Node
 from .bsdf import LayeredBSDF, Options, new_stats
 from .medium import parse_medium
-from .stack import EMPTY, BoundStack, NullBSDF
+from .stack import NullBSDF
 
 INTERFACE_TYPES = ("dielectric", "conductor", "diffuse", "null", "layered")
 OPTION_KEYS = ("estimator", "pdf", "pdf_constant", "max_vertices", "mis")
@@ -93,19 +93,61 @@ class LayeredMaterial(Material):
         from ..kernels import materials as km
         if len(self.interfaces) == 1 and self.normals[0] is None:
             self.interfaces[0].pack(row)   # a one-interface stack is that interface's BSDF
-        else:
-            row.kind = km.DEFERRED         # shaded by this module's NumPy walks
+            return
+        row.kind = km.LAYERED
+        if getattr(row, "stacks", None) is None:
+            raise RuntimeError("a layered material needs a stack table (build_material_table(stacks=...))")
+        row.values[km.LAYER_ID] = row.stacks.add(self)
+
+    def kernel_table(self):
+        """(StackTable, TextureTable, stack id) of this material alone, for ``LayeredBSDF`` (built
+        once; the renderer builds one table for the whole scene instead)."""
+        if getattr(self, "_kernel_table", None) is None:
+            from ..kernels.layered.table import StackBuilder
+            from ..kernels.params import ParamPacker
+            packer = ParamPacker()
+            builder = StackBuilder(packer)
+            sid = builder.add(self)
+            tx = packer.table()
+            self._kernel_table = (builder.table(tx), tx, sid)
+        return self._kernel_table
 
     def bind(self, ctx: ShadingContext):
         if len(self.interfaces) == 1:
             # A one-interface stack is that interface's analytic BSDF.
             return self.interfaces[0].bind(ctx)
-        ifaces = [m.bind(ctx) for m in self.interfaces]
-        media = [m.bind(ctx.uv) for m in self.media]
-        normals = [None if nm is None else nm.bind(ctx.uv) for nm in self.normals]
-        stack = BoundStack.build(ctx.n, ifaces, media, self.eta_slab, self.eta_bottom, self.eta_top,
-                                 normals)
-        return LayeredBSDF(stack, self.options, self.stats)
+        uv = ctx.uv if self.uses_textures else np.zeros((1, 2))
+        return LayeredBSDF(self, uv, ctx.n, self.stats)
+
+
+class Flat:
+    """A stack with its nested stacks flattened (``flatten``)."""
+
+    def __init__(self, interfaces, normals, media, eta_slab, eta_top, eta_bottom, transmissive):
+        self.interfaces, self.normals, self.media = interfaces, normals, media
+        self.eta_slab, self.eta_top, self.eta_bottom = eta_slab, eta_top, eta_bottom
+        self.transmissive = transmissive
+
+
+def flatten(material: "LayeredMaterial") -> Flat:
+    """The explicit stack of a material whose interfaces may be nested stacks: a nested stack's
+    interfaces and media replace it (Guo et al. §10: nesting and the explicit stack are the same
+    BSDF; the paper's multi-layer figures use the explicit one). The outer options apply."""
+    ifaces, normals, media, etas = [], [], [], []
+    for i, (m, nrm) in enumerate(zip(material.interfaces, material.normals)):
+        if isinstance(m, LayeredMaterial):
+            inner = flatten(m)
+            ifaces += inner.interfaces
+            normals += inner.normals
+            media += inner.media
+            etas += inner.eta_slab
+        else:
+            ifaces.append(m)
+            normals.append(nrm)
+        if i < len(material.media):
+            media.append(material.media[i])
+            etas.append(material.eta_slab[i])
+    return Flat(ifaces, normals, media, etas, material.eta_top, material.eta_bottom, material.transmissive)
 
 
 def _transmits(material) -> bool:
@@ -241,4 +283,4 @@ def parse(node: Node) -> LayeredMaterial:
 
 
 # Exposed for tests and tools.
-__all__ = ["LayeredMaterial", "parse_layered", "parse", "Options", "EMPTY"]
+__all__ = ["LayeredMaterial", "parse_layered", "parse", "Options", "flatten"]

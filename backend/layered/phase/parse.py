@@ -25,12 +25,14 @@ class PhaseSpec:
     """A parsed phase function: a factory plus its texturable parameters."""
 
     def __init__(self, type_name: str, factory: Callable[..., Phase], params: dict[str, Param],
-                 directional: bool, decode: dict[str, Callable] | None = None):
+                 directional: bool, decode: dict[str, Callable] | None = None,
+                 settings: dict | None = None):
         self.type_name = type_name
         self.factory = factory
         self.params = params
         self.directional = directional
         self.decode = decode or {}
+        self.settings = settings or {}   # untexturable choices (SGGX shape or matrix)
 
     @property
     def uses_textures(self) -> bool:
@@ -92,7 +94,7 @@ def _sggx(node) -> PhaseSpec:
             if node.has(key):
                 raise node.fail("not allowed together with \"matrix\"", key)
         const = np.asarray(m, dtype=np.float64)
-        return PhaseSpec("sggx", lambda: SGGX(const), {}, True)
+        return PhaseSpec("sggx", lambda: SGGX(const), {}, True, settings={"matrix": const})
     shape = node.string("shape", "fiber", choices=("fiber", "flake"))
     orientation = _orientation(node, [1.0, 0.0, 0.0] if shape == "fiber" else [0.0, 0.0, 1.0])
     roughness = node.param("roughness", lo=0.0, hi=1.0, lo_open=True)
@@ -101,7 +103,7 @@ def _sggx(node) -> PhaseSpec:
         return SGGX(preset_matrix(shape, orientation, roughness))
 
     return PhaseSpec("sggx", make, {"orientation": orientation, "roughness": roughness}, True,
-                     {"orientation": _normal_map_decode})
+                     {"orientation": _normal_map_decode}, settings={"shape": shape})
 
 
 PARSERS = {

@@ -1,0 +1,103 @@
+"""Entry points of the layered BSDF: the integrator's per-lane call (``shade_lane``) and one batch
+loop for NumPy callers (``run``: backend/layered/bsdf.py, i.e. the BSDF inspector and tests), both
+over the same per-lane estimators (estimators.py).
+
+Scratch (never allocated inside the kernels): ``W`` (2, capacity, walk.NF) float64 — the records
+of a query's two walks; ``Bs`` (table.BSIZE,) — a textured stack bound at the lane's (u, v);
+``R`` uint64[2] — the lane's walk stream (key, counter); ``C`` int64[4] — counters (walks,
+vertices, walk-cap hits). One set per thread (per work item in the integrator).
+
+Random numbers: the integrator's lane draws from ``hash(path key, bounce dimension SLOT_SPARE)``
+(kernels/rng.py), so images do not depend on worker counts or batch sizes; a batch call with
+``seed`` gives lane i the stream ``path_key(seed, i, 0)``.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..rng import SLOT_SPARE, bounce_dim, path_key, stream_key
+from . import estimators as es
+from .table import BSIZE, H_EST, H_PDF, bind_into
+
+OP_EVAL, OP_PDF, OP_SAMPLE, OP_NEE, OP_ALBEDO = 0, 1, 2, 3, 4
+CAPACITY = 4096      # recorded vertices per walk at most (min with the stack's max_vertices)
+
+
+def scratch(max_vertices: int = 1024):
+    """(W, Bs, R, C) for one thread."""
+    cap = int(min(max(max_vertices, 2), CAPACITY))
+    from .walk import NF
+    return (np.zeros((2, cap, NF)), np.zeros(BSIZE), np.zeros(2, np.uint64), np.zeros(4, np.int64))
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def shade_lane(ST, TX, s, u, v, wi, wo, nee, nee_pdf, do_continue, camera, key, segment, W, Bs, R, C):
+    """The layered part of one bounce of one lane (RADIANCE transport): (f, pdf of the light
+    direction, continuation wo, weight, pdf, delta, albedo AOV estimate). At a camera hit the AOV
+    is the continuation's reflected weight (it averages to the directional albedo at the viewing
+    angle, delta lobes included, at no extra cost), else a one-sample normal-incidence walk."""
+    R[0] = stream_key(key, bounce_dim(segment, SLOT_SPARE))
+    R[1] = 0
+    if ST.textured[s]:
+        bind_into(ST, TX, s, u, v, Bs)
+        B = Bs
+    else:
+        B = ST.bound[s]
+    FT = ST.FT
+    f, p_nee, wo_s, w_s, p_s, d_s = es.nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, do_continue, C)
+    alb = (0.0, 0.0, 0.0)
+    if camera:
+        if do_continue:
+            if wo_s[2] * wi[2] > 0.0:
+                alb = w_s
+        else:
+            alb = es.albedo(B, FT, W, R, C)
+    return f, p_nee, wo_s, w_s, p_s, d_s, alb
+
+
+@njit(cache=True, _nrt=False, nogil=True)
+def run(op, ST, TX, s, uv, wi, wo, nee, mode, est, kind, want_pdf, nee_pdf, want_sample, seed,
+        W, Bs, R, C, f, p, wo_s, w_s, p_s, d_s):
+    """One query per lane i (``uv``, ``wi``, ``wo``, ``nee``: (1 | n) rows; outputs (n, ·)):
+    OP_EVAL f = eval (``est`` −1: the stack's estimator); OP_PDF p = pdf (``kind`` −1: the stack's);
+    OP_SAMPLE (wo_s, w_s, p_s, d_s) = sample; OP_NEE f, p (light connection) and the sample;
+    OP_ALBEDO w_s = one-sample normal-incidence albedo."""
+    n = f.shape[0]
+    for i in range(n):
+        a = i if uv.shape[0] > 1 else 0
+        R[0] = path_key(seed, i, 0)
+        R[1] = 0
+        if ST.textured[s]:
+            bind_into(ST, TX, s, uv[a, 0], uv[a, 1], Bs)
+            B = Bs
+        else:
+            B = ST.bound[s]
+        FT = ST.FT
+        x = (wi[i, 0], wi[i, 1], wi[i, 2])
+        y = (wo[i if wo.shape[0] > 1 else 0, 0], wo[i if wo.shape[0] > 1 else 0, 1],
+             wo[i if wo.shape[0] > 1 else 0, 2])
+        e = est if est >= 0 else int(B[H_EST])
+        k = kind if kind >= 0 else int(B[H_PDF])
+        if op == OP_EVAL:
+            r = es.eval_query(B, FT, W, R, x, y, mode, e, C)
+            f[i, 0], f[i, 1], f[i, 2] = r
+        elif op == OP_PDF:
+            p[i] = es.pdf_query(B, FT, W, R, x, y, k, C)
+        elif op == OP_SAMPLE:
+            d, w, q, dl = es.sample_query(B, FT, W, R, x, mode, want_pdf, k, C)
+            wo_s[i, 0], wo_s[i, 1], wo_s[i, 2] = d
+            w_s[i, 0], w_s[i, 1], w_s[i, 2] = w
+            p_s[i] = q
+            d_s[i] = dl
+        elif op == OP_NEE:
+            r, q0, d, w, q, dl = es.nee_and_sample(B, FT, W, R, x, y, nee[i], nee_pdf, want_sample, C)
+            f[i, 0], f[i, 1], f[i, 2] = r
+            p[i] = q0
+            wo_s[i, 0], wo_s[i, 1], wo_s[i, 2] = d
+            w_s[i, 0], w_s[i, 1], w_s[i, 2] = w
+            p_s[i] = q
+            d_s[i] = dl
+        else:
+            w = es.albedo(B, FT, W, R, C)
+            w_s[i, 0], w_s[i, 1], w_s[i, 2] = w

@@ -1,0 +1,408 @@
+"""The stack table: every multi-interface layered material of a scene as kernel data, and
+``bind_into``, which evaluates one stack at a lane's (u, v) into a flat float64 block.
+
+``StackTable`` (one per scene; rows of the interface and medium arrays are grouped by stack):
+  head      float64 (S, HEAD)  per stack: number of interfaces N, transmissive, the indices above
+            and below the stack and of each slab, the estimator options, the first interface and
+            medium rows (layout ``H_*``)
+  textured  bool (S,)          some parameter of the stack has a texture: bind per lane;
+            otherwise ``bound[s]`` (bound once at scene load) is the lane's block
+  bound     float64 (S, BSIZE) the bound block of every untextured stack
+  if_kind, if_dist, if_mask  int32 (I,);  if_values float64 (I, NSLOT), if_tex int32 (I, NSLOT):
+            the interfaces' texturable parameters in the material table's slot layout
+            (kernels/materials.py), written by each interface material's ``pack``; NULL rows hold
+            their tint in the dielectric's tint slots
+  if_nmode  int32 (I,) 0 no normal map, 1 a constant shading normal (``if_nval``, unit), 2 a
+            normal-map texture (``if_nval`` its scale, ``if_ntex`` its id; RGB · 2 − 1)
+  md_kind   int32 (M,) EMPTY / ABSORBING / SCATTERING (decided at load from constants)
+  md_grey   bool (M,); md_values float64 (M, MSLOT), md_tex int32 (M, MSLOT): thickness,
+            σt (1 or 3 slots: ``md_sigma3``), albedo, phase parameters (layout ``M_*``)
+  md_phase  int32 (M,) phase kind (kernels/layered/phase.py); md_flags int32 (M,): bit 0 the
+            orientation is a texture (decoded as value · 2 − 1), bit 1 SGGX flake preset,
+            bit 2 an explicit SGGX matrix (``md_s6``)
+  md_row    int32 (M,) the fiber-table row of a constant stddev (−1: interpolate per lane)
+  FT        float64: the fiber σ table with one extra row per constant-stddev medium
+
+A lane's bound block (``B``, BSIZE float64; ``table.bind_into`` or ``bound[s]``):
+  [0, HEAD)                    the stack's head
+  HEAD + l·iface.STRIDE        interface l (kernels/layered/iface.py layout)
+  MED0 + k·MSTRIDE             medium k: kind, grey, τ0 = σt·thickness (RGB), albedo (RGB),
+                               directional, then the phase block (phase.SIZE)
+Nested stacks are flattened at load into the explicit stack (the same BSDF: Guo et al. §10);
+the outer stack's estimator options apply. At most ``MAX_INTERFACES`` = 16 interfaces.
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+from .. import materials as km
+from ..microfacet import ALPHA_MIN
+from ..params import param_rgb, param_scalar
+from . import iface as ki
+from . import phase as ph
+
+MAX_INTERFACES = 16
+EMPTY, ABSORBING, SCATTERING = 0, 1, 2
+BI, UNI = 0, 1
+APPROX, STOCHASTIC = 0, 1
+
+# head
+H_N, H_TRANS, H_ETA_TOP, H_ETA_BOTTOM, H_ETA_SLAB = 0, 1, 2, 3, 4
+H_EST, H_PDF, H_PDFC, H_MIS, H_MAXV, H_CHROM, H_IF0, H_MD0 = 20, 21, 22, 23, 24, 25, 26, 27
+HEAD = 32
+MED0 = HEAD + MAX_INTERFACES * ki.STRIDE
+# medium block
+M_KIND, M_GREY, M_TAU, M_ALB, M_DIR, M_PH = 0, 1, 2, 5, 8, 9
+MSTRIDE = 32
+BSIZE = MED0 + (MAX_INTERFACES - 1) * MSTRIDE
+# medium slots (md_values / md_tex)
+S_THICK, S_SIGMA, S_ALB, S_PA, S_PV = 0, 1, 4, 7, 8
+MSLOT = 12
+F_TEX_ORIENT, F_FLAKE, F_MATRIX = 1, 2, 4
+
+StackTable = namedtuple("StackTable", [
+    "head", "textured", "bound",
+    "if_kind", "if_dist", "if_mask", "if_values", "if_tex", "if_nmode", "if_nval", "if_ntex",
+    "md_kind", "md_grey", "md_sigma3", "md_values", "md_tex", "md_phase", "md_flags", "md_s6",
+    "md_row", "FT"])
+
+
+def if_offset(l: int) -> int:
+    return HEAD + l * ki.STRIDE
+
+
+def md_offset(k: int) -> int:
+    return MED0 + k * MSTRIDE
+
+
+# ----------------------------------------------------------------------------- per lane
+# Texture lookups through two small non-inlined functions: bind_into evaluates ~20 parameters,
+# and inlining a bilinear lookup at each of them made it the slowest kernel to compile (35 s).
+@njit(cache=True, _nrt=False)
+def _p3(TX, values, tex_id, u, v):
+    return param_rgb(TX, values, tex_id, u, v)
+
+
+@njit(cache=True, _nrt=False)
+def _p1(TX, value, tex_id, u, v):
+    return param_scalar(TX, value, tex_id, u, v)
+
+
+@njit(cache=True, _nrt=False)
+def _rgb(values, tex, r, slot, TX, u, v):
+    return _p3(TX, (values[r, slot], values[r, slot + 1], values[r, slot + 2]), tex[r, slot], u, v)
+
+
+@njit(cache=True, _nrt=False)
+def _scalar(values, tex, r, slot, TX, u, v):
+    return _p1(TX, values[r, slot], tex[r, slot], u, v)
+
+
+@njit(cache=True, _nrt=False)
+def _iface_params(values, tex, kind, r, TX, u, v):
+    """The 12 lane parameters of interface row r (kernels/materials.bind_row's layout)."""
+    if kind == km.DIFFUSE:
+        c = _rgb(values, tex, r, km.COLOR, TX, u, v)
+        return (c[0], c[1], c[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    if kind == km.CONDUCTOR:
+        e = _rgb(values, tex, r, km.ETA, TX, u, v)
+        k = _rgb(values, tex, r, km.K, TX, u, v)
+        t = _rgb(values, tex, r, km.TINT, TX, u, v)
+        au = _scalar(values, tex, r, km.AU, TX, u, v)
+        av = _scalar(values, tex, r, km.AV, TX, u, v)
+        smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
+        return (e[0], e[1], e[2], k[0], k[1], k[2], t[0], t[1], t[2],
+                max(au, ALPHA_MIN), max(av, ALPHA_MIN), smooth)
+    eta = max(_scalar(values, tex, r, km.D_ETA, TX, u, v), 1e-4)
+    t = _rgb(values, tex, r, km.D_TINT, TX, u, v)
+    au = _scalar(values, tex, r, km.D_AU, TX, u, v)
+    av = _scalar(values, tex, r, km.D_AV, TX, u, v)
+    smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
+    return (eta, t[0], t[1], t[2], max(au, ALPHA_MIN), max(av, ALPHA_MIN), smooth,
+            0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@njit(cache=True, _nrt=False)
+def bind_into(ST, TX, s, u, v, B):
+    """Evaluate stack ``s`` at (u, v) into the block B (see the module docstring)."""
+    for j in range(HEAD):
+        B[j] = ST.head[s, j]
+    N = int(ST.head[s, H_N])
+    f0 = int(ST.head[s, H_IF0])
+    m0 = int(ST.head[s, H_MD0])
+    iv, it = ST.if_values, ST.if_tex
+    for l in range(N):
+        r = f0 + l
+        o = HEAD + l * ki.STRIDE
+        kind = ST.if_kind[r]
+        B[o + ki.IF_KIND] = kind
+        B[o + ki.IF_DIST] = ST.if_dist[r]
+        B[o + ki.IF_MASK] = ST.if_mask[r]
+        if kind == ki.NULL:
+            t = _rgb(iv, it, r, km.D_TINT, TX, u, v)
+            B[o + ki.IF_P] = t[0]
+            B[o + ki.IF_P + 1] = t[1]
+            B[o + ki.IF_P + 2] = t[2]
+            B[o + ki.IF_DELTA] = 1.0
+            B[o + ki.IF_TRANS] = 1.0
+        else:
+            p = _iface_params(iv, it, kind, r, TX, u, v)
+            for j in range(12):
+                B[o + ki.IF_P + j] = p[j]
+            B[o + ki.IF_DELTA] = 1.0 if km.is_delta_only(kind, p) else 0.0
+            B[o + ki.IF_TRANS] = 1.0 if kind == km.DIELECTRIC else 0.0
+        mode = ST.if_nmode[r]
+        B[o + ki.IF_FRAMED] = 0.0
+        if mode > 0:
+            n = (ST.if_nval[r, 0], ST.if_nval[r, 1], ST.if_nval[r, 2])
+            if mode == 2:
+                t = _p3(TX, n, ST.if_ntex[r], u, v)
+                n = (2.0 * t[0] - 1.0, 2.0 * t[1] - 1.0, max(2.0 * t[2] - 1.0, 1e-3))
+                ln = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+                n = (n[0] / ln, n[1] / ln, n[2] / ln)
+            st = ki.frame_of_normal(n)
+            B[o + ki.IF_FRAMED] = 1.0
+            for j in range(3):
+                B[o + ki.IF_N + j] = n[j]
+                B[o + ki.IF_S + j] = st[0][j]
+                B[o + ki.IF_T + j] = st[1][j]
+    mv, mt = ST.md_values, ST.md_tex
+    for k in range(N - 1):
+        r = m0 + k
+        o = MED0 + k * MSTRIDE
+        B[o + M_KIND] = ST.md_kind[r]
+        B[o + M_GREY] = 1.0 if ST.md_grey[r] else 0.0
+        th = _scalar(mv, mt, r, S_THICK, TX, u, v)
+        if ST.md_sigma3[r]:
+            sg = _rgb(mv, mt, r, S_SIGMA, TX, u, v)
+        else:
+            x = _scalar(mv, mt, r, S_SIGMA, TX, u, v)
+            sg = (x, x, x)
+        alb = _rgb(mv, mt, r, S_ALB, TX, u, v)
+        for j in range(3):
+            B[o + M_TAU + j] = sg[j] * th
+            B[o + M_ALB + j] = alb[j]
+        pk = ST.md_phase[r]
+        po = o + M_PH
+        B[o + M_DIR] = 1.0 if (pk == ph.FIBER or pk == ph.SGGX) else 0.0
+        flags = ST.md_flags[r]
+        if pk == ph.ISOTROPIC:
+            B[po + ph.PK] = ph.ISOTROPIC
+        elif pk == ph.HG:
+            ph.bind_hg(B, po, _scalar(mv, mt, r, S_PA, TX, u, v))
+        elif pk == ph.VMF:
+            ph.bind_vmf(B, po, _scalar(mv, mt, r, S_PA, TX, u, v))
+        else:
+            ori = _rgb(mv, mt, r, S_PV, TX, u, v)
+            if flags & F_TEX_ORIENT:
+                ori = (2.0 * ori[0] - 1.0, 2.0 * ori[1] - 1.0, 2.0 * ori[2] - 1.0)
+            a = _scalar(mv, mt, r, S_PA, TX, u, v)
+            if pk == ph.FIBER:
+                ph.bind_fiber(B, po, a, ori, ST.FT, ST.md_row[r])
+            elif flags & F_MATRIX:
+                s6 = ST.md_s6
+                ph.bind_sggx(B, po, (s6[r, 0], s6[r, 1], s6[r, 2], s6[r, 3], s6[r, 4], s6[r, 5]))
+            else:
+                ph.bind_sggx(B, po, ph.sggx_preset((flags & F_FLAKE) != 0, ori, a))
+
+
+@njit(cache=True, _nrt=False)
+def bind_constant_rows(ST, TX):
+    for s in range(ST.head.shape[0]):
+        if not ST.textured[s]:
+            bind_into(ST, TX, s, 0.0, 0.0, ST.bound[s])
+
+
+@njit(cache=True, _nrt=False)
+def fill_rows(FT, rows, stddev):
+    for i in range(rows.shape[0]):
+        ph.fill_fiber_row(FT, rows[i], stddev[i])
+
+
+# ----------------------------------------------------------------------------- building
+class StackBuilder:
+    """Collects the layered materials of a scene (``LayeredMaterial.pack`` calls ``add``) and
+    builds the ``StackTable`` once the scene's textures are known (``table``)."""
+
+    def __init__(self, packer):
+        self.packer = packer
+        self.stacks: list[dict] = []
+        self.ifaces: list = []
+        self.media: list = []
+        self.fiber_rows: list[float] = []
+        self._ids: dict = {}
+
+    def add(self, material) -> int:
+        key = id(material)
+        if key in self._ids:
+            return self._ids[key]
+        from ...layered.material import flatten
+        flat = flatten(material)
+        if len(flat.interfaces) > MAX_INTERFACES:
+            from ...errors import SceneError
+            raise SceneError(f"a layered stack has {len(flat.interfaces)} interfaces (nested stacks "
+                             f"flattened); at most {MAX_INTERFACES} are supported")
+        opts = material.options
+        sid = len(self.stacks)
+        head = np.zeros(HEAD)
+        N = len(flat.interfaces)
+        head[H_N] = N
+        head[H_TRANS] = 1.0 if flat.transmissive else 0.0
+        head[H_ETA_TOP] = flat.eta_top
+        head[H_ETA_BOTTOM] = flat.eta_bottom
+        head[H_ETA_SLAB:H_ETA_SLAB + len(flat.eta_slab)] = flat.eta_slab
+        head[H_EST] = UNI if opts.estimator == "uni" else BI
+        head[H_PDF] = STOCHASTIC if opts.pdf == "stochastic" else APPROX
+        head[H_PDFC] = opts.pdf_constant
+        head[H_MIS] = 1.0 if opts.mis else 0.0
+        head[H_MAXV] = opts.max_vertices
+        head[H_IF0] = len(self.ifaces)
+        head[H_MD0] = len(self.media)
+        textured = False
+        for m, normal in zip(flat.interfaces, flat.normals):
+            row, tex = self._interface(m, normal)
+            self.ifaces.append(row)
+            textured |= tex
+        chromatic = False
+        for spec in flat.media:
+            row, tex = self._medium(spec)
+            self.media.append(row)
+            textured |= tex
+            chromatic |= (not row["grey"]) and row["kind"] == SCATTERING
+        head[H_CHROM] = 1.0 if chromatic else 0.0
+        self.stacks.append({"head": head, "textured": textured})
+        self._ids[key] = sid
+        return sid
+
+    def _interface(self, material, normal):
+        from ...layered.material import NullMaterial
+        from ...materials.dielectric import DielectricMaterial
+        row = km.MaterialRow(self.packer)
+        textured = bool(getattr(material, "uses_textures", False))
+        if isinstance(material, NullMaterial):
+            row.kind = ki.NULL
+            row.set(km.D_TINT, [1.0, 1.0, 1.0], 3)
+        else:
+            material.pack(row)
+            if isinstance(material, DielectricMaterial) and material.ior.is_constant and \
+                    float(np.asarray(material.ior.bind(None)).reshape(-1)[0]) / material.ior_above == 1.0:
+                # Equal indices on both sides: every microfacet refracts straight through, a
+                # delta transmission (the microfacet BTDF's half vector degenerates to 0/0).
+                row.kind = ki.NULL
+        out = {"row": row, "nmode": 0, "nval": np.zeros(3), "ntex": -1}
+        if normal is not None:
+            if normal.texture:
+                values, tex = self.packer.pack(normal.param, 3)
+                out.update(nmode=2, nval=values, ntex=tex)
+                textured = True
+            else:
+                n = np.asarray(normal.param.bind(None), dtype=np.float64).reshape(3).copy()
+                n[2] = max(n[2], 1e-3)
+                n /= np.linalg.norm(n)
+                if not np.allclose(n, [0.0, 0.0, 1.0], atol=1e-12):
+                    out.update(nmode=1, nval=n)
+        return out, textured
+
+    def _medium(self, spec):
+        values = np.zeros(MSLOT)
+        tex = np.full(MSLOT, -1, np.int32)
+
+        def put(slot, param, channels):
+            v, t = self.packer.pack(param, channels)
+            values[slot:slot + channels] = v
+            tex[slot] = t
+
+        sigma3 = spec.sigma_t.channels == 3
+        put(S_THICK, spec.thickness, 1)
+        put(S_SIGMA, spec.sigma_t, 3 if sigma3 else 1)
+        put(S_ALB, spec.albedo, 3)
+        kind = SCATTERING
+        if spec.is_empty:
+            kind = EMPTY
+        elif spec.albedo.is_constant and not np.any(spec.albedo.bind(None)):
+            kind = ABSORBING
+        p = spec.phase
+        pk = ph.KINDS[p.type_name]
+        flags = 0
+        s6 = np.zeros(6)
+        row = -1
+        params = p.params
+        if pk in (ph.HG, ph.VMF):
+            put(S_PA, params["g" if pk == ph.HG else "kappa"], 1)
+        elif pk == ph.FIBER:
+            put(S_PA, params["stddev"], 1)
+            put(S_PV, params["orientation"], 3)
+            if params["stddev"].is_constant:
+                row = ph.FIRST_MEDIUM_ROW + len(self.fiber_rows)
+                self.fiber_rows.append(float(np.asarray(params["stddev"].bind(None)).reshape(-1)[0]))
+        elif pk == ph.SGGX:
+            if "matrix" in p.settings:
+                flags |= F_MATRIX
+                s6 = np.asarray(p.settings["matrix"], dtype=np.float64).reshape(6)
+            else:
+                if p.settings.get("shape") == "flake":
+                    flags |= F_FLAKE
+                put(S_PA, params["roughness"], 1)
+                put(S_PV, params["orientation"], 3)
+        if pk in (ph.FIBER, ph.SGGX) and "orientation" in params and not params["orientation"].is_constant:
+            flags |= F_TEX_ORIENT
+        textured = bool(spec.uses_textures)
+        return {"kind": kind, "grey": bool(spec.grey), "sigma3": sigma3, "values": values, "tex": tex,
+                "phase": pk, "flags": flags, "s6": s6, "row": row}, textured
+
+    def table(self, TX) -> StackTable:
+        from ...layered.phase.fiber import kernel_table
+        base = kernel_table()
+        FT = np.zeros((base.shape[0] + len(self.fiber_rows), base.shape[1]))
+        FT[:base.shape[0]] = base
+        if self.fiber_rows:
+            fill_rows(FT, np.arange(ph.FIRST_MEDIUM_ROW, ph.FIRST_MEDIUM_ROW + len(self.fiber_rows)),
+                      np.array(self.fiber_rows))
+        S = max(len(self.stacks), 1)
+        head = np.zeros((S, HEAD))
+        textured = np.zeros(S, bool)
+        for s, st in enumerate(self.stacks):
+            head[s] = st["head"]
+            textured[s] = st["textured"]
+        I = max(len(self.ifaces), 1)
+        if_kind = np.zeros(I, np.int32)
+        if_dist = np.zeros(I, np.int32)
+        if_mask = np.zeros(I, np.int32)
+        if_values = np.zeros((I, km.NSLOT))
+        if_tex = np.full((I, km.NSLOT), -1, np.int32)
+        if_nmode = np.zeros(I, np.int32)
+        if_nval = np.zeros((I, 3))
+        if_ntex = np.full(I, -1, np.int32)
+        for i, f in enumerate(self.ifaces):
+            r = f["row"]
+            if_kind[i], if_dist[i], if_mask[i] = r.kind, r.dist, r.masking
+            if_values[i], if_tex[i] = r.values, r.tex
+            if_nmode[i], if_nval[i], if_ntex[i] = f["nmode"], f["nval"], f["ntex"]
+        M = max(len(self.media), 1)
+        md_kind = np.zeros(M, np.int32)
+        md_grey = np.ones(M, bool)
+        md_sigma3 = np.zeros(M, bool)
+        md_values = np.zeros((M, MSLOT))
+        md_tex = np.full((M, MSLOT), -1, np.int32)
+        md_phase = np.zeros(M, np.int32)
+        md_flags = np.zeros(M, np.int32)
+        md_s6 = np.zeros((M, 6))
+        md_row = np.full(M, -1, np.int32)
+        for i, m in enumerate(self.media):
+            md_kind[i], md_grey[i], md_sigma3[i] = m["kind"], m["grey"], m["sigma3"]
+            md_values[i], md_tex[i] = m["values"], m["tex"]
+            md_phase[i], md_flags[i], md_s6[i], md_row[i] = m["phase"], m["flags"], m["s6"], m["row"]
+        ST = StackTable(head, textured, np.zeros((S, BSIZE)), if_kind, if_dist, if_mask, if_values,
+                        if_tex, if_nmode, if_nval, if_ntex, md_kind, md_grey, md_sigma3, md_values,
+                        md_tex, md_phase, md_flags, md_s6, md_row, FT)
+        if self.stacks:
+            bind_constant_rows(ST, TX)
+        return ST
+
+
+def empty_table(TX=None) -> StackTable:
+    from ..textures import empty_table as empty_textures
+    return StackBuilder(None).table(TX if TX is not None else empty_textures())
