@@ -187,10 +187,9 @@ def _success_fraction(mat, wi1, n, rng):
     """Fraction of sampler walks (roulette off: the pdf estimator compensates roulette) that leave
     the stack with a non-zero weight through a non-delta path; microfacet samples that fail
     (single-scattering energy loss) end walks, so this is < 1 for rough dielectrics."""
-    from backend.layered.walk import walk
-    st = bind(mat, n).stack
-    r = walk(st, np.repeat(wi1[:, None], n, axis=1), rng, record=False, rr=(1 << 30, 1.0))
-    ok = (r.exit_weight.max(axis=0) > 0) & ~r.exit_delta
+    from backend.layered.probe import walks
+    r = walks(bind(mat, n), np.repeat(wi1[None], n, axis=0), rng, purpose="none", rr="off")
+    ok = (r.exit_weight.max(axis=1) > 0) & ~r.exit_delta
     return ok.mean(), np.sqrt(ok.mean() * (1 - ok.mean()) / n)
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from backend.layered.kernels import FramedKernel, kernel_for
+from backend.layered.probe import describe, iface_eval, interface_block
 from backend.materials.base import IMPORTANCE
 from backend.materials.conductor import ConductorMaterial
 from layered_util import bind, direction, eval_stats, load, mixture_directions
@@ -20,7 +20,7 @@ def test_identity_normal_is_no_normal_map():
     d = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "normal": [0, 0, 1]},
                                            {"type": "diffuse"}], "media": [{"sigma_t": 0.5}]}
     b = bind(load(d), 3)
-    assert not isinstance(b.stack.kernels[0], FramedKernel)
+    assert not describe(b)["interfaces"][0]["framed"]
 
 
 def test_tilted_conductor_under_null_matches_closed_form():
@@ -34,11 +34,11 @@ def test_tilted_conductor_under_null_matches_closed_form():
     wi = np.array([direction(20.0, 10.0), direction(50.0, 120.0), direction(35.0, 250.0)])
     wo = np.array([direction(40.0, 200.0), direction(25.0, 300.0), direction(60.0, 80.0)])
     # Closed form with the standalone conductor in the shading frame.
-    frame = FramedKernel(kernel_for(bind(ConductorMaterial.named("Au", roughness=0.3), 1)), n[:, None])
+    frame = interface_block(ConductorMaterial.named("Au", roughness=0.3), normal=n)
     ref = []
     for a, b in zip(wi, wo):
-        v, _, _ = frame.eval(a[:, None], b[:, None], None)
-        ref.append(v[:, 0] * abs(a @ n) / a[2])
+        v, _, _ = iface_eval(frame, a[None], b[None])
+        ref.append(v[0] * abs(a @ n) / a[2])
     ref = np.array(ref)
     rng = np.random.default_rng(2)
     for est in ("uni", "bi"):

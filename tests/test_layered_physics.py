@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 from backend import stats as global_stats
-from backend.layered.bsdf import LayeredBSDF, Options
-from backend.layered.medium import Medium
-from backend.layered.phase import HenyeyGreenstein
-from backend.layered.stack import BoundStack
+from backend.layered.bsdf import Options
+from backend.layered.material import LayeredMaterial
+from backend.layered.medium import MediumSpec
+from backend.layered.phase import HenyeyGreenstein, PhaseSpec
+from backend.textures import ConstantParam, ImageParam
 from backend.materials.base import IMPORTANCE, RADIANCE, ShadingContext
 from backend.materials.dielectric import DielectricMaterial
 from backend.materials.fresnel import dielectric as fresnel
@@ -30,14 +31,19 @@ def test_slab_table_adding_doubling(ior):
     All rows of one index run as one batch with per-lane (texture-like) medium parameters."""
     rows = [r for r in slab_rows() if r["slab_ior"] == ior]
     per = 40_000
-    n = per * len(rows)
-    tau = np.repeat([r["optical_thickness"] for r in rows], per)
-    alb = np.repeat([r["albedo"] for r in rows], per)
-    g = np.repeat([r["hg_g"] for r in rows], per)
-    ctx = ShadingContext(np.zeros((n, 2)))
-    ifaces = [DielectricMaterial(ior=ior).bind(ctx), DielectricMaterial(ior=1.0, ior_above=ior).bind(ctx)]
-    medium = Medium(1.0, tau, np.repeat(alb[:, None], 3, axis=1), HenyeyGreenstein(g))
-    bsdf = LayeredBSDF(BoundStack.build(n, ifaces, [medium], [ior], 1.0), Options())
+    R = len(rows)
+    n = per * R
+    # Per-lane medium parameters from textures: one texel per row, each lane at its texel's centre.
+    def image(key, channels):
+        t = np.asarray([r[key] for r in rows], np.float32).reshape(1, R, 1)
+        return ImageParam(np.repeat(t, channels, axis=2), channels,
+                          np.ones(3) if channels == 3 else np.asarray(1.0), key)
+    medium = MediumSpec(ConstantParam(1.0, 1), image("optical_thickness", 1), image("albedo", 3),
+                        PhaseSpec("hg", HenyeyGreenstein, {"g": image("hg_g", 1)}, False), grey=True)
+    mat = LayeredMaterial([DielectricMaterial(ior=ior), DielectricMaterial(ior=1.0, ior_above=ior)],
+                          [medium], [ior], 1.0, Options())
+    uv = np.stack([np.repeat((np.arange(R) + 0.5) / R, per), np.full(n, 0.5)], axis=1)
+    bsdf = mat.bind(ShadingContext(uv))
     wi = np.zeros((n, 3))
     wi[:, 2] = 1.0
     s = bsdf.sample(wi, np.random.default_rng(11), IMPORTANCE, want_pdf=False)

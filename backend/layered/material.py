@@ -123,10 +123,12 @@ class LayeredMaterial(Material):
 class Flat:
     """A stack with its nested stacks flattened (``flatten``)."""
 
-    def __init__(self, interfaces, normals, media, eta_slab, eta_top, eta_bottom, transmissive):
+    def __init__(self, interfaces, normals, media, eta_slab, eta_top, eta_bottom, transmissive,
+                 nested):
         self.interfaces, self.normals, self.media = interfaces, normals, media
         self.eta_slab, self.eta_top, self.eta_bottom = eta_slab, eta_top, eta_bottom
         self.transmissive = transmissive
+        self.nested = nested        # a nested stack was flattened into it
 
 
 def flatten(material: "LayeredMaterial") -> Flat:
@@ -134,8 +136,10 @@ def flatten(material: "LayeredMaterial") -> Flat:
     interfaces and media replace it (Guo et al. §10: nesting and the explicit stack are the same
     BSDF; the paper's multi-layer figures use the explicit one). The outer options apply."""
     ifaces, normals, media, etas = [], [], [], []
+    nested = False
     for i, (m, nrm) in enumerate(zip(material.interfaces, material.normals)):
         if isinstance(m, LayeredMaterial):
+            nested = True
             inner = flatten(m)
             ifaces += inner.interfaces
             normals += inner.normals
@@ -147,7 +151,8 @@ def flatten(material: "LayeredMaterial") -> Flat:
         if i < len(material.media):
             media.append(material.media[i])
             etas.append(material.eta_slab[i])
-    return Flat(ifaces, normals, media, etas, material.eta_top, material.eta_bottom, material.transmissive)
+    return Flat(ifaces, normals, media, etas, material.eta_top, material.eta_bottom, material.transmissive,
+                nested)
 
 
 def _transmits(material) -> bool:

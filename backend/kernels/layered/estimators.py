@@ -40,7 +40,8 @@ of the slab next to E, or a vertex on the interface F across that slab), with on
 sample through E from outside per query, and the walk's own direction as the second strategy,
 weighted with the power heuristic (``mis`` = False: NEE alone wherever it applies — unbiased,
 for benchmarks). When E and F are both delta the estimator has no strategy for some paths and
-the bidirectional one is used for that query.
+the bidirectional one is used for that query; likewise on a stack flattened from nested stacks
+(table.py).
 """
 from __future__ import annotations
 
@@ -52,7 +53,7 @@ from . import iface as ki
 from . import phase as ph
 from . import walk as wk
 from .table import (ABSORBING, APPROX, BI, EMPTY, H_ETA_BOTTOM, H_ETA_SLAB, H_ETA_TOP, H_EST,
-                    H_MAXV, H_MIS, H_N, H_PDF, H_PDFC, H_TRANS, HEAD, M_DIR, M_GREY, M_KIND, M_PH,
+                    H_MAXV, H_MIS, H_N, H_NESTED, H_PDF, H_PDFC, H_TRANS, HEAD, M_DIR, M_GREY, M_KIND, M_PH,
                     M_TAU, MED0, MSTRIDE, SCATTERING)
 from .walk import (F_A, F_B, F_C1, F_C2, F_DELTA, F_GAMMA, F_KIND, F_LAYER, F_PF, F_QBG, F_REV,
                    F_SIGIN, F_SIGOUT, F_T, F_TERM, F_THRU0, F_THRU1, F_WIN, F_WOUT, GRAZING)
@@ -401,7 +402,7 @@ def _cap(B, W):
 def value(B, FT, W, R, a, b, est, C):
     """f(a → b)·|cos θb| (importance transport) of a valid query; walk L is W[0]."""
     f, _ = single(B, a, b, False)
-    uni = est != BI and not _uni_blind(B, b[2] > 0.0)
+    uni = est != BI and B[H_NESTED] <= 0.0 and not _uni_blind(B, b[2] > 0.0)
     cap = _cap(B, W)
     nL = 0
     nR = 0
@@ -516,7 +517,7 @@ def nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, want_sample, C):
     d_s = False
     if not valid_in(B, wi):
         return f, p_nee, wo_s, w_s, p_s, d_s
-    joint = want_sample and int(B[H_EST]) == BI
+    joint = want_sample and (int(B[H_EST]) == BI or B[H_NESTED] > 0.0)
     if conn and not joint:
         f = value(B, FT, W, R, wi, wo, int(B[H_EST]), C)
     if want_sample:

@@ -29,7 +29,11 @@ A lane's bound block (``B``, BSIZE float64; ``table.bind_into`` or ``bound[s]``)
   MED0 + k·MSTRIDE             medium k: kind, grey, τ0 = σt·thickness (RGB), albedo (RGB),
                                directional, then the phase block (phase.SIZE)
 Nested stacks are flattened at load into the explicit stack (the same BSDF: Guo et al. §10);
-the outer stack's estimator options apply. At most ``MAX_INTERFACES`` = 16 interfaces.
+the outer stack's estimator options apply, except that a flattened stack is evaluated with the
+bidirectional estimator (``H_NESTED``): the paper nests stacks to use the unidirectional
+estimator on several slabs, which on the explicit stack is heavy-tailed (single estimates ~10³ ×
+the mean on the reference stack), while the explicit bidirectional estimator is what its
+multi-layer figures use. At most ``MAX_INTERFACES`` = 16 interfaces.
 """
 from __future__ import annotations
 
@@ -51,7 +55,7 @@ APPROX, STOCHASTIC = 0, 1
 
 # head
 H_N, H_TRANS, H_ETA_TOP, H_ETA_BOTTOM, H_ETA_SLAB = 0, 1, 2, 3, 4
-H_EST, H_PDF, H_PDFC, H_MIS, H_MAXV, H_CHROM, H_IF0, H_MD0 = 20, 21, 22, 23, 24, 25, 26, 27
+H_EST, H_PDF, H_PDFC, H_MIS, H_MAXV, H_CHROM, H_IF0, H_MD0, H_NESTED = 20, 21, 22, 23, 24, 25, 26, 27, 28
 HEAD = 32
 MED0 = HEAD + MAX_INTERFACES * ki.STRIDE
 # medium block
@@ -126,6 +130,41 @@ def _iface_params(values, tex, kind, r, TX, u, v):
 
 
 @njit(cache=True, _nrt=False)
+def bind_iface(kind, dist, mask, iv, it, r, mode, nval, ntex, TX, u, v, B, o):
+    """Interface row r of the slot arrays (iv, it) at (u, v) into B[o:o + iface.STRIDE]."""
+    B[o + ki.IF_KIND] = kind
+    B[o + ki.IF_DIST] = dist
+    B[o + ki.IF_MASK] = mask
+    if kind == ki.NULL:
+        t = _rgb(iv, it, r, km.D_TINT, TX, u, v)
+        B[o + ki.IF_P] = t[0]
+        B[o + ki.IF_P + 1] = t[1]
+        B[o + ki.IF_P + 2] = t[2]
+        B[o + ki.IF_DELTA] = 1.0
+        B[o + ki.IF_TRANS] = 1.0
+    else:
+        p = _iface_params(iv, it, kind, r, TX, u, v)
+        for j in range(12):
+            B[o + ki.IF_P + j] = p[j]
+        B[o + ki.IF_DELTA] = 1.0 if km.is_delta_only(kind, p) else 0.0
+        B[o + ki.IF_TRANS] = 1.0 if kind == km.DIELECTRIC else 0.0
+    B[o + ki.IF_FRAMED] = 0.0
+    if mode > 0:
+        n = nval
+        if mode == 2:
+            t = _p3(TX, n, ntex, u, v)
+            n = (2.0 * t[0] - 1.0, 2.0 * t[1] - 1.0, max(2.0 * t[2] - 1.0, 1e-3))
+            ln = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+            n = (n[0] / ln, n[1] / ln, n[2] / ln)
+        st = ki.frame_of_normal(n)
+        B[o + ki.IF_FRAMED] = 1.0
+        for j in range(3):
+            B[o + ki.IF_N + j] = n[j]
+            B[o + ki.IF_S + j] = st[0][j]
+            B[o + ki.IF_T + j] = st[1][j]
+
+
+@njit(cache=True, _nrt=False)
 def bind_into(ST, TX, s, u, v, B):
     """Evaluate stack ``s`` at (u, v) into the block B (see the module docstring)."""
     for j in range(HEAD):
@@ -133,42 +172,11 @@ def bind_into(ST, TX, s, u, v, B):
     N = int(ST.head[s, H_N])
     f0 = int(ST.head[s, H_IF0])
     m0 = int(ST.head[s, H_MD0])
-    iv, it = ST.if_values, ST.if_tex
     for l in range(N):
         r = f0 + l
-        o = HEAD + l * ki.STRIDE
-        kind = ST.if_kind[r]
-        B[o + ki.IF_KIND] = kind
-        B[o + ki.IF_DIST] = ST.if_dist[r]
-        B[o + ki.IF_MASK] = ST.if_mask[r]
-        if kind == ki.NULL:
-            t = _rgb(iv, it, r, km.D_TINT, TX, u, v)
-            B[o + ki.IF_P] = t[0]
-            B[o + ki.IF_P + 1] = t[1]
-            B[o + ki.IF_P + 2] = t[2]
-            B[o + ki.IF_DELTA] = 1.0
-            B[o + ki.IF_TRANS] = 1.0
-        else:
-            p = _iface_params(iv, it, kind, r, TX, u, v)
-            for j in range(12):
-                B[o + ki.IF_P + j] = p[j]
-            B[o + ki.IF_DELTA] = 1.0 if km.is_delta_only(kind, p) else 0.0
-            B[o + ki.IF_TRANS] = 1.0 if kind == km.DIELECTRIC else 0.0
-        mode = ST.if_nmode[r]
-        B[o + ki.IF_FRAMED] = 0.0
-        if mode > 0:
-            n = (ST.if_nval[r, 0], ST.if_nval[r, 1], ST.if_nval[r, 2])
-            if mode == 2:
-                t = _p3(TX, n, ST.if_ntex[r], u, v)
-                n = (2.0 * t[0] - 1.0, 2.0 * t[1] - 1.0, max(2.0 * t[2] - 1.0, 1e-3))
-                ln = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
-                n = (n[0] / ln, n[1] / ln, n[2] / ln)
-            st = ki.frame_of_normal(n)
-            B[o + ki.IF_FRAMED] = 1.0
-            for j in range(3):
-                B[o + ki.IF_N + j] = n[j]
-                B[o + ki.IF_S + j] = st[0][j]
-                B[o + ki.IF_T + j] = st[1][j]
+        bind_iface(ST.if_kind[r], ST.if_dist[r], ST.if_mask[r], ST.if_values, ST.if_tex, r,
+                   ST.if_nmode[r], (ST.if_nval[r, 0], ST.if_nval[r, 1], ST.if_nval[r, 2]),
+                   ST.if_ntex[r], TX, u, v, B, HEAD + l * ki.STRIDE)
     mv, mt = ST.md_values, ST.md_tex
     for k in range(N - 1):
         r = m0 + k
@@ -259,6 +267,7 @@ class StackBuilder:
         head[H_PDFC] = opts.pdf_constant
         head[H_MIS] = 1.0 if opts.mis else 0.0
         head[H_MAXV] = opts.max_vertices
+        head[H_NESTED] = 1.0 if flat.nested else 0.0
         head[H_IF0] = len(self.ifaces)
         head[H_MD0] = len(self.media)
         textured = False

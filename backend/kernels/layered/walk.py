@@ -79,6 +79,101 @@ def _max3(a):
 
 
 @njit(cache=True, _nrt=False, error_model="numpy")
+def flight(B, mo, s0, d, sig, prev_medium, approx, hero_pdf, hero, r, R):
+    """A free flight from normalised depth s0 along d through the (non-empty) slab block ``mo``:
+    a scattering depth inside it, or its boundary. Returns (scattered, new normalised depth,
+    throughput factor RGB, gamma factor, new spectral ratios r, density of the event (per unit
+    depth if scattered, else the probability of passing), reverse density of the previous
+    vertex's depth (``prev_medium``: it was a medium vertex)). ``approx`` (approximate pdf) and
+    absorbing slabs pass straight through (transmittance into the throughput, or its channel
+    mean into gamma); ``hero_pdf``: a stochastic-pdf walk samples the hero channel alone."""
+    inv = sig / abs(d[2])
+    rate = (B[mo + M_TAU] * inv, B[mo + M_TAU + 1] * inv, B[mo + M_TAU + 2] * inv)
+    grey = B[mo + M_GREY] > 0.0
+    dmax = max(s0 if d[2] > 0.0 else 1.0 - s0, 0.0)
+    one = (1.0, 1.0, 1.0)
+    bound = 0.0 if d[2] > 0.0 else 1.0
+    if approx or B[mo + M_KIND] == ABSORBING:
+        if grey:
+            e = math.exp(-rate[0] * dmax)
+            e3 = (e, e, e)
+        else:
+            e3 = (math.exp(-rate[0] * dmax), math.exp(-rate[1] * dmax), math.exp(-rate[2] * dmax))
+        if approx:
+            return False, bound, one, (e3[0] + e3[1] + e3[2]) / 3.0, r, 1.0, 1.0
+        return False, bound, e3, 1.0, r, 1.0, 1.0
+    hero_flight = hero_pdf and not grey
+    if grey or hero_flight:
+        rh = rate[hero] if hero_flight else rate[0]
+        step = -math.log1p(-ph.rnd(R)) / rh if rh > 0.0 else math.inf
+        sc = step < dmax
+        if not sc:
+            step = dmax
+        ex = math.exp(-rh * step)
+        fac = one
+        if sc and not hero_flight:
+            fac = (B[mo + M_ALB], B[mo + M_ALB + 1], B[mo + M_ALB + 2])
+        dens = rh * ex if sc else ex
+        drev = rh * ex if prev_medium else ex
+    else:
+        # Spectral MIS with the walk's hero channel (module docstring).
+        rh = rate[hero]
+        step = -math.log1p(-ph.rnd(R)) / rh if rh > 0.0 else math.inf
+        sc = step < dmax
+        if not sc:
+            step = dmax
+        e0 = math.exp(-rate[0] * step)
+        e1 = math.exp(-rate[1] * step)
+        e2 = math.exp(-rate[2] * step)
+        q0, q1, q2 = rate[0] * e0, rate[1] * e1, rate[2] * e2
+        if sc:
+            p0, p1, p2 = q0, q1, q2
+            f0, f1, f2 = B[mo + M_ALB] * q0, B[mo + M_ALB + 1] * q1, B[mo + M_ALB + 2] * q2
+        else:
+            p0, p1, p2 = e0, e1, e2
+            f0, f1, f2 = e0, e1, e2
+        n0, n1, n2 = r[0] * p0, r[1] * p1, r[2] * p2
+        mean_r = (n0 + n1 + n2) / 3.0
+        if mean_r > 0.0:
+            im = 1.0 / mean_r
+            fac = (f0 * im, f1 * im, f2 * im)
+            r = (n0 * im, n1 * im, n2 * im)
+        else:
+            fac = (0.0, 0.0, 0.0)
+            r = one
+        dens = (p0 + p1 + p2) / 3.0
+        drev = (q0 + q1 + q2) / 3.0 if prev_medium else (e0 + e1 + e2) / 3.0
+    if sc:
+        return True, (s0 - step if d[2] > 0.0 else s0 + step), fac, 1.0, r, dens, drev
+    return False, bound, fac, 1.0, r, dens, drev
+
+
+@njit(cache=True, _nrt=False, error_model="numpy")
+def depth_density(B, FT, k, d, t0, t1, to_medium, hero):
+    """Density with which a free flight in slab k along d from depth t0 produces depth t1: per
+    unit depth if ``to_medium`` (a scattering vertex), else the probability of reaching the
+    boundary t1; the channel mean, or channel ``hero`` ≥ 0 alone (a stochastic-pdf walk). 1 for
+    slabs crossed without sampling (empty, absorbing)."""
+    mo = MED0 + k * MSTRIDE
+    if B[mo + M_KIND] != 2.0 or not abs(d[2]) >= GRAZING:
+        return 1.0 if B[mo + M_KIND] != 2.0 else 0.0
+    inv = 1.0 / abs(d[2])
+    if B[mo + M_DIR] > 0.0:
+        inv *= ph.sigma_scale(B, mo + M_PH, FT, d)
+    x = abs(t1 - t0)
+    out = 0.0
+    for c in range(3):
+        if hero >= 0 and B[mo + M_GREY] <= 0.0 and c != hero:
+            continue
+        rc = B[mo + M_TAU + c] * inv
+        e = math.exp(-rc * x)
+        out += rc * e if to_medium else e
+    if hero >= 0 and B[mo + M_GREY] <= 0.0:
+        return out
+    return out / 3.0
+
+
+@njit(cache=True, _nrt=False, error_model="numpy")
 def walk(B, FT, w0, W, slot, R, purpose, approx, rr_start, rr_thr, cap, hero):
     """Walk from direction ``w0`` (pointing away from the surface): enter at the top if w0_z > 0,
     else at the bottom. ``approx``: media do not scatter (crossing a slab multiplies ``gamma`` by
@@ -202,76 +297,25 @@ def walk(B, FT, w0, W, slot, R, purpose, approx, rr_start, rr_thr, cap, hero):
         dens_f = 1.0
         dens_r = 1.0
         mo = MED0 + slab * MSTRIDE
-        kd = B[mo + M_KIND]
-        if kd != EMPTY:
-            s0 = t - slab
-            inv = 1.0 / abs(d[2])
+        if B[mo + M_KIND] != EMPTY:
+            sg = 1.0
             if B[mo + M_DIR] > 0.0:
                 # The extinction scale of the direction: the phase sampler's after a medium
                 # vertex of this slab, computed on entering the slab from an interface.
                 if not prev_medium:
                     sig = ph.sigma_scale(B, mo + M_PH, FT, d)
-                inv *= sig
-            rate = (B[mo + M_TAU] * inv, B[mo + M_TAU + 1] * inv, B[mo + M_TAU + 2] * inv)
-            grey = B[mo + M_GREY] > 0.0
-            dmax = max(s0 if d[2] > 0.0 else 1.0 - s0, 0.0)
-            if approx or kd == ABSORBING:
-                if grey:
-                    e = math.exp(-rate[0] * dmax)
-                    e3 = (e, e, e)
-                else:
-                    e3 = (math.exp(-rate[0] * dmax), math.exp(-rate[1] * dmax), math.exp(-rate[2] * dmax))
-                if approx:
-                    gamma *= (e3[0] + e3[1] + e3[2]) / 3.0
-                else:
-                    beta = (beta[0] * e3[0], beta[1] * e3[1], beta[2] * e3[2])
-            else:
-                hero_flight = hero_pdf and not grey
-                if grey or hero_flight:
-                    rh = rate[hero] if hero_flight else rate[0]
-                    step = -math.log1p(-ph.rnd(R)) / rh if rh > 0.0 else math.inf
-                    sc = step < dmax
-                    if not sc:
-                        step = dmax
-                    ex = math.exp(-rh * step)
-                    dens = rh * ex if sc else ex
-                    if sc and not hero_flight:
-                        beta = (beta[0] * B[mo + M_ALB], beta[1] * B[mo + M_ALB + 1], beta[2] * B[mo + M_ALB + 2])
-                    drev = rh * ex if prev_medium else ex
-                else:
-                    rh = rate[hero]
-                    step = -math.log1p(-ph.rnd(R)) / rh if rh > 0.0 else math.inf
-                    sc = step < dmax
-                    if not sc:
-                        step = dmax
-                    e0 = math.exp(-rate[0] * step)
-                    e1 = math.exp(-rate[1] * step)
-                    e2 = math.exp(-rate[2] * step)
-                    q0, q1, q2 = rate[0] * e0, rate[1] * e1, rate[2] * e2
-                    if sc:
-                        p0, p1, p2 = q0, q1, q2
-                        f0, f1, f2 = B[mo + M_ALB] * q0, B[mo + M_ALB + 1] * q1, B[mo + M_ALB + 2] * q2
-                    else:
-                        p0, p1, p2 = e0, e1, e2
-                        f0, f1, f2 = e0, e1, e2
-                    n0, n1, n2 = r0 * p0, r1 * p1, r2 * p2
-                    mean_r = (n0 + n1 + n2) / 3.0
-                    if mean_r > 0.0:
-                        im = 1.0 / mean_r
-                        beta = (beta[0] * f0 * im, beta[1] * f1 * im, beta[2] * f2 * im)
-                        r0, r1, r2 = n0 * im, n1 * im, n2 * im
-                    else:
-                        beta = zero
-                        r0 = r1 = r2 = 1.0
-                    dens = (p0 + p1 + p2) / 3.0
-                    drev = (q0 + q1 + q2) / 3.0 if prev_medium else (e0 + e1 + e2) / 3.0
-                if sc:
-                    s1 = s0 - step if d[2] > 0.0 else s0 + step
-                    t_new = slab + s1
-                    is_if = False
-                    layer = slab
-                dens_f = dens
-                dens_r = drev
+                sg = sig
+            sc, s1, fac, gfac, r, dens, drev = flight(B, mo, t - slab, d, sg, prev_medium, approx,
+                                                     hero_pdf, hero, (r0, r1, r2), R)
+            r0, r1, r2 = r
+            beta = (beta[0] * fac[0], beta[1] * fac[1], beta[2] * fac[2])
+            gamma *= gfac
+            if sc:
+                t_new = slab + s1
+                is_if = False
+                layer = slab
+            dens_f = dens
+            dens_r = drev
         t = t_new
         if not _max3(beta) > 0.0:
             return i, d, zero, False, 0, hero
