@@ -52,7 +52,7 @@ from numba import njit
 from . import iface as ki
 from . import phase as ph
 from . import walk as wk
-from .table import (ABSORBING, APPROX, BI, EMPTY, H_ETA_BOTTOM, H_ETA_SLAB, H_ETA_TOP, H_EST,
+from .table import (ABSORBING, APPROX, BI, EMPTY, STOCHASTIC, H_ETA_BOTTOM, H_ETA_SLAB, H_ETA_TOP, H_EST,
                     H_MAXV, H_MIS, H_N, H_NESTED, H_PDF, H_PDFC, H_TRANS, HEAD, M_DIR, M_GREY, M_KIND, M_PH,
                     M_TAU, MED0, MSTRIDE, SCATTERING)
 from .walk import (F_A, F_B, F_C1, F_C2, F_DELTA, F_GAMMA, F_KIND, F_LAYER, F_PF, F_QBG, F_REV,
@@ -60,42 +60,43 @@ from .walk import (F_A, F_B, F_C1, F_C2, F_DELTA, F_GAMMA, F_KIND, F_LAYER, F_PF
 
 RADIANCE = 0
 NAN = math.nan
+STOCHASTIC_BI = 2       # pdf kind: the stochastic pdf by the bidirectional estimator (benchmarks)
 # Counters (int64 array C): walks, vertices, walk-cap hits, fiber sampler failures
 C_WALKS, C_VERTICES, C_CAPS = 0, 1, 2
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
 def _ifo(l):
     return HEAD + l * ki.STRIDE
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
 def _mdo(k):
     return MED0 + k * MSTRIDE
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
 def power(a, b):
     a2 = a * a
     den = a2 + b * b
     return a2 / den if den > 0.0 else 0.0
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
 def valid(B, wi, wo):
     if B[H_TRANS] > 0.0:
         return wi[2] != 0.0 and wo[2] != 0.0
     return wi[2] > 0.0 and wo[2] > 0.0
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
 def valid_in(B, wi):
     if B[H_TRANS] > 0.0:
         return wi[2] != 0.0
     return wi[2] > 0.0
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
 def mode_factor(B, wi, wo, mode):
     if mode != RADIANCE or B[H_TRANS] <= 0.0:
         return 1.0
@@ -105,7 +106,7 @@ def mode_factor(B, wi, wo, mode):
     return r * r
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
 def eta_corr(B, k, exit_top):
     """(η_exit side/η_slab k)²: converts subpaths sampled from the exit direction (importance
     transport) into the adjoint transport they stand for."""
@@ -113,14 +114,14 @@ def eta_corr(B, k, exit_top):
     return e * e
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
 def _count(C, n, capped):
     C[C_WALKS] += 1
     C[C_VERTICES] += n
     C[C_CAPS] += capped
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
 def single(B, a, b, pdf):
     """The one-vertex path: reflection at the entry interface (exact). (value RGB, pdf)."""
     zero = (0.0, 0.0, 0.0)
@@ -153,6 +154,9 @@ def transmittance(B, FT, k, d, t0, t1):
     x = abs(diff) / abs(d[2])
     if B[mo + M_DIR] > 0.0:
         x *= ph.sigma_scale(B, mo + M_PH, FT, d)
+    if B[mo + M_GREY] > 0.0:
+        e = math.exp(-B[mo + M_TAU] * x)
+        return (e, e, e)
     return (math.exp(-B[mo + M_TAU] * x), math.exp(-B[mo + M_TAU + 1] * x), math.exp(-B[mo + M_TAU + 2] * x))
 
 
@@ -192,6 +196,7 @@ def _directed(B, FT, W, sx, nx, ty, ny, u, exit_top, pdf_mode, approx, nmax, her
         # Slab terms along c: rate, transmittance to the interface ahead (a per-source factor),
         # the densities of reaching it (dens_t) and of reaching the source back (dens_s).
         rate = (0.0, 0.0, 0.0)
+        grey = True
         sig_c = 1.0
         tr = (1.0, 1.0, 1.0)
         dens_t_if = 1.0
@@ -206,7 +211,12 @@ def _directed(B, FT, W, sx, nx, ty, ny, u, exit_top, pdf_mode, approx, nmax, her
                 rate = (rh, rh, rh)
             else:
                 rate = (B[mo + M_TAU] * inv, B[mo + M_TAU + 1] * inv, B[mo + M_TAU + 2] * inv)
-            e = (math.exp(-rate[0] * ad_if), math.exp(-rate[1] * ad_if), math.exp(-rate[2] * ad_if))
+            grey = rate[0] == rate[1] and rate[1] == rate[2]
+            if grey:
+                e1 = math.exp(-rate[0] * ad_if)
+                e = (e1, e1, e1)
+            else:
+                e = (math.exp(-rate[0] * ad_if), math.exp(-rate[1] * ad_if), math.exp(-rate[2] * ad_if))
             if approx:
                 pp = (e[0] + e[1] + e[2]) / 3.0
                 tr = (pp, pp, pp)
@@ -266,10 +276,16 @@ def _directed(B, FT, W, sx, nx, ty, ny, u, exit_top, pdf_mode, approx, nmax, her
                     continue
                 ad = abs(dt)
                 e0 = math.exp(-rate[0] * ad)
-                e1 = math.exp(-rate[1] * ad)
-                e2 = math.exp(-rate[2] * ad)
-                dens_t = (rate[0] * e0 + rate[1] * e1 + rate[2] * e2) / 3.0
-                dens_s = dens_t if s_medium else (e0 + e1 + e2) / 3.0
+                if grey:
+                    e1 = e0
+                    e2 = e0
+                    dens_t = rate[0] * e0
+                    dens_s = dens_t if s_medium else e0
+                else:
+                    e1 = math.exp(-rate[1] * ad)
+                    e2 = math.exp(-rate[2] * ad)
+                    dens_t = (rate[0] * e0 + rate[1] * e1 + rate[2] * e2) / 3.0
+                    dens_s = dens_t if s_medium else (e0 + e1 + e2) / 3.0
                 w_in = (T[F_WIN], T[F_WIN + 1], T[F_WIN + 2])
                 v, pr = ph.connect(B, mo + M_PH, FT, w_in, negc, T[F_SIGIN], sig_c)
                 S_src = v * (S[F_A] + dens_s * S[F_B])
@@ -296,7 +312,7 @@ def _directed(B, FT, W, sx, nx, ty, ny, u, exit_top, pdf_mode, approx, nmax, her
     return (o0, o1, o2), op
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
 def bidirectional(B, FT, W, nL, nR, exit_top, pdf_mode, approx, nmax, hero):
     """Sum over all connections of walk 0 (L, from wi) and walk 1 (R, from wo): f·|cos θo|/|cos θo|
     (RGB; without the single-interface term and any transport-mode factor), or the pdf."""
@@ -384,7 +400,70 @@ def unidirectional(B, FT, W, nL, wo, R, mis):
     return (o0, o1, o2)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
+def pdf_nee(B, FT, W, nL, wo, R, hero):
+    """The stochastic pdf by next-event estimation through the exit interface E (the
+    unidirectional estimator of the sampler's density): walk 0 is the sampler itself (no
+    roulette: weight 1), and every vertex v that sees E directly adds the density of the paths
+    "… v → E → wo" by two strategies, weighted with the power heuristic: the connecting direction
+    sampled from wo through E (density q), or v's own sampled direction (density p_v):
+        NEE           p_v(d) P(d) p_E(wo | −d) · q / (q² + p_v²),   d = the direction from v to E
+        continuation  P(d_v) p_E(wo | −d_v) · p_v² / (p_v² + q(−d_v)²)
+    (P: the probability that the sampler's free flight reaches E). E must not be a delta
+    interface (then the bidirectional estimate is used)."""
+    N = int(B[H_N])
+    exit_top = wo[2] > 0.0
+    E = 0 if exit_top else N - 1
+    slab_E = 0 if exit_top else N - 2
+    face = 1 if exit_top else N - 2
+    oE = _ifo(E)
+    u0 = ph.rnd(R)
+    u1 = ph.rnd(R)
+    u2 = ph.rnd(R)
+    u, _, qf, qr, _ = ki.sample(B, oE, wo, u0, u1, u2, True)
+    nee = u[2] * wo[2] < 0.0 and abs(u[2]) >= GRAZING and qf > 0.0
+    d = (-u[0], -u[1], -u[2])
+    mo = _mdo(slab_E)
+    tE = float(E)
+    s_d = 1.0
+    if nee and B[mo + M_DIR] > 0.0:
+        s_d = ph.sigma_scale(B, mo + M_PH, FT, d)
+    out = 0.0
+    for i in range(nL):
+        V = W[0, i]
+        medium = V[F_KIND] == 0.0
+        lay = int(V[F_LAYER])
+        if not ((medium and lay == slab_E) or ((not medium) and lay == face)):
+            continue
+        tv = V[F_T]
+        w_in = (V[F_WIN], V[F_WIN + 1], V[F_WIN + 2])
+        if nee and (tE - tv) * -d[2] > 0.0:
+            if medium:
+                pv, _ = ph.connect(B, mo + M_PH, FT, w_in, d, V[F_SIGIN], s_d)
+            else:
+                _, pv, _ = ki.evaluate(B, _ifo(lay), w_in, d, NAN, NAN, True)
+            if pv > 0.0:
+                P = wk.depth_density(B, FT, slab_E, d, tv, tE, False, hero)
+                out += pv * P * qr * qf / (qf * qf + pv * pv)
+        dc = (V[F_WOUT], V[F_WOUT + 1], V[F_WOUT + 2])
+        if not (V[F_PF] > 0.0 and ((dc[2] > 0.0) if exit_top else (dc[2] < 0.0))):
+            continue
+        if not abs(dc[2]) >= GRAZING:
+            continue
+        mdc = (-dc[0], -dc[1], -dc[2])
+        _, pE, qE = ki.evaluate(B, oE, mdc, wo, NAN, NAN, True)
+        if not pE > 0.0:
+            continue
+        P = wk.depth_density(B, FT, slab_E, dc, tv, tE, False, hero)
+        if V[F_DELTA] > 0.0:
+            out += P * pE
+        else:
+            pv = V[F_PF]
+            out += P * pE * pv * pv / (pv * pv + qE * qE)
+    return out
+
+
+@njit(cache=True, _nrt=False, error_model="numpy")
 def _uni_blind(B, exit_top):
     N = int(B[H_N])
     if exit_top:
@@ -393,12 +472,12 @@ def _uni_blind(B, exit_top):
 
 
 # ----------------------------------------------------------------------------- queries
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
 def _cap(B, W):
     return min(int(B[H_MAXV]), W.shape[1])
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
 def value(B, FT, W, R, a, b, est, C):
     """f(a → b)·|cos θb| (importance transport) of a valid query; walk L is W[0]."""
     f, _ = single(B, a, b, False)
@@ -422,7 +501,7 @@ def value(B, FT, W, R, a, b, est, C):
     return (f[0] + g[0] * az, f[1] + g[1] * az, f[2] + g[2] * az)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
 def pdf(B, FT, W, R, a, b, kind, C):
     """The approximate (kind APPROX: media removed, paths of ≤ 2S + 1 vertices for a reflection
     and S + 1 for a transmission, plus the constant) or the stochastic estimate of the sampler's
@@ -443,9 +522,12 @@ def pdf(B, FT, W, R, a, b, kind, C):
     # No roulette in the pdf's walks: the sampler's density does not decay along a path
     # (absorption only lowers sample weights), so roulette compensation compounds and makes the
     # estimate heavy-tailed (measured on the NumPy walks: variance ÷11 at 3.3× the time without it).
+    # The stochastic pdf by next-event estimation through the exit interface (pdf_nee), or by
+    # the bidirectional estimator where the exit interface is a delta one (or when asked for).
+    nee = kind == STOCHASTIC and not ki.is_delta(B, _ifo(0 if b[2] > 0.0 else N - 1))
     nL = 0
     nR = 0
-    for k in range(2):
+    for k in range(1 if nee else 2):
         n, _, _, _, capped, hero = wk.walk(B, FT, a if k == 0 else b, W, k, R, wk.PDF, approx,
                                            wk.RR_OFF, 1.0, cap, hero)
         if not approx:
@@ -454,6 +536,9 @@ def pdf(B, FT, W, R, a, b, kind, C):
             nL = n
         else:
             nR = n
+    if nee:
+        p += pdf_nee(B, FT, W, nL, b, R, hero)
+        return p
     _, q = bidirectional(B, FT, W, nL, nR, b[2] > 0.0, True, approx, nmax, hero)
     p += q
     if approx:
@@ -461,7 +546,7 @@ def pdf(B, FT, W, R, a, b, kind, C):
     return p
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
 def eval_query(B, FT, W, R, wi, wo, mode, est, C):
     if not valid(B, wi, wo):
         return (0.0, 0.0, 0.0)
@@ -470,14 +555,14 @@ def eval_query(B, FT, W, R, wi, wo, mode, est, C):
     return (f[0] * m, f[1] * m, f[2] * m)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
 def pdf_query(B, FT, W, R, wi, wo, kind, C):
     if not valid(B, wi, wo):
         return 0.0
     return pdf(B, FT, W, R, wi, wo, kind, C)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
 def sample_query(B, FT, W, R, wi, mode, want_pdf, kind, C):
     """(wo, weight, pdf, delta): a forward walk from wi (the sample's roulette); ``want_pdf``
     adds the MIS pdf estimate of the sampled direction (0 for delta exits)."""
@@ -497,7 +582,7 @@ def sample_query(B, FT, W, R, wi, mode, want_pdf, kind, C):
     return wo, w, p, delta
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
 def nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, want_sample, C):
     """One scattering event of a camera path (RADIANCE transport): f and the MIS pdf of the
     light direction ``wo`` (if ``nee``), and the continuation sample. With the bidirectional
@@ -560,7 +645,7 @@ def nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, want_sample, C):
     return f, p_nee, wo_s, w_s, p_s, d_s
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
 def albedo(B, FT, W, R, C):
     """A one-sample estimate of the normal-incidence albedo (for the denoising AOV: averaged over
     a pixel's samples it converges to the directional albedo)."""

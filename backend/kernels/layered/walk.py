@@ -68,12 +68,12 @@ F_PR, F_DF, F_DR, F_P, F_Q = 27, 28, 29, 30, 31
 NF = 32
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
 def _inv(x):
     return 1.0 / x if x > 0.0 else 0.0
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
 def _max3(a):
     return max(a[0], max(a[1], a[2]))
 
