@@ -1,7 +1,7 @@
 """Throughput of the layered BSDF per core: evaluations and samples per second on large batches.
 
-    python benchmarks/layered_throughput.py [--lanes 65536] [--repeat 2] [--json]
-    python benchmarks/layered_throughput.py --render [--size 64] [--spp 16]
+    python benchmarks/layered_throughput.py [--lanes 65536] [--repeat 3] [--json]
+    python benchmarks/layered_throughput.py --render [--size 128] [--spp 16] [--repeat 3]
     python benchmarks/layered_throughput.py --demo-scene [--spp 16] [--repeat 3]
 
 Stacks: 1 slab (Guo et al. Fig. 2 top: rough dielectric / HG medium / rough copper), 2 slabs
@@ -9,11 +9,15 @@ Stacks: 1 slab (Guo et al. Fig. 2 top: rough dielectric / HG medium / rough copp
 dielectric / HG / dielectric / HG / copper). For each: eval (uni and bi), the approximate and
 the stochastic pdf, and sample (with and without its MIS pdf), in µs per lane and lanes per
 second, plus the variance of one eval estimate times its cost (lower is better: the time to a
-given noise level). One process, one thread (the machine's other core stays free).
+given noise level). One process, one thread (the machine's other core stays free), CPU time,
+rounds interleaved (round r runs every stack and query once), median and spread reported. The
+BSDF runs as compiled per-lane code (backend/kernels/layered); the kernels are loaded before
+timing.
 
 Reference (guo2018-digest §12): the authors' C++ code on one core needs ≈ 45 µs per eval for one
 slab and ≈ 110 µs for two microflake slabs, sample 10–23 µs, approximate pdf ≈ 8 µs. The goal of
-issue 3 is ≥ 10× that per core: ≤ 4.5 µs / ≤ 11 µs per eval.
+issue 16 is ≥ 10× that per core: ≤ 4.5 µs / ≤ 11 µs per eval (bidirectional), sample ≤ 2.0 µs /
+≤ 4.5 µs, the stochastic pdf ≤ 3× the approximate one.
 """
 from __future__ import annotations
 
@@ -65,84 +69,111 @@ def directions(rng, n):
     return np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u[0])], axis=1)
 
 
-def timed(fn, repeat):
-    """Best CPU time of this process over ``repeat`` runs (CPU time, not wall time: the figure
-    per core stays meaningful when other processes share the machine)."""
-    best = np.inf
-    out = None
-    for _ in range(repeat):
-        t0 = time.process_time()
-        out = fn()
-        best = min(best, time.process_time() - t0)
-    return best, out
+def spread(xs):
+    xs = sorted(xs)
+    return {"median": xs[len(xs) // 2], "min": xs[0], "max": xs[-1], "runs": len(xs)}
+
+
+QUERIES = ("eval_bi", "eval_uni", "eval_uni_nomis", "pdf_approx", "pdf_stochastic", "pdf_stochastic_bi",
+           "sample", "sample_with_pdf")
 
 
 def run(lanes: int, repeat: int):
+    """CPU µs per lane of every query on every stack, ``repeat`` interleaved rounds (round r runs
+    every stack and query once, so a busy neighbour slows all of them alike); the median and
+    the spread over rounds per query."""
     rng = np.random.default_rng(1)
     wi, wo = directions(rng, lanes), directions(rng, lanes)
-    results = []
+    wi1 = np.repeat([[0.3, 0.1, np.sqrt(1 - 0.1)]], lanes, axis=0)
+    wo1 = np.repeat([[-0.4, 0.2, np.sqrt(1 - 0.2)]], lanes, axis=0)
+    bsdfs = {}
     for name, d in STACKS.items():
-        mat = load(d)
-        bsdf = mat.bind(ShadingContext(np.zeros((lanes, 2))))
+        b = load(d).bind(ShadingContext(np.zeros((lanes, 2))))
+        nomis = load({**d, "estimator": "uni", "mis": False}).bind(ShadingContext(np.zeros((lanes, 2))))
+        b.eval(wi[:64], wo[:64], rng)           # compile / load the kernels outside the timing
+        nomis.eval(wi[:64], wo[:64], rng)
+        bsdfs[name] = (b, nomis)
+    calls = {
+        "eval_bi": lambda b, n, a, c: b.eval(a, c, rng, RADIANCE, estimator="bi"),
+        "eval_uni": lambda b, n, a, c: b.eval(a, c, rng, RADIANCE, estimator="uni"),
+        "eval_uni_nomis": lambda b, n, a, c: n.eval(a, c, rng, RADIANCE, estimator="uni"),
+        "pdf_approx": lambda b, n, a, c: b.pdf(a, c, rng, RADIANCE, kind="approx"),
+        "pdf_stochastic": lambda b, n, a, c: b.pdf(a, c, rng, RADIANCE, kind="stochastic"),
+        "pdf_stochastic_bi": lambda b, n, a, c: b.pdf(a, c, rng, RADIANCE, kind="stochastic-bi"),
+        "sample": lambda b, n, a, c: b.sample(a, rng, RADIANCE, want_pdf=False),
+        "sample_with_pdf": lambda b, n, a, c: b.sample(a, rng, RADIANCE),
+    }
+    times = {name: {q: [] for q in QUERIES} for name in STACKS}
+    for _ in range(repeat):
+        for name in STACKS:
+            b, nomis = bsdfs[name]
+            for q in QUERIES:
+                t0 = time.process_time()
+                calls[q](b, nomis, wi, wo)
+                times[name][q].append((time.process_time() - t0) / lanes * 1e6)
+    results = []
+    for name in STACKS:
+        b, nomis = bsdfs[name]
         row = {"stack": name}
-        # eval at a fixed pair too, for variance × time (pairs vary in value)
-        wi1 = np.repeat([[0.3, 0.1, np.sqrt(1 - 0.1)]], lanes, axis=0)
-        wo1 = np.repeat([[-0.4, 0.2, np.sqrt(1 - 0.2)]], lanes, axis=0)
-        for est in ("uni", "bi"):
-            t, _ = timed(lambda: bsdf.eval(wi, wo, rng, RADIANCE, estimator=est), repeat)
-            row[f"eval_{est}_us"] = t / lanes * 1e6
-            t1, f = timed(lambda: bsdf.eval(wi1, wo1, rng, RADIANCE, estimator=est), 1)
-            g = f @ np.array([0.2126, 0.7152, 0.0722])
-            row[f"eval_{est}_rel_var_x_us"] = float(g.var() / max(g.mean(), 1e-30) ** 2 * t1 / lanes * 1e6)
-        for kind in ("approx", "stochastic"):
-            t, _ = timed(lambda: bsdf.pdf(wi, wo, rng, RADIANCE, kind=kind), repeat)
-            row[f"pdf_{kind}_us"] = t / lanes * 1e6
-        t, _ = timed(lambda: bsdf.sample(wi, rng, RADIANCE, want_pdf=False), repeat)
-        row["sample_us"] = t / lanes * 1e6
-        t, _ = timed(lambda: bsdf.sample(wi, rng, RADIANCE), repeat)
-        row["sample_with_pdf_us"] = t / lanes * 1e6
-        row["vertices_per_walk"] = bsdf.stats["vertices"] / max(bsdf.stats["walks"], 1)
+        for q in QUERIES:
+            row[q] = spread(times[name][q])
+        # Relative variance × µs of one eval at a fixed pair (lower = less time to a given noise).
+        for est in ("bi", "uni"):
+            f = b.eval(wi1, wo1, rng, RADIANCE, estimator=est) @ np.array([0.2126, 0.7152, 0.0722])
+            row[f"eval_{est}_rel_var_x_us"] = float(f.var() / max(f.mean(), 1e-30) ** 2 * row[f"eval_{est}"]["median"])
+        for kind, key in (("stochastic", "pdf_stochastic"), ("stochastic-bi", "pdf_stochastic_bi")):
+            p = b.pdf(wi1, wo1, rng, RADIANCE, kind=kind)
+            row[f"{key}_rel_var_x_us"] = float(p.var() / max(p.mean(), 1e-30) ** 2 * row[key]["median"])
+        st = b.stats
+        row["vertices_per_walk"] = st["vertices"] / max(st["walks"], 1)
         results.append(row)
     return results
 
 
-def render_ratio(size: int, spp: int):
-    """CPU time of a small render of a sphere with each stack vs the same scene with a diffuse
-    sphere (one worker; a point light and a constant environment; 8 bounces)."""
+def _sphere_scene(material, size: int, spp: int):
+    h = 0.32
+    return {"format": "lamina-scene", "version": 1, "film": {"width": size, "height": size},
+            "camera": {"type": "perspective",
+                       "to_world": [[1, 0, 0, 0], [0, 0, -1, -4.0], [0, 1, 0, 0], [0, 0, 0, 1]],
+                       "frame": [[h, h, -1], [h, -h, -1], [-h, -h, -1], [-h, h, -1]]},
+            "materials": {"m": material},
+            "meshes": {"ball": {"shape": "sphere", "radius": 1.0, "segments": 64}},
+            "objects": [{"mesh": "ball", "materials": ["m"]}],
+            "lights": [{"type": "point", "power": 600.0, "radius": 0.3,
+                        "to_world": [[1, 0, 0, 2.5], [0, 1, 0, -3.0], [0, 0, 1, 3.0], [0, 0, 0, 1]]}],
+            "world": {"type": "constant", "color": [0.25, 0.27, 0.3], "strength": 1.0},
+            "render": {"spp": spp, "max_bounces": 8, "seed": 1}}
+
+
+def render_cpu(data, where="<bench>", base=None, workers=1, parallel=None) -> tuple[float, float]:
+    """(CPU s of the render — the worker threads' CPU time summed —, wall s) of one render."""
     import copy
     from backend.render import Renderer, RenderOptions
     from backend.scene.loader import load_scene_data
+    sc = load_scene_data(copy.deepcopy(data), where, base)
+    opts = RenderOptions(workers=workers, parallel=parallel)
+    opts.apply(sc)
+    t0, w0 = time.process_time(), time.perf_counter()
+    res = Renderer(sc, (copy.deepcopy(data), where, base), opts).run()
+    return time.process_time() - t0, time.perf_counter() - w0, res
 
-    def scene(material):
-        h = 0.32
-        return {"format": "lamina-scene", "version": 1, "film": {"width": size, "height": size},
-                "camera": {"type": "perspective",
-                           "to_world": [[1, 0, 0, 0], [0, 0, -1, -4.0], [0, 1, 0, 0], [0, 0, 0, 1]],
-                           "frame": [[h, h, -1], [h, -h, -1], [-h, -h, -1], [-h, h, -1]]},
-                "materials": {"m": material},
-                "meshes": {"ball": {"shape": "sphere", "radius": 1.0, "segments": 64}},
-                "objects": [{"mesh": "ball", "materials": ["m"]}],
-                "lights": [{"type": "point", "power": 600.0, "radius": 0.3,
-                            "to_world": [[1, 0, 0, 2.5], [0, 1, 0, -3.0], [0, 0, 1, 3.0], [0, 0, 0, 1]]}],
-                "world": {"type": "constant", "color": [0.25, 0.27, 0.3], "strength": 1.0},
-                "render": {"spp": spp, "max_bounces": 8, "seed": 1}}
 
-    def cpu(material):
-        data = scene(material)
-        sc = load_scene_data(copy.deepcopy(data), "<bench>")
-        opts = RenderOptions(workers=1)
-        opts.apply(sc)
-        with BSDFClock() as clock:
-            t0 = time.process_time()
-            Renderer(sc, (copy.deepcopy(data), "<bench>", None), opts).run()
-            return time.process_time() - t0, clock.seconds
-
-    base, _ = cpu({"type": "diffuse", "color": 0.7})
-    out = {"diffuse_s": base}
-    for name, d in STACKS.items():
-        total, in_bsdf = cpu(d)
-        out[name] = total / base
-        out[name + " bsdf_share"] = in_bsdf / total
+def render_ratio(size: int, spp: int, repeat: int = 3):
+    """CPU time of a small render of a sphere with each stack vs the same scene with a diffuse
+    sphere (one worker; a point light and a constant environment; 8 bounces): ``repeat``
+    interleaved rounds; the ratio of medians and its range over rounds."""
+    names = ["diffuse"] + list(STACKS)
+    mats = {"diffuse": {"type": "diffuse", "color": 0.7}, **STACKS}
+    for name in names:                       # kernels loaded outside the timing
+        render_cpu(_sphere_scene(mats[name], 8, 1))
+    t = {name: [] for name in names}
+    for _ in range(repeat):
+        for name in names:
+            t[name].append(render_cpu(_sphere_scene(mats[name], size, spp))[0])
+    out = {"diffuse_s": spread(t["diffuse"])}
+    for name in STACKS:
+        ratios = [a / b for a, b in zip(t[name], t["diffuse"])]
+        out[name] = {"seconds": spread(t[name]), "ratio": spread(ratios)}
     return out
 
 
@@ -162,12 +193,10 @@ def trivial_counterpart(material: dict) -> dict:
 def demo_scene_ratio(scale: float, spp: int, repeat: int = 3):
     """CPU time of the demo scene (two layered spheres, glass, a diffuse floor; demo/demo.json)
     against the same scene with every layered material replaced by ``trivial_counterpart``:
-    one worker, best of ``repeat`` interleaved runs each."""
+    one worker, ``repeat`` interleaved runs each; ratios per round."""
     import copy
     from pathlib import Path
     from backend.presets import find_preset
-    from backend.render import Renderer, RenderOptions
-    from backend.scene.loader import load_scene_data
 
     root = Path(__file__).resolve().parent.parent
     data = json.loads((root / "demo" / "demo.json").read_text())
@@ -179,89 +208,65 @@ def demo_scene_ratio(scale: float, spp: int, repeat: int = 3):
         if isinstance(m, str):   # a preset name: its material document
             m = json.loads(find_preset(m).read_text())["material"]
         trivial["materials"][name] = trivial_counterpart(m)
-
     where, base = str(root / "demo" / "demo.json"), root / "demo"
-
-    def cpu(d):
-        sc = load_scene_data(copy.deepcopy(d), where, base)
-        opts = RenderOptions(workers=1)
-        opts.apply(sc)
-        t0 = time.process_time()
-        Renderer(sc, (copy.deepcopy(d), where, base), opts).run()
-        return time.process_time() - t0
-
-    best = {"layered": np.inf, "trivial": np.inf}
+    small = copy.deepcopy(data)
+    small["film"].update({"width": 8, "height": 8})
+    small["render"]["spp"] = 1
+    render_cpu(small, where, base)            # kernels loaded outside the timing
+    t = {"layered": [], "trivial": []}
     for _ in range(repeat):
-        best["layered"] = min(best["layered"], cpu(data))
-        best["trivial"] = min(best["trivial"], cpu(trivial))
-    return data["film"]["width"], data["film"]["height"], best
-
-
-class BSDFClock:
-    """CPU time spent inside the layered BSDF's queries during a render (one worker, so in this
-    process): wraps LayeredBSDF.eval/pdf/sample/albedo/nee_and_sample, counting only the outermost call."""
-
-    def __enter__(self):
-        from backend.layered.bsdf import LayeredBSDF
-        self.cls, self.saved, self.seconds, depth = LayeredBSDF, {}, 0.0, [0]
-        for name in ("eval", "pdf", "sample", "albedo", "nee_and_sample"):
-            fn = getattr(LayeredBSDF, name)
-            self.saved[name] = fn
-
-            def timed(*a, _fn=fn, **k):
-                depth[0] += 1
-                t0 = time.process_time()
-                try:
-                    return _fn(*a, **k)
-                finally:
-                    depth[0] -= 1
-                    if depth[0] == 0:
-                        self.seconds += time.process_time() - t0
-            setattr(LayeredBSDF, name, timed)
-        return self
-
-    def __exit__(self, *exc):
-        for name, fn in self.saved.items():
-            setattr(self.cls, name, fn)
+        t["layered"].append(render_cpu(data, where, base)[0])
+        t["trivial"].append(render_cpu(trivial, where, base)[0])
+    ratios = [a / b for a, b in zip(t["layered"], t["trivial"])]
+    return data["film"]["width"], data["film"]["height"], {"layered": spread(t["layered"]),
+                                                            "trivial": spread(t["trivial"]),
+                                                            "ratio": spread(ratios)}
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--lanes", type=int, default=65536)
-    ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--render", action="store_true", help="render-time ratio vs a diffuse sphere")
-    ap.add_argument("--size", type=int, default=64)
+    ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--demo-scene", action="store_true",
                     help="render-time ratio of the demo scene vs the same scene with trivial BSDFs")
     args = ap.parse_args()
+    load_avg = os.getloadavg()
+    fmt = lambda s: f"{s['median']:.2f} [{s['min']:.2f}–{s['max']:.2f}]"  # noqa: E731
     if args.demo_scene:
-        w, h, best = demo_scene_ratio(0.5, args.spp, args.repeat)
-        print(f"demo scene {w}x{h}, {args.spp} spp, one worker, best CPU time of {args.repeat}: "
-              f"layered {best['layered']:.2f} s, trivial BSDFs {best['trivial']:.2f} s, "
-              f"ratio {best['layered'] / best['trivial']:.2f}x")
+        w, h, r = demo_scene_ratio(0.5, args.spp, args.repeat)
+        print(f"demo scene {w}x{h}, {args.spp} spp, one worker, CPU s (median [min–max] of "
+              f"{args.repeat} interleaved runs; load {load_avg[0]:.2f}): layered {fmt(r['layered'])}, "
+              f"trivial BSDFs {fmt(r['trivial'])}, ratio {fmt(r['ratio'])}x")
         return
     if args.render:
-        r = render_ratio(args.size, args.spp)
-        print(f"render CPU time, {args.size}² px, {args.spp} spp, one worker: diffuse sphere {r['diffuse_s']:.2f} s")
+        r = render_ratio(args.size, args.spp, args.repeat)
+        print(f"render CPU s, {args.size}² px, {args.spp} spp, one worker, median [min–max] of "
+              f"{args.repeat} interleaved runs (load {load_avg[0]:.2f}): diffuse sphere {fmt(r['diffuse_s'])}")
         for name in STACKS:
-            print(f"  {name:34s} {r[name]:6.1f} × the diffuse sphere  ({r[name] * r['diffuse_s']:.2f} s, "
-                  f"{100 * r[name + ' bsdf_share']:.0f} % of it in the layered BSDF)")
+            print(f"  {name:34s} {fmt(r[name]['seconds'])} s, {fmt(r[name]['ratio'])} × the diffuse sphere")
         return
     res = run(args.lanes, args.repeat)
     if args.json:
         print(json.dumps(res, indent=1))
         return
-    print(f"layered BSDF throughput, one core, {args.lanes} lanes per call (µs per lane; lanes/s)")
+    print(f"layered BSDF, one core, {args.lanes} lanes per call, CPU µs per lane: median "
+          f"[min–max] of {args.repeat} interleaved rounds (load {load_avg[0]:.2f} {load_avg[1]:.2f})")
+    labels = (("eval_bi", "eval, bidirectional"), ("eval_uni", "eval, unidirectional"),
+              ("eval_uni_nomis", "eval, uni without MIS"), ("pdf_approx", "pdf, approximate"),
+              ("pdf_stochastic", "pdf, stochastic (NEE)"), ("pdf_stochastic_bi", "pdf, stochastic (bidir.)"),
+              ("sample", "sample (weight only)"), ("sample_with_pdf", "sample + approx pdf"))
     for r in res:
         print(f"\n{r['stack']}  ({r['vertices_per_walk']:.1f} vertices per walk on average)")
-        for key, label in (("eval_bi_us", "eval, bidirectional"), ("eval_uni_us", "eval, unidirectional"),
-                           ("pdf_approx_us", "pdf, approximate"), ("pdf_stochastic_us", "pdf, stochastic"),
-                           ("sample_us", "sample (weight only)"), ("sample_with_pdf_us", "sample + approx pdf")):
-            print(f"  {label:24s} {r[key]:8.2f} µs   {1e6 / r[key]:12,.0f} /s")
-        print(f"  relative variance × µs of one eval: bi {r['eval_bi_rel_var_x_us']:.2f}, "
-              f"uni {r['eval_uni_rel_var_x_us']:.2f} (lower = less time to a given noise)")
+        for key, label in labels:
+            print(f"  {label:26s} {fmt(r[key])} µs   {1e6 / r[key]['median']:12,.0f} /s")
+        print(f"  stochastic pdf ÷ approximate pdf: {r['pdf_stochastic']['median'] / r['pdf_approx']['median']:.2f}")
+        print(f"  relative variance × µs: eval bi {r['eval_bi_rel_var_x_us']:.2f}, uni "
+              f"{r['eval_uni_rel_var_x_us']:.2f}; stochastic pdf NEE {r['pdf_stochastic_rel_var_x_us']:.2f}, "
+              f"bidir. {r['pdf_stochastic_bi_rel_var_x_us']:.2f} (lower = less time to a given noise)")
 
 
 if __name__ == "__main__":

@@ -31,7 +31,7 @@ def scratch(max_vertices: int = 1024):
     return (np.zeros((2, cap, NF)), np.zeros(BSIZE), np.zeros(2, np.uint64), np.zeros(4, np.int64))
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, _nrt=False)
 def shade_lane(ST, TX, s, u, v, wi, wo, nee, nee_pdf, do_continue, camera, key, segment, W, Bs, R, C):
     """The layered part of one bounce of one lane (RADIANCE transport): (f, pdf of the light
     direction, continuation wo, weight, pdf, delta, albedo AOV estimate). At a camera hit the AOV

@@ -65,38 +65,38 @@ STOCHASTIC_BI = 2       # pdf kind: the stochastic pdf by the bidirectional esti
 C_WALKS, C_VERTICES, C_CAPS = 0, 1, 2
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def _ifo(l):
     return HEAD + l * ki.STRIDE
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def _mdo(k):
     return MED0 + k * MSTRIDE
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def power(a, b):
     a2 = a * a
     den = a2 + b * b
     return a2 / den if den > 0.0 else 0.0
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def valid(B, wi, wo):
     if B[H_TRANS] > 0.0:
         return wi[2] != 0.0 and wo[2] != 0.0
     return wi[2] > 0.0 and wo[2] > 0.0
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def valid_in(B, wi):
     if B[H_TRANS] > 0.0:
         return wi[2] != 0.0
     return wi[2] > 0.0
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def mode_factor(B, wi, wo, mode):
     if mode != RADIANCE or B[H_TRANS] <= 0.0:
         return 1.0
@@ -106,7 +106,7 @@ def mode_factor(B, wi, wo, mode):
     return r * r
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def eta_corr(B, k, exit_top):
     """(η_exit side/η_slab k)²: converts subpaths sampled from the exit direction (importance
     transport) into the adjoint transport they stand for."""
@@ -114,14 +114,14 @@ def eta_corr(B, k, exit_top):
     return e * e
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def _count(C, n, capped):
     C[C_WALKS] += 1
     C[C_VERTICES] += n
     C[C_CAPS] += capped
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit("(float64[::1], UniTuple(float64, 3), UniTuple(float64, 3), boolean)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def single(B, a, b, pdf):
     """The one-vertex path: reflection at the entry interface (exact). (value RGB, pdf)."""
     zero = (0.0, 0.0, 0.0)
@@ -139,7 +139,7 @@ def single(B, a, b, pdf):
     return (v[0] * arr, v[1] * arr, v[2] * arr), 0.0
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit("(float64[::1], float64[:, ::1], int64, UniTuple(float64, 3), float64, float64)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def transmittance(B, FT, k, d, t0, t1):
     """Transmittance in slab k from depth t0 to t1 along d (0 if d does not lead there; 1 over
     zero length)."""
@@ -161,7 +161,7 @@ def transmittance(B, FT, k, d, t0, t1):
 
 
 # ----------------------------------------------------------------------------- bidirectional
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit("(float64[::1], float64[:, ::1], float64[:, :, ::1], int64, int64, int64, int64, int64, boolean, boolean, boolean, int64, int64)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def _directed(B, FT, W, sx, nx, ty, ny, u, exit_top, pdf_mode, approx, nmax, hero):
     """Connections whose direction was sampled by walk ``sx`` (strategy u) to the vertices of
     walk ``ty``: (value sum RGB, pdf sum)."""
@@ -312,7 +312,7 @@ def _directed(B, FT, W, sx, nx, ty, ny, u, exit_top, pdf_mode, approx, nmax, her
     return (o0, o1, o2), op
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def bidirectional(B, FT, W, nL, nR, exit_top, pdf_mode, approx, nmax, hero):
     """Sum over all connections of walk 0 (L, from wi) and walk 1 (R, from wo): f·|cos θo|/|cos θo|
     (RGB; without the single-interface term and any transport-mode factor), or the pdf."""
@@ -331,7 +331,7 @@ def bidirectional(B, FT, W, nL, nR, exit_top, pdf_mode, approx, nmax, hero):
 
 
 # ----------------------------------------------------------------------------- unidirectional
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit("(float64[::1], float64[:, ::1], float64[:, :, ::1], int64, UniTuple(float64, 3), uint64[::1], boolean)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def unidirectional(B, FT, W, nL, wo, R, mis):
     """NEE through the exit interface plus the continuation half of the MIS pair, over walk 0."""
     N = int(B[H_N])
@@ -400,7 +400,7 @@ def unidirectional(B, FT, W, nL, wo, R, mis):
     return (o0, o1, o2)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit("(float64[::1], float64[:, ::1], float64[:, :, ::1], int64, UniTuple(float64, 3), uint64[::1], int64)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def pdf_nee(B, FT, W, nL, wo, R, hero):
     """The stochastic pdf by next-event estimation through the exit interface E (the
     unidirectional estimator of the sampler's density): walk 0 is the sampler itself (no
@@ -463,7 +463,7 @@ def pdf_nee(B, FT, W, nL, wo, R, hero):
     return out
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def _uni_blind(B, exit_top):
     N = int(B[H_N])
     if exit_top:
@@ -472,12 +472,12 @@ def _uni_blind(B, exit_top):
 
 
 # ----------------------------------------------------------------------------- queries
-@njit(cache=True, _nrt=False, error_model="numpy")
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def _cap(B, W):
     return min(int(B[H_MAXV]), W.shape[1])
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def value(B, FT, W, R, a, b, est, C):
     """f(a → b)·|cos θb| (importance transport) of a valid query; walk L is W[0]."""
     f, _ = single(B, a, b, False)
@@ -501,7 +501,7 @@ def value(B, FT, W, R, a, b, est, C):
     return (f[0] + g[0] * az, f[1] + g[1] * az, f[2] + g[2] * az)
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def pdf(B, FT, W, R, a, b, kind, C):
     """The approximate (kind APPROX: media removed, paths of ≤ 2S + 1 vertices for a reflection
     and S + 1 for a transmission, plus the constant) or the stochastic estimate of the sampler's
@@ -546,7 +546,7 @@ def pdf(B, FT, W, R, a, b, kind, C):
     return p
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def eval_query(B, FT, W, R, wi, wo, mode, est, C):
     if not valid(B, wi, wo):
         return (0.0, 0.0, 0.0)
@@ -555,14 +555,14 @@ def eval_query(B, FT, W, R, wi, wo, mode, est, C):
     return (f[0] * m, f[1] * m, f[2] * m)
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def pdf_query(B, FT, W, R, wi, wo, kind, C):
     if not valid(B, wi, wo):
         return 0.0
     return pdf(B, FT, W, R, wi, wo, kind, C)
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def sample_query(B, FT, W, R, wi, mode, want_pdf, kind, C):
     """(wo, weight, pdf, delta): a forward walk from wi (the sample's roulette); ``want_pdf``
     adds the MIS pdf estimate of the sampled direction (0 for delta exits)."""
@@ -582,7 +582,7 @@ def sample_query(B, FT, W, R, wi, mode, want_pdf, kind, C):
     return wo, w, p, delta
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, want_sample, C):
     """One scattering event of a camera path (RADIANCE transport): f and the MIS pdf of the
     light direction ``wo`` (if ``nee``), and the continuation sample. With the bidirectional
@@ -645,11 +645,14 @@ def nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, want_sample, C):
     return f, p_nee, wo_s, w_s, p_s, d_s
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def albedo(B, FT, W, R, C):
     """A one-sample estimate of the normal-incidence albedo (for the denoising AOV: averaged over
-    a pixel's samples it converges to the directional albedo)."""
-    wo, w, _, _ = sample_query(B, FT, W, R, (0.0, 0.0, 1.0), 1, False, APPROX, C)
+    a pixel's samples it converges to the directional albedo): a sample walk, importance
+    transport, its weight if it leaves upwards."""
+    n, wo, w, _, capped, _ = wk.walk(B, FT, (0.0, 0.0, 1.0), W, 0, R, wk.NONE, False, wk.RR_SAMPLE_START,
+                                     wk.RR_SAMPLE_THR, int(B[H_MAXV]), -1)
+    _count(C, n, capped)
     if wo[2] > 0.0:
         return w
     return (0.0, 0.0, 0.0)

@@ -95,12 +95,12 @@ def _p1(TX, value, tex_id, u, v):
     return param_scalar(TX, value, tex_id, u, v)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _rgb(values, tex, r, slot, TX, u, v):
     return _p3(TX, (values[r, slot], values[r, slot + 1], values[r, slot + 2]), tex[r, slot], u, v)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _scalar(values, tex, r, slot, TX, u, v):
     return _p1(TX, values[r, slot], tex[r, slot], u, v)
 
