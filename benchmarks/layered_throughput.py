@@ -159,11 +159,13 @@ def render_cpu(data, where="<bench>", base=None, workers=1, parallel=None) -> tu
 
 
 def render_ratio(size: int, spp: int, repeat: int = 3):
-    """CPU time of a small render of a sphere with each stack vs the same scene with a diffuse
-    sphere (one worker; a point light and a constant environment; 8 bounces): ``repeat``
-    interleaved rounds; the ratio of medians and its range over rounds."""
-    names = ["diffuse"] + list(STACKS)
-    mats = {"diffuse": {"type": "diffuse", "color": 0.7}, **STACKS}
+    """CPU time of a render of a sphere filling most of the frame with each stack, against the
+    same scene with a diffuse sphere and with the stack's trivial analytic counterpart
+    (``trivial_counterpart``: its base, rough copper here); one worker, a point light and a
+    constant environment, 8 bounces; ``repeat`` interleaved rounds, ratios per round."""
+    names = ["diffuse"] + list(STACKS) + [f"trivial:{n}" for n in STACKS]
+    mats = {"diffuse": {"type": "diffuse", "color": 0.7}, **STACKS,
+            **{f"trivial:{n}": trivial_counterpart(d) for n, d in STACKS.items()}}
     for name in names:                       # kernels loaded outside the timing
         render_cpu(_sphere_scene(mats[name], 8, 1))
     t = {name: [] for name in names}
@@ -173,7 +175,9 @@ def render_ratio(size: int, spp: int, repeat: int = 3):
     out = {"diffuse_s": spread(t["diffuse"])}
     for name in STACKS:
         ratios = [a / b for a, b in zip(t[name], t["diffuse"])]
-        out[name] = {"seconds": spread(t[name]), "ratio": spread(ratios)}
+        trivial = [a / b for a, b in zip(t[name], t[f"trivial:{name}"])]
+        out[name] = {"seconds": spread(t[name]), "ratio": spread(ratios),
+                     "trivial_s": spread(t[f"trivial:{name}"]), "ratio_trivial": spread(trivial)}
     return out
 
 
@@ -247,7 +251,8 @@ def main():
         print(f"render CPU s, {args.size}² px, {args.spp} spp, one worker, median [min–max] of "
               f"{args.repeat} interleaved runs (load {load_avg[0]:.2f}): diffuse sphere {fmt(r['diffuse_s'])}")
         for name in STACKS:
-            print(f"  {name:34s} {fmt(r[name]['seconds'])} s, {fmt(r[name]['ratio'])} × the diffuse sphere")
+            print(f"  {name:34s} {fmt(r[name]['seconds'])} s, {fmt(r[name]['ratio'])} × the diffuse sphere, "
+                  f"{fmt(r[name]['ratio_trivial'])} × its trivial counterpart ({fmt(r[name]['trivial_s'])} s)")
         return
     res = run(args.lanes, args.repeat)
     if args.json:

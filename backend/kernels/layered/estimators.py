@@ -400,17 +400,31 @@ def unidirectional(B, FT, W, nL, wo, R, mis):
     return (o0, o1, o2)
 
 
-@njit("(float64[::1], float64[:, ::1], float64[:, :, ::1], int64, UniTuple(float64, 3), uint64[::1], int64)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
-def pdf_nee(B, FT, W, nL, wo, R, hero):
-    """The stochastic pdf by next-event estimation through the exit interface E (the
-    unidirectional estimator of the sampler's density): walk 0 is the sampler itself (no
-    roulette: weight 1), and every vertex v that sees E directly adds the density of the paths
-    "… v → E → wo" by two strategies, weighted with the power heuristic: the connecting direction
-    sampled from wo through E (density q), or v's own sampled direction (density p_v):
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+def _pass(B, FT, k, d, t0, t1, approx, hero):
+    """The probability that the pdf walks' sampler gets from depth t0 to t1 along d in slab k:
+    the free flight's pass probability (hero channel, or channel 0 if grey), 1 through slabs
+    crossed without sampling; in the approximate pdf the channel-mean transmittance of any
+    non-empty slab (media removed)."""
+    if not approx:
+        return wk.depth_density(B, FT, k, d, t0, t1, False, hero)
+    T = transmittance(B, FT, k, d, t0, t1)
+    return (T[0] + T[1] + T[2]) / 3.0
+
+
+@njit("(float64[::1], float64[:, ::1], float64[:, :, ::1], int64, UniTuple(float64, 3), uint64[::1], int64, boolean, int64)",
+      cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+def pdf_nee(B, FT, W, nL, wo, R, hero, approx, kmax):
+    """The sampler's density of ``wo`` by next-event estimation through the exit interface E
+    (the unidirectional estimator, applied to densities): walk 0 is the sampler itself (weight
+    ``gamma``: 1 without roulette; the approximate pdf's slab pass probabilities), and every
+    vertex v that sees E directly (a medium vertex of the slab next to E, or a vertex on the
+    interface across it; at most ``kmax`` vertices into the walk) adds the density of the paths
+    "… v → E → wo" by two strategies, weighted with the power heuristic: the connecting
+    direction sampled from wo through E (density q), or v's own sampled direction (density p_v):
         NEE           p_v(d) P(d) p_E(wo | −d) · q / (q² + p_v²),   d = the direction from v to E
         continuation  P(d_v) p_E(wo | −d_v) · p_v² / (p_v² + q(−d_v)²)
-    (P: the probability that the sampler's free flight reaches E). E must not be a delta
-    interface (then the bidirectional estimate is used)."""
+    (P: ``_pass``). E must not be a delta interface (then the bidirectional estimate is used)."""
     N = int(B[H_N])
     exit_top = wo[2] > 0.0
     E = 0 if exit_top else N - 1
@@ -429,7 +443,7 @@ def pdf_nee(B, FT, W, nL, wo, R, hero):
     if nee and B[mo + M_DIR] > 0.0:
         s_d = ph.sigma_scale(B, mo + M_PH, FT, d)
     out = 0.0
-    for i in range(nL):
+    for i in range(min(nL, kmax)):
         V = W[0, i]
         medium = V[F_KIND] == 0.0
         lay = int(V[F_LAYER])
@@ -437,29 +451,26 @@ def pdf_nee(B, FT, W, nL, wo, R, hero):
             continue
         tv = V[F_T]
         w_in = (V[F_WIN], V[F_WIN + 1], V[F_WIN + 2])
+        acc = 0.0
         if nee and (tE - tv) * -d[2] > 0.0:
             if medium:
                 pv, _ = ph.connect(B, mo + M_PH, FT, w_in, d, V[F_SIGIN], s_d)
             else:
                 _, pv, _ = ki.evaluate(B, _ifo(lay), w_in, d, NAN, NAN, True)
             if pv > 0.0:
-                P = wk.depth_density(B, FT, slab_E, d, tv, tE, False, hero)
-                out += pv * P * qr * qf / (qf * qf + pv * pv)
+                acc += pv * _pass(B, FT, slab_E, d, tv, tE, approx, hero) * qr * qf / (qf * qf + pv * pv)
         dc = (V[F_WOUT], V[F_WOUT + 1], V[F_WOUT + 2])
-        if not (V[F_PF] > 0.0 and ((dc[2] > 0.0) if exit_top else (dc[2] < 0.0))):
-            continue
-        if not abs(dc[2]) >= GRAZING:
-            continue
-        mdc = (-dc[0], -dc[1], -dc[2])
-        _, pE, qE = ki.evaluate(B, oE, mdc, wo, NAN, NAN, True)
-        if not pE > 0.0:
-            continue
-        P = wk.depth_density(B, FT, slab_E, dc, tv, tE, False, hero)
-        if V[F_DELTA] > 0.0:
-            out += P * pE
-        else:
-            pv = V[F_PF]
-            out += P * pE * pv * pv / (pv * pv + qE * qE)
+        if V[F_PF] > 0.0 and ((dc[2] > 0.0) if exit_top else (dc[2] < 0.0)) and abs(dc[2]) >= GRAZING:
+            mdc = (-dc[0], -dc[1], -dc[2])
+            _, pE, qE = ki.evaluate(B, oE, mdc, wo, NAN, NAN, True)
+            if pE > 0.0:
+                P = _pass(B, FT, slab_E, dc, tv, tE, approx, hero)
+                if V[F_DELTA] > 0.0:
+                    acc += P * pE
+                else:
+                    pv = V[F_PF]
+                    acc += P * pE * pv * pv / (pv * pv + qE * qE)
+        out += V[F_GAMMA] * acc
     return out
 
 
@@ -503,47 +514,65 @@ def value(B, FT, W, R, a, b, est, C):
 
 @njit(cache=True, _nrt=False, inline="always", error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def pdf(B, FT, W, R, a, b, kind, C):
-    """The approximate (kind APPROX: media removed, paths of ≤ 2S + 1 vertices for a reflection
-    and S + 1 for a transmission, plus the constant) or the stochastic estimate of the sampler's
-    density of b given a (a valid query)."""
-    _, p = single(B, a, b, True)
+    """The sampler's density of b given a (a valid query): ``pdf_pair`` for one direction."""
+    p, _ = pdf_pair(B, FT, W, R, a, b, True, b, False, kind, C)
+    return p
+
+
+@njit(cache=True, _nrt=False, inline="always", error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+def pdf_pair(B, FT, W, R, a, b1, need1, b2, need2, kind, C):
+    """The pdf estimates of (a, b1) and (a, b2) (each only if needed), sharing one walk from a
+    (as the reference implementation's evalAndSample: the two pdfs of a path vertex share their
+    ωi-side walk; each stays the same estimator, the two are correlated).
+
+    kind APPROX, the approximate pdf (Guo's bidirStochTRT): the sampler's density on the stack
+    with its media removed (a slab only attenuates, by its channel-mean transmittance), over the
+    paths of at most 2S + 1 vertices for a reflection and S + 1 for a transmission (S slabs),
+    plus ``pdf_constant``. kind STOCHASTIC: the density of the sampler itself (no roulette; a
+    chromatic stack's walks sample one hero channel, whose path density is estimated). Both are
+    estimated by next-event estimation through the exit interface (``pdf_nee``): one walk, O(n)
+    connections; where the exit interface is a delta one (or kind STOCHASTIC_BI) by the
+    bidirectional estimator (a second walk from b, all connections)."""
     N = int(B[H_N])
     approx = kind == APPROX
     slabs = N - 1
     hero = -1
+    p1 = 0.0
+    p2 = 0.0
+    if not (need1 or need2):
+        return p1, p2
     if approx:
-        nmax = 2 * slabs + 1 if a[2] * b[2] > 0.0 else slabs + 1
-        cap = 2 * slabs
+        refl = (need1 and a[2] * b1[2] > 0.0) or (need2 and a[2] * b2[2] > 0.0)
+        cap = 2 * slabs if refl else slabs
     else:
-        nmax = 0
         cap = _cap(B, W)
         if B[wk.H_CHROM] > 0.0:
             hero = min(int(ph.rnd(R) * 3.0), 2)
-    # No roulette in the pdf's walks: the sampler's density does not decay along a path
-    # (absorption only lowers sample weights), so roulette compensation compounds and makes the
-    # estimate heavy-tailed (measured on the NumPy walks: variance ÷11 at 3.3× the time without it).
-    # The stochastic pdf by next-event estimation through the exit interface (pdf_nee), or by
-    # the bidirectional estimator where the exit interface is a delta one (or when asked for).
-    nee = kind == STOCHASTIC and not ki.is_delta(B, _ifo(0 if b[2] > 0.0 else N - 1))
-    nL = 0
-    nR = 0
-    for k in range(1 if nee else 2):
-        n, _, _, _, capped, hero = wk.walk(B, FT, a if k == 0 else b, W, k, R, wk.PDF, approx,
-                                           wk.RR_OFF, 1.0, cap, hero)
-        if not approx:
-            _count(C, n, capped)
-        if k == 0:
-            nL = n
+    nL, _, _, _, cL, hero = wk.walk(B, FT, a, W, 0, R, wk.PDF, approx, wk.RR_OFF, 1.0, cap, hero)
+    if not approx:
+        _count(C, nL, cL)
+    for k in range(2):
+        if not (need1 if k == 0 else need2):
+            continue
+        b = b1 if k == 0 else b2
+        _, p = single(B, a, b, True)
+        nmax = (2 * slabs + 1 if a[2] * b[2] > 0.0 else slabs + 1) if approx else 0
+        if kind != STOCHASTIC_BI and not ki.is_delta(B, _ifo(0 if b[2] > 0.0 else N - 1)):
+            p += pdf_nee(B, FT, W, nL, b, R, hero, approx, nmax - 1 if approx else nL)
         else:
-            nR = n
-    if nee:
-        p += pdf_nee(B, FT, W, nL, b, R, hero)
-        return p
-    _, q = bidirectional(B, FT, W, nL, nR, b[2] > 0.0, True, approx, nmax, hero)
-    p += q
-    if approx:
-        p += B[H_PDFC]
-    return p
+            nR, _, _, _, cR, _ = wk.walk(B, FT, b, W, 1, R, wk.PDF, approx, wk.RR_OFF, 1.0,
+                                         2 * slabs if approx else cap, hero)
+            if not approx:
+                _count(C, nR, cR)
+            _, q = bidirectional(B, FT, W, nL, nR, b[2] > 0.0, True, approx, nmax, hero)
+            p += q
+        if approx:
+            p += B[H_PDFC]
+        if k == 0:
+            p1 = p
+        else:
+            p2 = p
+    return p1, p2
 
 
 @njit(cache=True, _nrt=False, inline="always", error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
@@ -631,17 +660,8 @@ def nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, want_sample, C):
     else:
         w_s = zero
         d_s = False
-    # The MIS pdfs of the light direction and of the sampled one (one call site).
-    for k in range(2):
-        if k == 0 and not (conn and nee_pdf):
-            continue
-        if k == 1 and not (exited and not d_s):
-            continue
-        q = pdf(B, FT, W, R, wi, wo if k == 0 else wo_s, kind, C)
-        if k == 0:
-            p_nee = q
-        else:
-            p_s = q
+    # The MIS pdfs of the light direction and of the sampled one, sharing their walk from wi.
+    p_nee, p_s = pdf_pair(B, FT, W, R, wi, wo, conn and nee_pdf, wo_s, exited and not d_s, kind, C)
     return f, p_nee, wo_s, w_s, p_s, d_s
 
 

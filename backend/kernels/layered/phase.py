@@ -198,11 +198,37 @@ def bind_sggx(P, o, s6):
 
 
 # ----------------------------------------------------------------------------- fiber
+_ATAN = (0.9999999973285276, -0.3333330535980118, 0.19999183184538558, -0.1427485320320531,
+         0.11030534828665675, -0.08719032678207402, 0.06550411135729256, -0.042188772756998234,
+         0.020537157414089083, -0.006421636830539827, 0.0009420393014584832)
+
+
+@njit(cache=True, _nrt=False, error_model="numpy")
+def _atan2_q1(y, x):
+    """atan2(y, x) for x, y ≥ 0: an odd polynomial of degree 21 on [0, 1] (least squares at
+    Chebyshev nodes; |error| < 2e-10 rad), 4× cheaper than libm's atan2 and far below the σ
+    table's own interpolation error (3e-6)."""
+    if y <= x:
+        if x <= 0.0:
+            return 0.0
+        t = y / x
+        flip = False
+    else:
+        t = x / y
+        flip = True
+    z = t * t
+    p = _ATAN[10]
+    for k in range(9, -1, -1):
+        p = _ATAN[k] + z * p
+    r = t * p
+    return 0.5 * math.pi - r if flip else r
+
+
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def fiber_sigma(P, o, FT, c, sn):
     """σ_fiber of the bound fiber for a direction with |cos| = c, |sin| = sn to the axis."""
-    theta = math.atan2(sn, c)
-    q = math.asinh(theta * P[o + FB_INV_S]) * P[o + FB_QSCALE]
+    x = _atan2_q1(sn, c) * P[o + FB_INV_S]
+    q = math.log1p(x + x * x / (1.0 + math.sqrt(1.0 + x * x))) * P[o + FB_QSCALE]   # asinh(x)
     j = min(int(q), COLS - 2)        # q ≥ 0: truncation is the floor
     wj = lagrange4(q - j)
     row = int(P[o + FB_ROW])
