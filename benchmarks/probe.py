@@ -15,7 +15,7 @@ import time
 
 #: Modules that implement optional features. Blocking their import (``sys.modules[name] = None``,
 #: which the registries treat as "not written yet") gives the renderer without them.
-FEATURE_MODULES = ["backend.layered.material", "backend.layered.bsdf", "backend.layered.walk",
+FEATURE_MODULES = ["backend.layered.material", "backend.layered.bsdf",
                    "backend.layered.medium", "backend.layered.phase", "backend.ies.light", "backend.ies.profile",
                    "backend.lights.environment", "backend.lights.point", "backend.lights.spot", "backend.lights.sun"]
 

@@ -1,11 +1,43 @@
-"""The previous, pair-list implementation of the layered bidirectional connections (every
-(L vertex, R vertex) pair of a lane enumerated, then masked), kept as an independent reference:
-tests/test_layered_connect.py checks that the blocked engine in backend/layered/connect.py gives
-the same sums on the same walks."""
+"""A pair-list implementation of the layered bidirectional connections in NumPy (every
+(L vertex, R vertex) pair of a lane enumerated, then masked; the first NumPy implementation),
+kept as an independent reference: tests/test_layered_connect.py checks that the compiled
+connections (backend/kernels/layered/estimators.py) give the same sums on the same walks. The
+stack is read through ``StackView`` (the compiled code's slab functions, backend/layered/probe)."""
 import numpy as np
 
-from backend.layered.connect import eval_at
-from backend.layered.stack import GRAZING
+from backend.kernels.layered.walk import GRAZING
+from backend.layered.probe import describe, eval_at as _eval_at, slab_depth_density, slab_transmittance
+
+SLAB_KINDS = {"empty": 0, "absorbing": 1, "scattering": 2}
+
+
+class StackView:
+    """What the reference reads of a bound layered BSDF (constant stacks)."""
+
+    def __init__(self, bsdf):
+        self.bsdf = bsdf
+        d = describe(bsdf)
+        self.N = d["N"]
+        self.kinds = [SLAB_KINDS[m["kind"]] for m in d["media"]]
+        self.eta_top, self.eta_bottom = d["eta_top"], d["eta_bottom"]
+        self.eta_slab = np.asarray(d["eta_slab"])
+
+    def eta_corr(self, slab, exit_top):
+        out = np.where(exit_top, self.eta_top, self.eta_bottom)
+        return (out / self.eta_slab[slab]) ** 2
+
+    def transmittance(self, k, lanes, d, t0, t1):
+        return np.ascontiguousarray(slab_transmittance(self.bsdf, k, d.T, t0, t1).T)
+
+    def pass_probability(self, k, lanes, d, t0, t1):
+        return self.transmittance(k, lanes, d, t0, t1).mean(axis=0)
+
+    def depth_pdf(self, k, lanes, d, t0, t1, to_medium, channel=None):
+        return slab_depth_density(self.bsdf, k, d.T, t0, t1, to_medium, channel)
+
+
+def eval_at(stack, kind, layer, lane, w_in, w, rng=None, pdf_only=False):
+    return _eval_at(stack.bsdf, kind, layer, lane, w_in, w, pdf_only)
 
 MAX_PAIRS = 1 << 19
 
@@ -43,20 +75,24 @@ class ConnView:
         self.w_out = take(rec.w_out)
         pf, pr = take(rec.pdf_fwd), take(rec.pdf_rev)
         first = self.k == 1
+        # The previous vertex's forward density and delta flag (the walk starts with 1, False).
+        prev = np.arange(pf.size) - 1
+        pf_prev = np.where(first, 1.0, pf[np.maximum(prev, 0)]) if pf.size else pf
+        dl_prev = np.where(first, False, take(rec.delta)[np.maximum(prev, 0)]) if pf.size else first
         self.inv_dens = np.where(first, 0.0, _inv(take(rec.dens_fwd)))
-        self.a = ((~take(rec.delta_prev)) + take(rec.P)) * _inv(take(rec.pdf_fwd_prev))
+        self.a = ((~dl_prev) + take(rec.P)) * _inv(pf_prev)
         delta = take(rec.delta)
         self.own = (~delta) * 1.0
         self.inv_pf = _inv(pf)
         self.pdf_rev = pr
         self.b1 = self.inv_dens * (self.own + pr * self.a)
-        if hasattr(rec, "thru0"):
+        if rec.purpose == "value":
             self.thru0 = take(rec.thru0)
             self.thru1 = take(rec.thru1)
             self.live_out = self.thru1.max(axis=0) > 0
         else:
             self.gamma = take(rec.gamma)
-            self.qb = np.where(first, 1.0, self.inv_dens * take(rec.Q) * _inv(take(rec.pdf_fwd_prev)))
+            self.qb = np.where(first, 1.0, self.inv_dens * take(rec.Q) * _inv(pf_prev))
             self.live_out = pf > 0
 
 
@@ -171,10 +207,9 @@ def _connect(stack, L, R, iL, iR, pl, slab, u, exit_top, rng, pdf_mode, approx, 
             else:
                 pass_p[pos] = pp
         if not approx and stack.kinds[k] == 2:
-            ops = stack.slabs[k].take(lanes)
             ch = None if hero is None else hero[lanes]
-            a = ops.depth_pdf(ck, t0 - k, t1 - k, sl(kR) == 0, ch)
-            b = ops.depth_pdf(-ck, t1 - k, t0 - k, sl(kL) == 0, ch)
+            a = stack.depth_pdf(k, lanes, ck, t0, t1, sl(kR) == 0, ch)
+            b = stack.depth_pdf(k, lanes, -ck, t1, t0, sl(kL) == 0, ch)
             if whole:
                 dens_to_R, dens_to_L = a, b
             else:

@@ -150,8 +150,9 @@ class Walks:
     the records (fields above) flattened lane-major: entry e is vertex ``k[e]`` (1-based) of lane
     ``lane[e]``; vectors are (3, m) (the layout of the former NumPy walk's records)."""
 
-    def __init__(self, n, count, exit_dir, exit_weight, exit_delta, hero, rec, capped):
+    def __init__(self, n, count, exit_dir, exit_weight, exit_delta, hero, rec, capped, purpose):
         self.n = n
+        self.purpose = purpose
         self.count = count
         self.exit_dir, self.exit_weight, self.exit_delta = exit_dir, exit_weight, exit_delta
         self.hero = hero
@@ -194,7 +195,7 @@ def walks(bsdf, w0, rng, purpose="value", approx=False, rr="eval", cap=None, her
     start, thr = RR[rr]
     run(B, ST.FT, w0, draw_seed(rng), PURPOSES[purpose], bool(approx), int(start), float(thr), cap, h, W1,
         np.zeros(2, np.uint64), C, count, ed, ew, edl, hout, rec)
-    return Walks(n, count, ed, ew, edl, hout, rec, int(C[0]))
+    return Walks(n, count, ed, ew, edl, hout, rec, int(C[0]), purpose)
 
 
 def connect(bsdf, wo, L: Walks, R: Walks, pdf_mode=False, approx=False, nmax=None, hero=None):
@@ -212,3 +213,41 @@ def connect(bsdf, wo, L: Walks, R: Walks, pdf_mode=False, approx=False, nmax=Non
     h = np.full(n, -1, np.int64) if hero is None else np.ascontiguousarray(hero, dtype=np.int64)
     run(B, ST.FT, L.raw, L.count, R.raw, R.count, wo, bool(pdf_mode), bool(approx), nm, h, W2, out3, outp)
     return outp if pdf_mode else np.ascontiguousarray(out3.T)
+
+
+def eval_at(bsdf, kind, layer, lane, w_in, w, pdf_only=False):
+    """Vertex functions of walk vertices (kind 1 interface / 0 medium, layer, lane of ``bsdf``),
+    incoming ``w_in`` and outgoing ``w`` ((3, m) each): (value (3, m), pf (m,), pr (m,))."""
+    from ..kernels.layered.probe import vertex_eval as run
+    w_in = np.ascontiguousarray(np.asarray(w_in, dtype=np.float64).T)
+    w = np.ascontiguousarray(np.asarray(w, dtype=np.float64).T)
+    m = w.shape[0]
+    B = bound_blocks(bsdf)
+    val, pf, pr = np.zeros((m, 3)), np.zeros(m), np.zeros(m)
+    run(B, bsdf.material.kernel_table()[0].FT, np.ascontiguousarray(kind, dtype=np.int64),
+        np.ascontiguousarray(layer, dtype=np.int64), np.ascontiguousarray(lane, dtype=np.int64),
+        w_in, w, bool(pdf_only), val, pf, pr)
+    return np.ascontiguousarray(val.T), pf, pr
+
+
+def slab_flights(bsdf, k, s0, d, rng, hero=None):
+    """One free flight per lane in slab k: (new normalised depth, scattered, weight (n, 3),
+    density of the event) — the walk's own free flight."""
+    from ..kernels.layered.probe import slab_flights as run
+    d = _rows3(d)
+    n = d.shape[0]
+    B = bound_blocks(bsdf)
+    h = (rng.integers(0, 3, n) if hero is None else np.asarray(hero)).astype(np.int64)
+    out = (np.zeros(n), np.zeros(n, bool), np.zeros((n, 3)), np.zeros(n))
+    run(B, bsdf.material.kernel_table()[0].FT, int(k), np.broadcast_to(np.asarray(s0, float), (n,)).copy(),
+        d, h, draw_seed(rng), np.zeros(2, np.uint64), *out)
+    return out
+
+
+def layered_with_medium(spec, top=None, bottom=None):
+    """A two-interface stack around one medium (null interfaces by default), for probing a slab."""
+    from .bsdf import Options
+    from .material import LayeredMaterial, NullMaterial
+    top = top if top is not None else NullMaterial()
+    bottom = bottom if bottom is not None else NullMaterial()
+    return LayeredMaterial([top, bottom], [spec], [1.0], 1.0, Options())

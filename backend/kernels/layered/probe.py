@@ -14,7 +14,7 @@ from . import estimators as es
 from . import iface as ki
 from . import phase as ph
 from . import walk as wk
-from .table import bind_iface, bind_into
+from .table import HEAD, M_DIR, M_PH, MED0, MSTRIDE, bind_iface, bind_into
 
 
 @njit(cache=True, _nrt=False)
@@ -108,3 +108,50 @@ def connect(Bs, FT, recL, nL, recR, nR, wo, pdf_mode, approx, nmax, hero, W2, ou
                                 nmax[i], hero[i])
         out3[i, 0], out3[i, 1], out3[i, 2] = v
         outp[i] = p
+
+
+@njit(cache=True, _nrt=False)
+def vertex_eval(Bs, FT, kind, layer, lane, w_in, w, pdf_only, val, pf, pr):
+    """The vertex function of recorded walk vertices for an outgoing direction w: interface
+    f(w_in → w)·|cos w| (importance) or the phase p(−w_in → w), with the forward density of w
+    and the reverse density of w_in."""
+    for i in range(w.shape[0]):
+        B = Bs[_ri(Bs, lane[i])]
+        a = (w_in[i, 0], w_in[i, 1], w_in[i, 2])
+        b = (w[i, 0], w[i, 1], w[i, 2])
+        if kind[i] == 1:
+            v, f, r = ki.evaluate(B, HEAD + layer[i] * ki.STRIDE, a, b, math.nan, math.nan, pdf_only)
+        else:
+            mo = MED0 + layer[i] * MSTRIDE
+            s_a = ph.sigma_scale(B, mo + M_PH, FT, a)
+            s_b = ph.sigma_scale(B, mo + M_PH, FT, b)
+            f, r = ph.connect(B, mo + M_PH, FT, a, b, s_a, s_b)
+            v = (f, f, f)
+        val[i, 0], val[i, 1], val[i, 2] = v
+        pf[i] = f
+        pr[i] = r
+
+
+@njit(cache=True, _nrt=False)
+def slab_flights(Bs, FT, k, s0, d, hero, seed, R, new_s, scattered, weight, dens):
+    """One free flight per lane in slab k from normalised depth s0 along d (the walk's
+    ``flight``: chromatic slabs with the lane's hero channel and fresh spectral ratios)."""
+    mo = MED0 + k * MSTRIDE
+    for i in range(d.shape[0]):
+        R[0] = path_key(seed, i, 0)
+        R[1] = 0
+        B = Bs[_ri(Bs, i)]
+        di = (d[i, 0], d[i, 1], d[i, 2])
+        if not abs(di[2]) >= wk.GRAZING:
+            new_s[i] = s0[i]
+            scattered[i] = False
+            weight[i, 0] = weight[i, 1] = weight[i, 2] = 0.0
+            dens[i] = 0.0
+            continue
+        sig = ph.sigma_scale(B, mo + M_PH, FT, di) if B[mo + M_DIR] > 0.0 else 1.0
+        sc, s1, fac, _, _, p, _ = wk.flight(B, mo, s0[i], di, sig, False, False, False, hero[i],
+                                            (1.0, 1.0, 1.0), R)
+        new_s[i] = s1
+        scattered[i] = sc
+        weight[i, 0], weight[i, 1], weight[i, 2] = fac
+        dens[i] = p
