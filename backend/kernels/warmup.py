@@ -1,6 +1,6 @@
 """Compile every render kernel by rendering a tiny built-in scene that uses each material kind,
-each light kind and each integrator path (camera rays, hits, escapes, deferred layered lanes,
-shadow rays). Called once per process before rendering (``cache.ensure_compiled``); with a warm
+each light kind and each integrator path (camera rays, hits, escapes, layered lanes, shadow
+rays). Called once per process before rendering (``cache.ensure_compiled``); with a warm
 cache it only loads machine code."""
 from __future__ import annotations
 
@@ -35,6 +35,16 @@ def scene_dict() -> dict:
         "coat": {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.05},
                                                    {"type": "diffuse", "color": [0.5, 0.2, 0.1]}],
                  "media": [{"thickness": 1.0, "sigma_t": 0.5, "albedo": 0.5}]},
+        # Every layered stack runs the same compiled code; this one walks more of it (three
+        # interfaces, a normal map, fiber microflakes, chromatic extinction, the stochastic pdf).
+        "stack": {"type": "layered", "pdf": "stochastic",
+                  "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.05, "distribution": "beckmann",
+                                  "normal": [0.1, 0.0, 1.0]},
+                                 {"type": "dielectric", "ior": 1.2, "roughness": 0.01},
+                                 {"type": "conductor", "metal": "Cu", "roughness": 0.05}],
+                  "media": [{"sigma_t": 0.5, "albedo": [0.5, 0.7, 0.95],
+                             "phase": {"type": "microflake", "stddev": 0.05, "orientation": [0.5, 0.5, 0]}},
+                            {"sigma_t": [0.3, 0.5, 0.8], "albedo": 0.9, "phase": {"type": "sggx", "roughness": 0.3}}]},
     }
     names = list(materials)
     meshes = {f"q{i}": _quad(-0.1 * i, 1.0 + 0.2 * i) for i in range(len(names))}
