@@ -104,17 +104,22 @@ def _print_event(event: dict) -> None:
 
 
 def ensure_compiled(on_event=None) -> float:
-    """Compile (or load) every render kernel once per process, before worker processes start.
+    """Compile every render kernel once per process, before worker processes start.
 
     On a cold cache reports ``{"event": "compiling", "message": ...}`` before and
     ``{"event": "compiled", "seconds": s, "message": ...}`` after through ``on_event`` (default:
-    one line each on stderr), and marks the folder warm. Returns the seconds spent (0 when warm)."""
+    one line each on stderr), and marks the folder warm. Returns the seconds spent (0 when warm).
+    A warm folder holds every render kernel: nothing is rendered then, each kernel loads its
+    machine code when first called (rendering the warm-up scenes cost a material preview 0.8 s of
+    its ~1.8 s, measured)."""
     if _STATE.get("compiled"):
         return 0.0
     emit = on_event or _print_event
     cold = not is_warm()
-    if cold:
-        emit({"event": "compiling", "message": "compiling render kernels (first run only) ..."})
+    if not cold:
+        _STATE["compiled"] = True
+        return 0.0
+    emit({"event": "compiling", "message": "compiling render kernels (first run only) ..."})
     t0 = time.perf_counter()
     from .warmup import warm_up
     warm_up()

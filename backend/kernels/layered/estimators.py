@@ -75,6 +75,18 @@ def _mdo(k):
     return MED0 + k * MSTRIDE
 
 
+@njit(cache=True, _nrt=False, inline="always")
+def _evaluate(B, o, wi, wo, ti, to, pdf_only):
+    """iface.evaluate with runtime flags (one compiled specialisation; see walk.run)."""
+    return ki.evaluate(B, o + 0, wi, wo, ti * 1.0, to * 1.0, pdf_only == True)  # noqa: E712
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _sample(B, o, wi, u0, u1, u2, dens):
+    """iface.sample with runtime flags (see walk.run)."""
+    return ki.sample(B, o + 0, wi, u0, u1, u2, dens == True)  # noqa: E712
+
+
 @njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def power(a, b):
     a2 = a * a
@@ -121,7 +133,7 @@ def _count(C, n, capped):
     C[C_CAPS] += capped
 
 
-@njit("(float64[::1], UniTuple(float64, 3), UniTuple(float64, 3), boolean)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def single(B, a, b, pdf):
     """The one-vertex path: reflection at the entry interface (exact). (value RGB, pdf)."""
     zero = (0.0, 0.0, 0.0)
@@ -131,7 +143,7 @@ def single(B, a, b, pdf):
     o = _ifo(l)
     if ki.is_delta(B, o):
         return zero, 0.0
-    v, pf, _ = ki.evaluate(B, o, a, b, NAN, NAN, pdf)
+    v, pf, _ = _evaluate(B, o, a, b, NAN, NAN, pdf)
     if pdf:
         return zero, pf
     # Normal map: the arrival factor of the segment from the outside.
@@ -139,7 +151,7 @@ def single(B, a, b, pdf):
     return (v[0] * arr, v[1] * arr, v[2] * arr), 0.0
 
 
-@njit("(float64[::1], float64[:, ::1], int64, UniTuple(float64, 3), float64, float64)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def transmittance(B, FT, k, d, t0, t1):
     """Transmittance in slab k from depth t0 to t1 along d (0 if d does not lead there; 1 over
     zero length)."""
@@ -161,7 +173,7 @@ def transmittance(B, FT, k, d, t0, t1):
 
 
 # ----------------------------------------------------------------------------- bidirectional
-@njit("(float64[::1], float64[:, ::1], float64[:, :, ::1], int64, int64, int64, int64, int64, boolean, boolean, boolean, int64, int64)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def _directed(B, FT, W, sx, nx, ty, ny, u, exit_top, pdf_mode, approx, nmax, hero):
     """Connections whose direction was sampled by walk ``sx`` (strategy u) to the vertices of
     walk ``ty``: (value sum RGB, pdf sum)."""
@@ -255,7 +267,7 @@ def _directed(B, FT, W, sx, nx, ty, ny, u, exit_top, pdf_mode, approx, nmax, her
                     T[F_TERM] = ti
                 if to_src != to_src:
                     to_src = ki.term(B, oif, negc)
-                v, pf, pr = ki.evaluate(B, oif, w_in, negc, ti, to_src, pdf_mode)
+                v, pf, pr = _evaluate(B, oif, w_in, negc, ti, to_src, pdf_mode)
                 S_src = pf * (S[F_A] + dens_s_if * S[F_B])
                 S_tgt = dens_t_if * (T[F_C1] + pr * T[F_C2])
                 wmis = 1.0 / (1.0 + S_src + S_tgt)
@@ -321,8 +333,9 @@ def bidirectional(B, FT, W, nL, nR, exit_top, pdf_mode, approx, nmax, hero):
     g2 = 0.0
     gp = 0.0
     for u in range(2):
-        v, p = _directed(B, FT, W, u, nL if u == 0 else nR, 1 - u, nR if u == 0 else nL, u, exit_top,
-                         pdf_mode, approx, nmax, hero)
+        # Runtime flags (see walk.run): one compiled _directed for every caller.
+        v, p = _directed(B, FT, W, u, (nL if u == 0 else nR) + 0, 1 - u, (nR if u == 0 else nL) + 0, u,
+                         exit_top == True, pdf_mode == True, approx == True, nmax + 0, hero + 0)  # noqa: E712
         g0 += v[0]
         g1 += v[1]
         g2 += v[2]
@@ -331,7 +344,7 @@ def bidirectional(B, FT, W, nL, nR, exit_top, pdf_mode, approx, nmax, hero):
 
 
 # ----------------------------------------------------------------------------- unidirectional
-@njit("(float64[::1], float64[:, ::1], float64[:, :, ::1], int64, UniTuple(float64, 3), uint64[::1], boolean)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def unidirectional(B, FT, W, nL, wo, R, mis):
     """NEE through the exit interface plus the continuation half of the MIS pair, over walk 0."""
     N = int(B[H_N])
@@ -343,7 +356,7 @@ def unidirectional(B, FT, W, nL, wo, R, mis):
     u0 = ph.rnd(R)
     u1 = ph.rnd(R)
     u2 = ph.rnd(R)
-    u, wb, p_E, _, delta_E = ki.sample(B, oE, wo, u0, u1, u2, True)
+    u, wb, p_E, _, delta_E = _sample(B, oE, wo, u0, u1, u2, True)
     if not (u[2] * wo[2] < 0.0 and abs(u[2]) >= GRAZING):
         wb = (0.0, 0.0, 0.0)
     ec = eta_corr(B, slab_E, exit_top)
@@ -372,7 +385,7 @@ def unidirectional(B, FT, W, nL, wo, R, mis):
                 pv, _ = ph.connect(B, mo + M_PH, FT, w_in, d, V[F_SIGIN], s_d)
                 val = (pv, pv, pv)
             else:
-                val, pv, _ = ki.evaluate(B, _ifo(lay), w_in, d, NAN, NAN, False)
+                val, pv, _ = _evaluate(B, _ifo(lay), w_in, d, NAN, NAN, False)
             T = transmittance(B, FT, slab_E, d, tv, tE)
             w = 1.0 if delta_E else (power(p_E, pv) if mis else 1.0)
             fac = abs(wo[2]) * exit_arr / abs(u[2]) * ec * w
@@ -385,7 +398,7 @@ def unidirectional(B, FT, W, nL, wo, R, mis):
             continue
         T = transmittance(B, FT, slab_E, dc, tv, tE)
         mdc = (-dc[0], -dc[1], -dc[2])
-        v, _, pE = ki.evaluate(B, oE, mdc, wo, NAN, NAN, False)
+        v, _, pE = _evaluate(B, oE, mdc, wo, NAN, NAN, False)
         arr = ki.arrival(B, oE, mdc)
         if V[F_DELTA] > 0.0:
             w = 1.0
@@ -412,8 +425,7 @@ def _pass(B, FT, k, d, t0, t1, approx, hero):
     return (T[0] + T[1] + T[2]) / 3.0
 
 
-@njit("(float64[::1], float64[:, ::1], float64[:, :, ::1], int64, UniTuple(float64, 3), uint64[::1], int64, boolean, int64)",
-      cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def pdf_nee(B, FT, W, nL, wo, R, hero, approx, kmax):
     """The sampler's density of ``wo`` by next-event estimation through the exit interface E
     (the unidirectional estimator, applied to densities): walk 0 is the sampler itself (weight
@@ -434,7 +446,7 @@ def pdf_nee(B, FT, W, nL, wo, R, hero, approx, kmax):
     u0 = ph.rnd(R)
     u1 = ph.rnd(R)
     u2 = ph.rnd(R)
-    u, _, qf, qr, _ = ki.sample(B, oE, wo, u0, u1, u2, True)
+    u, _, qf, qr, _ = _sample(B, oE, wo, u0, u1, u2, True)
     nee = u[2] * wo[2] < 0.0 and abs(u[2]) >= GRAZING and qf > 0.0
     d = (-u[0], -u[1], -u[2])
     mo = _mdo(slab_E)
@@ -456,13 +468,13 @@ def pdf_nee(B, FT, W, nL, wo, R, hero, approx, kmax):
             if medium:
                 pv, _ = ph.connect(B, mo + M_PH, FT, w_in, d, V[F_SIGIN], s_d)
             else:
-                _, pv, _ = ki.evaluate(B, _ifo(lay), w_in, d, NAN, NAN, True)
+                _, pv, _ = _evaluate(B, _ifo(lay), w_in, d, NAN, NAN, True)
             if pv > 0.0:
                 acc += pv * _pass(B, FT, slab_E, d, tv, tE, approx, hero) * qr * qf / (qf * qf + pv * pv)
         dc = (V[F_WOUT], V[F_WOUT + 1], V[F_WOUT + 2])
         if V[F_PF] > 0.0 and ((dc[2] > 0.0) if exit_top else (dc[2] < 0.0)) and abs(dc[2]) >= GRAZING:
             mdc = (-dc[0], -dc[1], -dc[2])
-            _, pE, qE = ki.evaluate(B, oE, mdc, wo, NAN, NAN, True)
+            _, pE, qE = _evaluate(B, oE, mdc, wo, NAN, NAN, True)
             if pE > 0.0:
                 P = _pass(B, FT, slab_E, dc, tv, tE, approx, hero)
                 if V[F_DELTA] > 0.0:
@@ -497,7 +509,7 @@ def value(B, FT, W, R, a, b, est, C):
     nL = 0
     nR = 0
     for k in range(1 if uni else 2):
-        n, _, _, _, capped, _ = wk.walk(B, FT, a if k == 0 else b, W, k, R, wk.VALUE, False,
+        n, _, _, _, capped, _ = wk.run(B, FT, a if k == 0 else b, W, k, R, wk.VALUE, False,
                                         wk.RR_EVAL_START, wk.RR_EVAL_THR, cap, -1)
         _count(C, n, capped)
         if k == 0:
@@ -505,7 +517,7 @@ def value(B, FT, W, R, a, b, est, C):
         else:
             nR = n
     if uni:
-        g = unidirectional(B, FT, W, nL, b, R, B[H_MIS] > 0.0)
+        g = unidirectional(B, FT, W, nL + 0, b, R, B[H_MIS] > 0.0)
         return (f[0] + g[0], f[1] + g[1], f[2] + g[2])
     g, _ = bidirectional(B, FT, W, nL, nR, b[2] > 0.0, False, False, 0, -1)
     az = abs(b[2])
@@ -548,7 +560,7 @@ def pdf_pair(B, FT, W, R, a, b1, need1, b2, need2, kind, C):
         cap = _cap(B, W)
         if B[wk.H_CHROM] > 0.0:
             hero = min(int(ph.rnd(R) * 3.0), 2)
-    nL, _, _, _, cL, hero = wk.walk(B, FT, a, W, 0, R, wk.PDF, approx, wk.RR_OFF, 1.0, cap, hero)
+    nL, _, _, _, cL, hero = wk.run(B, FT, a, W, 0, R, wk.PDF, approx, wk.RR_OFF, 1.0, cap, hero)
     if not approx:
         _count(C, nL, cL)
     for k in range(2):
@@ -558,9 +570,9 @@ def pdf_pair(B, FT, W, R, a, b1, need1, b2, need2, kind, C):
         _, p = single(B, a, b, True)
         nmax = (2 * slabs + 1 if a[2] * b[2] > 0.0 else slabs + 1) if approx else 0
         if kind != STOCHASTIC_BI and not ki.is_delta(B, _ifo(0 if b[2] > 0.0 else N - 1)):
-            p += pdf_nee(B, FT, W, nL, b, R, hero, approx, nmax - 1 if approx else nL)
+            p += pdf_nee(B, FT, W, nL + 0, b, R, hero + 0, approx == True, (nmax - 1 if approx else nL) + 0)  # noqa: E712
         else:
-            nR, _, _, _, cR, _ = wk.walk(B, FT, b, W, 1, R, wk.PDF, approx, wk.RR_OFF, 1.0,
+            nR, _, _, _, cR, _ = wk.run(B, FT, b, W, 1, R, wk.PDF, approx, wk.RR_OFF, 1.0,
                                          2 * slabs if approx else cap, hero)
             if not approx:
                 _count(C, nR, cR)
@@ -598,7 +610,7 @@ def sample_query(B, FT, W, R, wi, mode, want_pdf, kind, C):
     zero = (0.0, 0.0, 0.0)
     if not valid_in(B, wi):
         return (0.0, 0.0, 1.0), zero, 0.0, False
-    n, wo, w, delta, capped, _ = wk.walk(B, FT, wi, W, 0, R, wk.NONE, False, wk.RR_SAMPLE_START,
+    n, wo, w, delta, capped, _ = wk.run(B, FT, wi, W, 0, R, wk.NONE, False, wk.RR_SAMPLE_START,
                                          wk.RR_SAMPLE_THR, int(B[H_MAXV]), -1)
     _count(C, n, capped)
     if not max(w[0], max(w[1], w[2])) > 0.0:
@@ -637,13 +649,13 @@ def nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, want_sample, C):
     if want_sample:
         # The forward walk from wi: the sample (a joint walk records its vertices for the
         # connection and uses the eval's roulette; a separate one uses the sample's).
-        nL, wo_s, w_s, d_s, cL, _ = wk.walk(B, FT, wi, W, 0, R, wk.VALUE if joint else wk.NONE,
+        nL, wo_s, w_s, d_s, cL, _ = wk.run(B, FT, wi, W, 0, R, wk.VALUE if joint else wk.NONE,
                                              False, wk.RR_EVAL_START if joint else wk.RR_SAMPLE_START,
                                              wk.RR_EVAL_THR if joint else wk.RR_SAMPLE_THR,
                                              _cap(B, W) if joint else int(B[H_MAXV]), -1)
         _count(C, nL, cL)
         if conn and joint:
-            nR, _, _, _, cR, _ = wk.walk(B, FT, wo, W, 1, R, wk.VALUE, False, wk.RR_EVAL_START,
+            nR, _, _, _, cR, _ = wk.run(B, FT, wo, W, 1, R, wk.VALUE, False, wk.RR_EVAL_START,
                                          wk.RR_EVAL_THR, _cap(B, W), -1)
             _count(C, nR, cR)
             g, _ = bidirectional(B, FT, W, nL, nR, wo[2] > 0.0, False, False, 0, -1)
@@ -670,7 +682,7 @@ def albedo(B, FT, W, R, C):
     """A one-sample estimate of the normal-incidence albedo (for the denoising AOV: averaged over
     a pixel's samples it converges to the directional albedo): a sample walk, importance
     transport, its weight if it leaves upwards."""
-    n, wo, w, _, capped, _ = wk.walk(B, FT, (0.0, 0.0, 1.0), W, 0, R, wk.NONE, False, wk.RR_SAMPLE_START,
+    n, wo, w, _, capped, _ = wk.run(B, FT, (0.0, 0.0, 1.0), W, 0, R, wk.NONE, False, wk.RR_SAMPLE_START,
                                      wk.RR_SAMPLE_THR, int(B[H_MAXV]), -1)
     _count(C, n, capped)
     if wo[2] > 0.0:

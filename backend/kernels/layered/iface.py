@@ -64,7 +64,7 @@ def _world(B, o, w):
             w[0] * B[s + 2] + w[1] * B[t + 2] + w[2] * B[n + 2])
 
 
-@njit("(float64[::1], int64, UniTuple(float64, 3))", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def arrival(B, o, w):
     """|⟨n, w⟩|/|w_z| for a normal-mapped interface reached along −w (0 across the normals), 1
     without a normal map."""
@@ -125,7 +125,7 @@ def _alphas(B, o):
     return B[o + IF_P + 4], B[o + IF_P + 5]
 
 
-@njit("(float64[::1], int64, UniTuple(float64, 3))", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def term(B, o, w):
     """The masking term of direction w at a rough interface (in its shading frame); 0 else."""
     kind = B[o + IF_KIND]
@@ -409,7 +409,7 @@ def _sample_local(B, o, wi, u0, u1, u2, dens):
     return (-wi[0], -wi[1], -wi[2]), (B[p], B[p + 1], B[p + 2]), 1.0, 1.0, True
 
 
-@njit("(float64[::1], int64, UniTuple(float64, 3), float64, float64, float64, boolean)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def sample(B, o, wi, u0, u1, u2, dens):
     """(wo, weight f·|cos θo|/p (RGB), pf, pr, delta): importance transport. ``dens``: compute
     the densities (walks whose vertices feed MIS weights); otherwise pf = pr = 1 placeholders.
@@ -424,7 +424,7 @@ def sample(B, o, wi, u0, u1, u2, dens):
     return wo, w, pf, pr, delta
 
 
-@njit("(float64[::1], int64, UniTuple(float64, 3), UniTuple(float64, 3), float64, float64, boolean)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def evaluate(B, o, wi, wo, ti, to, pdf_only):
     """(f(wi → wo)·|cos θo| RGB (importance transport), pf = p(wo | wi), pr = p(wi | wo)) of the
     non-delta part. ``ti``/``to``: the masking terms of wi and wo if known (``term``), else NaN.

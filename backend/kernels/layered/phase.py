@@ -374,7 +374,7 @@ def _sggx_d4(P, o, h):
 
 
 # ----------------------------------------------------------------------------- dispatch
-@njit("(float64[::1], int64, float64[:, ::1], UniTuple(float64, 3))", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def sigma_scale(P, o, FT, d):
     """Direction-dependent extinction factor σt(d)/σt: 1 except for microflake phases."""
     kind = P[o + PK]
@@ -396,7 +396,7 @@ def _hg_value(g, omc, opc):
     return (1.0 - g * g) * INV_4PI / (den * math.sqrt(den))
 
 
-@njit("(float64[::1], int64, float64[:, ::1], UniTuple(float64, 3), UniTuple(float64, 3), float64, float64)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def connect(P, o, FT, a, b, s_a, s_b):
     """(p(−a → b), p(−b → a)) for a, b pointing away from the scattering point. ``s_a``, ``s_b``:
     sigma_scale of a and b (read only by microflake phases)."""
@@ -428,7 +428,7 @@ def connect(P, o, FT, a, b, s_a, s_b):
     return d / max(s_a, 1e-300), d / max(s_b, 1e-300)
 
 
-@njit("(float64[::1], int64, float64[:, ::1], UniTuple(float64, 3), UniTuple(float64, 3))", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def evaluate(P, o, FT, d_in, d_out):
     """p(d_in → d_out) (= its sampling density)."""
     a = (-d_in[0], -d_in[1], -d_in[2])
@@ -439,7 +439,7 @@ def evaluate(P, o, FT, d_in, d_out):
     return connect(P, o, FT, a, d_out, s_a, 1.0)[0]
 
 
-@njit("(float64[::1], int64, float64[:, ::1], UniTuple(float64, 3), float64, uint64[::1], int64)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def sample(P, o, FT, d_in, s_in, R, max_candidates):
     """(d_out, weight, pdf, reverse pdf p(−d_out → −d_in), sigma_scale(d_out), candidates).
     ``s_in`` = sigma_scale(d_in) (microflake phases). Weight 1, or 0 for a failed fiber sample."""

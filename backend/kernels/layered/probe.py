@@ -80,7 +80,7 @@ def walks(Bs, FT, w0, seed, purpose, approx, rr_start, rr_thr, cap, hero, W1, R,
     for i in range(w0.shape[0]):
         R[0] = path_key(seed, i, 0)
         R[1] = 0
-        n, d, w, dl, capped, h = wk.walk(Bs[_ri(Bs, i)], FT, (w0[i, 0], w0[i, 1], w0[i, 2]), W1, 0, R,
+        n, d, w, dl, capped, h = wk.run(Bs[_ri(Bs, i)], FT, (w0[i, 0], w0[i, 1], w0[i, 2]), W1, 0, R,
                                          purpose, approx, rr_start, rr_thr, cap, hero[i])
         C[0] += capped
         count[i] = n

@@ -78,7 +78,7 @@ def _max3(a):
     return max(a[0], max(a[1], a[2]))
 
 
-@njit("(float64[::1], int64, float64, UniTuple(float64, 3), float64, boolean, boolean, boolean, int64, UniTuple(float64, 3), uint64[::1])", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def flight(B, mo, s0, d, sig, prev_medium, approx, hero_pdf, hero, r, R):
     """A free flight from normalised depth s0 along d through the (non-empty) slab block ``mo``:
     a scattering depth inside it, or its boundary. Returns (scattered, new normalised depth,
@@ -148,7 +148,7 @@ def flight(B, mo, s0, d, sig, prev_medium, approx, hero_pdf, hero, r, R):
     return False, bound, fac, 1.0, r, dens, drev
 
 
-@njit("(float64[::1], float64[:, ::1], int64, UniTuple(float64, 3), float64, float64, boolean, int64)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def depth_density(B, FT, k, d, t0, t1, to_medium, hero):
     """Density with which a free flight in slab k along d from depth t0 produces depth t1: per
     unit depth if ``to_medium`` (a scattering vertex), else the probability of reaching the
@@ -173,7 +173,17 @@ def depth_density(B, FT, k, d, t0, t1, to_medium, hero):
     return out / 3.0
 
 
-@njit("(float64[::1], float64[:, ::1], UniTuple(float64, 3), float64[:, :, ::1], int64, uint64[::1], int64, boolean, int64, float64, int64, int64)", cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
+@njit(cache=True, _nrt=False, inline="always")
+def run(B, FT, w0, W, slot, R, purpose, approx, rr_start, rr_thr, cap, hero):
+    """``walk`` with every flag turned into a runtime value. Numba types constant arguments as
+    literals and compiles a specialisation of the callee per combination of them (the walk was
+    compiled four times); ``x + 0`` of a variable, ``b == True``, ``f * 1.0`` are plain int64,
+    bool and float64. Callers use this (it is inlined, the walk itself is not)."""
+    return walk(B, FT, w0, W, slot + 0, R, purpose + 0, approx == True, rr_start + 0,  # noqa: E712
+                rr_thr * 1.0, cap + 0, hero + 0)
+
+
+@njit(cache=True, _nrt=False, error_model="numpy", fastmath={"nsz", "arcp", "contract", "afn", "reassoc"})
 def walk(B, FT, w0, W, slot, R, purpose, approx, rr_start, rr_thr, cap, hero):
     """Walk from direction ``w0`` (pointing away from the surface): enter at the top if w0_z > 0,
     else at the bottom. ``approx``: media do not scatter (crossing a slab multiplies ``gamma`` by
@@ -218,11 +228,11 @@ def walk(B, FT, w0, W, slot, R, purpose, approx, rr_start, rr_thr, cap, hero):
             u0 = ph.rnd(R)
             u1 = ph.rnd(R)
             u2 = ph.rnd(R)
-            d_out, wgt, pf, pr, delta = ki.sample(B, o, w_in, u0, u1, u2, record)
+            d_out, wgt, pf, pr, delta = ki.sample(B, o, w_in, u0, u1, u2, record == True)  # noqa: E712
             sig_new = sig
         else:
             mo = MED0 + layer * MSTRIDE
-            d_out, w1, pf, pr, s_out, _ = ph.sample(B, mo + M_PH, FT, d, sig, R, ph.MAX_CANDIDATES)
+            d_out, w1, pf, pr, s_out, _ = ph.sample(B, mo + M_PH, FT, d, sig, R, cap * 0 + ph.MAX_CANDIDATES)
             wgt = (w1, w1, w1)
             delta = False
             sig_new = s_out if B[mo + M_DIR] > 0.0 else sig
