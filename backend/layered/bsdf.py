@@ -33,7 +33,7 @@ class Options:
 
 
 ESTIMATORS = {"bi": 0, "uni": 1}
-PDF_KINDS = {"approx": 0, "stochastic": 1, "stochastic-bi": 2}   # the last: benchmarks
+PDF_KINDS = {"approx": 0, "stochastic": 1, "stochastic-bi": 2, "approx-bi": 3}   # the last two: benchmarks
 
 
 def new_stats() -> dict:

@@ -12,4 +12,12 @@ Modules (import them through ``backend.kernels``, which configures the kernel ca
               sample, the integrator's combined light connection + continuation, albedo;
 * ``batch``   array entry points for NumPy callers (``backend/layered``: the BSDF inspector,
               tests) — loops over lanes calling the same per-lane code as the integrator.
+
+Compiler options: ``error_model="numpy"`` (no division-by-zero checks; every division that
+matters is guarded) but no ``fastmath``: a function compiled into two kernels' libraries (the
+integrator's ``shade`` and the inspector's ``run``) is one symbol for the process, resolved to
+whichever copy was loaded first, and with value-changing fast-math flags (contraction,
+reassociation) the two copies round differently — a render then differed in the last bit from
+the same render in a fresh process (caught by the bit-identity test). Without them every copy
+computes the same IEEE results.
 """
