@@ -14,10 +14,10 @@ Modules (import them through ``backend.kernels``, which configures the kernel ca
               tests) — loops over lanes calling the same per-lane code as the integrator.
 
 Compiler options: ``error_model="numpy"`` (no division-by-zero checks; every division that
-matters is guarded) but no ``fastmath``: a function compiled into two kernels' libraries (the
-integrator's ``shade`` and the inspector's ``run``) is one symbol for the process, resolved to
-whichever copy was loaded first, and with value-changing fast-math flags (contraction,
-reassociation) the two copies round differently — a render then differed in the last bit from
-the same render in a fresh process (caught by the bit-identity test). Without them every copy
-computes the same IEEE results.
+matters is guarded) but no ``fastmath``. With value-changing fast-math flags (contraction,
+reassociation) a render in a process that had first loaded the inspector's ``run`` kernel
+differed in the last bit from the same render in a fresh process (caught by the bit-identity
+test; most likely a shared function's symbol resolved to ``run``'s copy, optimised and rounded
+differently). Without them every compiled copy computes the same IEEE results (measured cost of
+dropping them: within the run-to-run noise).
 """
