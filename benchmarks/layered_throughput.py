@@ -7,8 +7,9 @@
 Stacks: 1 slab (Guo et al. Fig. 2 top: rough dielectric / HG medium / rough copper), 2 slabs
 (the project's reference stack: two anisotropic microflake slabs), 3 slabs (dielectric / HG /
 dielectric / HG / dielectric / HG / copper). For each: eval (uni and bi), the approximate and
-the stochastic pdf, and sample (with and without its MIS pdf), in µs per lane and lanes per
-second, plus the variance of one eval estimate times its cost (lower is better: the time to a
+the stochastic pdf (as the stack uses it: next-event estimation on one slab, bidirectional on
+several; and bidirectional everywhere), and sample (with and without its MIS pdf), in µs per lane
+and lanes per second, plus the variance of one eval estimate times its cost (lower is better: the time to a
 given noise level). One process, one thread (the machine's other core stays free), CPU time,
 rounds interleaved (round r runs every stack and query once), median and spread reported. The
 BSDF runs as compiled per-lane code (backend/kernels/layered); the kernels are loaded before
@@ -262,7 +263,7 @@ def main():
           f"[min–max] of {args.repeat} interleaved rounds (load {load_avg[0]:.2f} {load_avg[1]:.2f})")
     labels = (("eval_bi", "eval, bidirectional"), ("eval_uni", "eval, unidirectional"),
               ("eval_uni_nomis", "eval, uni without MIS"), ("pdf_approx", "pdf, approximate"),
-              ("pdf_stochastic", "pdf, stochastic (NEE)"), ("pdf_stochastic_bi", "pdf, stochastic (bidir.)"),
+              ("pdf_stochastic", "pdf, stochastic"), ("pdf_stochastic_bi", "pdf, stochastic, bidir."),
               ("sample", "sample (weight only)"), ("sample_with_pdf", "sample + approx pdf"))
     for r in res:
         print(f"\n{r['stack']}  ({r['vertices_per_walk']:.1f} vertices per walk on average)")
@@ -270,7 +271,7 @@ def main():
             print(f"  {label:26s} {fmt(r[key])} µs   {1e6 / r[key]['median']:12,.0f} /s")
         print(f"  stochastic pdf ÷ approximate pdf: {r['pdf_stochastic']['median'] / r['pdf_approx']['median']:.2f}")
         print(f"  relative variance × µs: eval bi {r['eval_bi_rel_var_x_us']:.2f}, uni "
-              f"{r['eval_uni_rel_var_x_us']:.2f}; stochastic pdf NEE {r['pdf_stochastic_rel_var_x_us']:.2f}, "
+              f"{r['eval_uni_rel_var_x_us']:.2f}; stochastic pdf {r['pdf_stochastic_rel_var_x_us']:.2f}, "
               f"bidir. {r['pdf_stochastic_bi_rel_var_x_us']:.2f} (lower = less time to a given noise)")
 
 
