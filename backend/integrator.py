@@ -82,8 +82,7 @@ class PathTracer:
             np.array([i for i, l in enumerate(self.lights) if l.is_infinite], np.int64),
             np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights] or [False]))
         self.camera = camera_vector(scene.camera)
-        f = scene.pixel_filter
-        self.filter = (f._cdf, f._grid, float(f.width))
+        self.filter = scene.pixel_filter.tables()
         self.any_hidden = bool(soup.count) and not bool(soup.camera_visible.all())
         self.deferred = [i for i, k in enumerate(self.materials.kind) if k == km.DEFERRED]
 
@@ -102,8 +101,7 @@ class PathTracer:
         alpha = np.zeros(n)
         cur, nxt = _Queue(n), _Queue(n)
         tmax32 = np.empty(n, np.float32)
-        cdf, grid, fwidth = self.filter
-        camera_rays(self.camera, cdf, grid, fwidth, W, H, self.settings.seed,
+        camera_rays(self.camera, *self.filter, W, H, self.settings.seed,
                     np.ascontiguousarray(pixels, np.int64), spp, sample0,
                     cur.key, cur.o, cur.d, cur.o32, cur.d32, tmax32)
         cur.slot[:] = np.arange(n)

@@ -29,6 +29,10 @@ def main(argv=None) -> int:
     ap.add_argument("--max-bounces", type=int, default=6)
     args = ap.parse_args(argv)
 
+    from backend.kernels.cache import ensure_compiled
+    from backend.kernels.warmup import warm_up
+    ensure_compiled()
+    warm_up()                  # steady state: every kernel loaded before timing
     scene = load_scene_data(cornell_box(args.size, args.size, args.spp, args.max_bounces), "<cornell>")
     accel = Accelerator(scene.soup)
     tracer = PathTracer(scene, accel)
