@@ -21,6 +21,8 @@ from .kernels import materials as km
 from .kernels.camera import camera_rays, camera_vector
 from .kernels.lights.table import build_light_table
 from .kernels.params import ParamPacker
+from .kernels.sampler import SAMPLERS
+from .lights.environment import ConstantWorld
 from .materials.base import ShadingContext
 
 
@@ -58,9 +60,14 @@ class PathTracer:
         self.lights = list(scene.lights)
         packer = ParamPacker()
         self.materials = build_material_table(scene.materials, packer)
-        self.light_table = build_light_table(self.lights, packer, scene.radius, s.light_selection)
+        # Next-event estimation never samples a constant world: BSDF sampling is the better
+        # strategy for it everywhere (exact for a Lambertian surface: zero variance, as in
+        # Cycles), and its escaped rays then keep MIS weight 1 (selection probability 0).
+        powers = [0.0 if isinstance(l, ConstantWorld) else float(l.power()) for l in self.lights]
+        self.light_table = build_light_table(self.lights, packer, scene.radius, s.light_selection,
+                                             powers=powers)
         self.textures = packer.table()
-        has_lights = any(l.power() > 0 for l in self.lights)
+        has_lights = any(pw > 0 for pw in powers)
         mesh_light = self.lights.index(scene.mesh_light) if scene.mesh_light is not None else -1
         emitter = np.full(max(soup.count, 1), -1, np.int32)
         if scene.mesh_light is not None:
@@ -80,7 +87,8 @@ class PathTracer:
             has_lights, mesh_light,
             np.array([i for i, l in enumerate(self.lights) if l.is_hittable], np.int64),
             np.array([i for i, l in enumerate(self.lights) if l.is_infinite], np.int64),
-            np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights] or [False]))
+            np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights] or [False]),
+            SAMPLERS[s.sampler])
         self.camera = camera_vector(scene.camera)
         self.filter = scene.pixel_filter.tables()
         self.any_hidden = bool(soup.count) and not bool(soup.camera_visible.all())
@@ -93,6 +101,7 @@ class PathTracer:
         ``FilmAccumulator.add``. ``rng`` feeds the layered BSDF's NumPy walks only."""
         scene = self.scene
         W, H = scene.width, scene.height
+        pixels = np.ascontiguousarray(pixels, np.int64)
         P = pixels.size
         n = P * spp
         L = np.zeros((n, 3))
@@ -101,8 +110,8 @@ class PathTracer:
         alpha = np.zeros(n)
         cur, nxt = _Queue(n), _Queue(n)
         tmax32 = np.empty(n, np.float32)
-        camera_rays(self.camera, *self.filter, W, H, self.settings.seed,
-                    np.ascontiguousarray(pixels, np.int64), spp, sample0,
+        camera_rays(self.camera, *self.filter, W, H, self.settings.seed, self.settings.sampler,
+                    pixels, spp, sample0,
                     cur.key, cur.o, cur.d, cur.o32, cur.d32, tmax32)
         cur.slot[:] = np.arange(n)
         cur.beta[:] = 1.0
@@ -133,6 +142,7 @@ class PathTracer:
                 prim, t, b1, b2 = self._skip_hidden(o32, d32, t_in, prim, t, b1, b2)
             counts[:] = 0
             ki.shade(self.geometry, self.materials, self.textures, self.light_table, self.settings, segment,
+                     pixels, spp, sample0,
                      cur.slot[:active], cur.key[:active], cur.o[:active], cur.d[:active], cur.beta[:active],
                      cur.pdf[:active], cur.delta[:active], t_in, prim, t, b1, b2,
                      L, albedo, normal, alpha, *nxt.outputs(),

@@ -47,12 +47,13 @@ class RenderOptions:
     noise_target: float | None = None
     min_spp: int | None = None
     max_bounces: int | None = None
+    sampler: str | None = None
     resolution: tuple[int, int] | None = None
     parallel: str | None = None          # "threads" | "processes" | None (the scene's choice)
 
     def apply(self, scene) -> None:
         s = scene.settings
-        for name in ("spp", "seed", "time_limit", "noise_target", "min_spp", "max_bounces"):
+        for name in ("spp", "seed", "time_limit", "noise_target", "min_spp", "max_bounces", "sampler"):
             value = getattr(self, name)
             if value is not None:
                 setattr(s, name, value)

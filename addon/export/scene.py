@@ -75,7 +75,8 @@ def render_json(scene, *, samples: int | None = None, seed_offset: int = 0) -> d
            "clamp": float(s.clamp),
            "noise_target": float(s.noise_threshold),
            "min_spp": int(s.min_samples),
-           "time_limit": float(s.time_limit)}
+           "time_limit": float(s.time_limit),
+           "sampler": s.sampler.lower()}
     layered = {}
     if s.estimator != "BIDIRECTIONAL":
         layered["estimator"] = s.estimator.lower()

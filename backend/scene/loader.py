@@ -32,6 +32,7 @@ class RenderSettings:
     min_spp: int = 16
     time_limit: float = 0.0
     light_selection: str = "local"
+    sampler: str = "sobol"
 
 
 @dataclass
@@ -189,6 +190,7 @@ def parse_settings(node: Node | None, ctx: LoadContext) -> RenderSettings:
     s.min_spp = node.integer("min_spp", s.min_spp, lo=1, hi=1 << 24)
     s.time_limit = node.number("time_limit", s.time_limit, lo=0)
     s.light_selection = node.string("light_selection", s.light_selection, choices=("local", "power"))
+    s.sampler = node.string("sampler", s.sampler, choices=("sobol", "independent"))
     layered = node.optional_child("layered")
     ctx.cache["layered_defaults"] = dict(layered.require_object().value) if layered is not None else {}
     node.finish()
