@@ -47,7 +47,7 @@ Geometry = namedtuple("Geometry", ["position", "normal", "uv", "geo_normal", "ta
 # Render settings the kernels read (scalars; one Numba type per field).
 Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", "transparent",
                                    "has_lights", "mesh_light", "hittable", "infinite",
-                                   "visible_camera", "sampler"])
+                                   "visible_camera", "sampler", "stratified_bounces"])
 
 
 @njit(cache=True, _nrt=False)
@@ -325,9 +325,15 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
         fs, ft = _frame(ns, tan)
         wi_l = _local(fs, ft, ns, wi)
         # 4a. light sample (shared with deferred lanes); the sampler's 2-D slots of this bounce
-        smp = sample0 + sl % spp
-        ps = pixel_seed(S.seed, pixels[sl // spp])
-        u_pick, u_lobe = get2(S.sampler, ps, key[i], smp, bounce_dim(segment, SLOT_LIGHT_PICK))
+        # Stratified numbers for the first bounces, where they pay (direct light at the first
+        # hits); hashed ones deeper, where stratification no longer shows but costs ~40 ns/slot.
+        smode = S.sampler if segment < S.stratified_bounces else 1
+        smp = 0
+        ps = np.uint64(0)
+        if smode == 0:
+            smp = sample0 + sl % spp
+            ps = pixel_seed(S.seed, pixels[sl // spp])
+        u_pick, u_lobe = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_LIGHT_PICK))
         li = -1
         sel_p = 0.0
         wi_w = (0.0, 0.0, 1.0)
@@ -340,7 +346,7 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
         if can_nee:
             li, sel_p = ld.select(LT, p, u_pick)
             if li >= 0 and sel_p > 0.0:
-                ul0, ul1 = get2(S.sampler, ps, key[i], smp, bounce_dim(segment, SLOT_LIGHT))
+                ul0, ul1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_LIGHT))
                 wi_w, dist, value, lpdf, is_delta = ld.sample(LT, TX, li, p, ul0, ul1)
                 wo_n = _local(fs, ft, ns, wi_w)
                 live = max(value[0], max(value[1], value[2])) > 0.0 and _dot(wi_w, ng) * wo_n[2] > 0.0
@@ -380,7 +386,7 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
                  sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
         # 5. continuation
         if not last:
-            ub0, ub1 = get2(S.sampler, ps, key[i], smp, bounce_dim(segment, SLOT_BSDF))
+            ub0, ub1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_BSDF))
             wo, weight, spdf, sdelta = km.sample(kind, dist_code, mask_code, prm, 0, wi_l,
                                                  ub0, ub1, u_lobe)
             if weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0:

@@ -14,7 +14,8 @@ sample count give a bit-identical image however the work is cut (scene ``render.
   hash of (seed, pixel, slot). The error of a pixel falls faster than 1/√N where the integrand
   is smooth, and never slower than with independent numbers.
 * ``"independent"``: the counter-based hash of ``rng.py`` (the reference; also what the layered
-  walks use for their inner dimensions, whose count is not fixed).
+  walks use for their inner dimensions, whose count is not fixed, and what bounces beyond the
+  integrator's ``STRATIFIED_BOUNCES`` use: measured, stratifying them gains nothing visible).
 
 Arithmetic is 32-bit (masks on 64-bit integers, since Numba promotes mixed integer types).
 """
