@@ -31,6 +31,9 @@ class ScaledParam(Param):
     def mean(self) -> np.ndarray:
         return self.inner.mean() * self.factor
 
+    def kernel_pack(self, packer, channels: int, factor):
+        return packer.pack(self.inner, channels, factor * self.factor)
+
 
 def scaled(param: Param, factor: float) -> Param:
     if isinstance(param, ConstantParam):
