@@ -38,6 +38,9 @@ def check_material(name: str, m) -> None:
     if not isinstance(m, dict) or m.get("type") not in SUPPORTED_MATERIALS:
         raise Unsupported(f"material {name}: type {m.get('type') if isinstance(m, dict) else m!r} is not converted")
     kind = m["type"]
+    if "emission" in m:
+        raise Unsupported(f"material {name}: emission is not converted (mesh lights are two-sided in both "
+                          "renderers, but no benchmark scene needs them)")
     if kind == "conductor":
         if "metal" in m or "eta" not in m or "k" not in m:
             raise Unsupported(f"material {name}: give the conductor's eta and k explicitly")
@@ -68,6 +71,20 @@ def coat_over_body(name: str, m: dict) -> tuple[dict, dict]:
     return ifs[0], ifs[1]
 
 
+def cycles_filter(filt: dict) -> tuple[str, float]:
+    """Lamina ``film.filter`` → (Cycles filter type, ``filter_width``) with the same support:
+    Lamina's width is the full support; Cycles' box also, its Blackman-Harris is stretched to
+    twice ``filter_width`` (scene/film.cpp, ``filter_table``). Lamina's Gaussian has a fixed
+    σ = 0.5 px cut at ±width/2, which no Cycles width reproduces: not converted."""
+    kind = filt.get("type", "blackman-harris")
+    width = float(filt.get("width", 1.0 if kind == "box" else 1.5))
+    if kind == "box":
+        return "BOX", width
+    if kind == "blackman-harris":
+        return "BLACKMAN_HARRIS", width / 2.0
+    raise Unsupported(f"pixel filter {kind} has no Cycles equivalent")
+
+
 def prepare(data: dict, job_dir: Path) -> Path:
     """Write ``job.json`` + ``geometry.npz`` for the bpy child into ``job_dir``; returns the json path."""
     from backend.scene.loader import load_scene_data
@@ -83,8 +100,7 @@ def prepare(data: dict, job_dir: Path) -> Path:
     world = data.get("world", {"type": "none"})
     if world.get("type", "none") not in ("constant", "none"):
         raise Unsupported(f"world type {world.get('type')} is not converted")
-    if data["film"].get("filter", {}).get("type", "blackman-harris") not in ("blackman-harris", "box"):
-        raise Unsupported("only Blackman-Harris and box pixel filters have a Cycles equivalent")
+    cycles_filter_ = cycles_filter(data["film"].get("filter", {}))
     if data["camera"].get("type") != "perspective" or "dof" in data["camera"]:
         raise Unsupported("only a perspective pinhole camera is converted")
 
@@ -104,7 +120,7 @@ def prepare(data: dict, job_dir: Path) -> Path:
         arrays[f"o{oi}_slot"] = np.array([slot_of[scene.material_names[i]] for i in mats], np.int32)
         objects.append({"index": oi, "name": obj.get("name", f"object {oi}"), "materials": slot_names,
                         "visible_camera": obj.get("visible_camera", True)})
-    job = {"film": data["film"], "camera": data["camera"], "render": data.get("render", {}),
+    job = {"film": data["film"], "cycles_filter": cycles_filter_, "camera": data["camera"], "render": data.get("render", {}),
            "materials": data.get("materials", {}), "lights": data.get("lights", []), "world": world,
            "objects": objects}
     job_dir.mkdir(parents=True, exist_ok=True)

@@ -6,7 +6,7 @@ talks to ``cycles_child.py`` over a pipe). It supports exactly what ``convert.py
 **The settings made equal** (also listed in docs/benchmarks.md; every number comes from the job,
 i.e. from the Lamina scene dict):
 
-* resolution, 100 %; the pixel filter: same type and the same support (``cycles_filter``: Cycles'
+* resolution, 100 %; the pixel filter: same type and the same support (``convert.cycles_filter``: Cycles'
   Blackman-Harris ``filter_width`` w spans ±w pixels, Lamina's width w spans ±w/2, so Lamina's
   default 1.5 is half as wide as Cycles' default 1.5; the scenes use Cycles' default look);
 * ``max_bounces`` = the scene's, and the per-type limits (diffuse, glossy, transmission) raised to
@@ -107,20 +107,6 @@ def _new_material(name: str, spec: dict):
         raise ValueError(f"material {name}: {kind}")
     tree.links.new(node.outputs[0], out.inputs["Surface"])
     return mat
-
-
-def cycles_filter(filt: dict) -> tuple[str, float]:
-    """Lamina ``film.filter`` → (Cycles filter type, ``filter_width``) with the same support:
-    Lamina's width is the full support; Cycles' box also, its Blackman-Harris is stretched to
-    twice ``filter_width`` (scene/film.cpp, ``filter_table``). Lamina's Gaussian has a fixed
-    σ = 0.5 px cut at ±width/2, which no Cycles width reproduces: not converted."""
-    kind = filt.get("type", "blackman-harris")
-    width = float(filt.get("width", 1.0 if kind == "box" else 1.5))
-    if kind == "box":
-        return "BOX", width
-    if kind == "blackman-harris":
-        return "BLACKMAN_HARRIS", width / 2.0
-    raise ValueError(f"pixel filter {kind} has no Cycles equivalent")
 
 
 def _camera(sc, cam_spec: dict, width: int, height: int):
@@ -270,8 +256,7 @@ def build(job_path: Path, threads: int) -> dict:
     film = job["film"]
     sc.render.resolution_x, sc.render.resolution_y = int(film["width"]), int(film["height"])
     sc.render.resolution_percentage = 100
-    filt = film.get("filter", {"type": "blackman-harris", "width": 1.5})
-    sc.cycles.pixel_filter_type, sc.cycles.filter_width = cycles_filter(filt)
+    sc.cycles.pixel_filter_type, sc.cycles.filter_width = job["cycles_filter"]     # convert.cycles_filter
     img = sc.render.image_settings
     img.file_format = "OPEN_EXR"
     img.color_depth = "32"
