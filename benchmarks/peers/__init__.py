@@ -27,6 +27,7 @@ def section(ctx, scene_names: list[str] | None = None) -> str:
     from . import report, run
     from .scenes import PEER_SCENES
     scenes = [s for s in PEER_SCENES if scene_names is None or s.name in scene_names]
+    ctx.cache.mkdir(parents=True, exist_ok=True)         # a fresh clone has no cache yet
     results, info = run.run_all(scenes, ctx.quick, ctx.cache, lambda m: ctx.log(m),
                                 child_log=ctx.cache / "peers-cycles-child.log")
     info["quick"] = ctx.quick
