@@ -28,7 +28,7 @@ def _synthetic(seed: int, darker: float = 1.0, rel_sigma: float = 0.02, n_render
     var_a = (darker * sa) ** 2
     renders = [truth + rng.normal(size=truth.shape) * rel_sigma * truth * math.sqrt(n_renders) for _ in range(n_renders)]
     b, var_b = agree.split_variance(renders)
-    return a, var_a, b, var_b, agree.regions(lab, names, grid=1, min_pixels=24)
+    return a, var_a, b, var_b, agree.regions(lab, names, grid=1, min_pixels=24, whole=False)
 
 
 def test_same_distribution_passes_and_one_percent_darker_fails():
@@ -73,6 +73,8 @@ def test_regions_cut_large_labels_and_merge_small_tiles():
     lab[:, 20:] = 1                          # label 1: 30 × 10 = 300 pixels, label 0: 600
     lab[0, 0] = 2                            # a one-pixel label: dropped
     regs = agree.regions(lab, ["big", "small", "dot"], grid=3, min_pixels=24)
+    assert regs[0][0] == "whole image" and regs[0][1].all()
+    regs = regs[1:]
     names = [n for n, _ in regs]
     assert "dot" not in " ".join(names)
     covered = np.zeros_like(lab, dtype=int)

@@ -111,15 +111,18 @@ def labels(data: dict, soup_vertices: np.ndarray, object_id: np.ndarray, half_wi
     return out, names
 
 
-def regions(label_img: np.ndarray, names: list[str], grid: int = GRID, min_pixels: int = MIN_PIXELS):
+def regions(label_img: np.ndarray, names: list[str], grid: int = GRID, min_pixels: int = MIN_PIXELS,
+            whole: bool = True):
     """Cut each label into image tiles: list of (name, boolean mask). Tiles smaller than
     ``min_pixels`` are merged into one remainder per label; labels smaller than that are dropped
-    (reported as such by the caller)."""
+    (reported as such by the caller). With ``whole``, the whole image comes first as one more
+    region: the most sensitive test of an overall brightness difference (in the noisiest scene,
+    the IES room, a tile detects 1–11 %, the whole image 0.6 %)."""
     H, W = label_img.shape
     ty = np.minimum(np.arange(H) * grid // H, grid - 1)
     tx = np.minimum(np.arange(W) * grid // W, grid - 1)
     tile = ty[:, None] * grid + tx[None, :]
-    out = []
+    out = [("whole image", np.ones_like(label_img, dtype=bool))] if whole else []
     for li, name in enumerate(names):
         mask = label_img == li
         n = int(mask.sum())

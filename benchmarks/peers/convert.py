@@ -85,8 +85,9 @@ def cycles_filter(filt: dict) -> tuple[str, float]:
     raise Unsupported(f"pixel filter {kind} has no Cycles equivalent")
 
 
-def prepare(data: dict, job_dir: Path) -> Path:
-    """Write ``job.json`` + ``geometry.npz`` for the bpy child into ``job_dir``; returns the json path."""
+def prepare(data: dict, job_dir: Path, cycles_overrides: dict | None = None) -> Path:
+    """Write ``job.json`` + ``geometry.npz`` for the bpy child into ``job_dir``; returns the json path.
+    ``cycles_overrides`` (deliberate mistakes, for ``sensitivity.py`` only) is passed through."""
     from backend.scene.loader import load_scene_data
 
     for name, m in data.get("materials", {}).items():
@@ -123,6 +124,8 @@ def prepare(data: dict, job_dir: Path) -> Path:
     job = {"film": data["film"], "cycles_filter": cycles_filter_, "camera": data["camera"], "render": data.get("render", {}),
            "materials": data.get("materials", {}), "lights": data.get("lights", []), "world": world,
            "objects": objects}
+    if cycles_overrides:
+        job["cycles_overrides"] = dict(cycles_overrides)
     job_dir.mkdir(parents=True, exist_ok=True)
     np.savez(job_dir / "geometry.npz", **arrays)
     path = job_dir / "job.json"

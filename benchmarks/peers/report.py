@@ -82,6 +82,10 @@ def _fmt(x, d=3) -> str:
     return f"{x:.{d}g}"
 
 
+def _load(x: float) -> str:
+    return f"{x:.2f}" if math.isfinite(x) else "– (runs < 0.5 s)"
+
+
 def _display(img: np.ndarray, scale: float) -> np.ndarray:
     x = np.clip(img / max(scale, 1e-12), 0, 1)
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
@@ -90,7 +94,8 @@ def _display(img: np.ndarray, scale: float) -> np.ndarray:
 def _region_map(shape, results, value) -> np.ndarray:
     out = np.full(shape, np.nan)
     for (name, mask), r in results:
-        out[mask] = value(r)
+        if name != "whole image":          # drawn region by region; the whole image is in the table
+            out[mask] = value(r)
     return out
 
 
@@ -217,7 +222,7 @@ def section(results: list, summaries: list, info: dict, link) -> str:
                   f"**{_fmt(s['cpu_ratio_sampling'])}×** | {_fmt(s['spp_ratio'])}× | {_fmt(cl['us_per_px_sample'])} / "
                   f"{_fmt(cc['us_per_px_sample'])} ({_fmt(s['cost_ratio'])}×) | {_fmt(cl['us_per_px_sample_total'])} / "
                   f"{_fmt(cc['us_per_px_sample_total'])} | {_fmt(cl['t0'])} s / {_fmt(cc['t0'])} s | {agree_txt} | {dark_txt} | "
-                  f"{s['background_load']['lamina']:.2f} / {s['background_load']['cycles']:.2f}; "
+                  f"{_load(s['background_load']['lamina'])} / {_load(s['background_load']['cycles'])}; "
                   f"{s['load_avg'][0]:.2f} → {s['load_avg'][1]:.2f} |")
     md += ["", "† different materials (Lamina's 2-interface coat vs Cycles' Principled BSDF with Coat): the ratios "
            "compare CPU time to equal **own relative** noise (relative RMSE = RMSE / mean of the own reference), "

@@ -50,8 +50,15 @@ import numpy as np
 from mathutils import Matrix
 
 
+#: Deliberate mistakes for ``sensitivity.py`` only (``job["cycles_overrides"]``), never set by the
+#: benchmark: they show what the agreement check catches.
+_OVERRIDES: dict = {}
+
+
 def _rough(alpha: float) -> float:
     """Lamina's α → Cycles' roughness slider (Cycles uses α = r²)."""
+    if _OVERRIDES.get("roughness_is_alpha"):
+        return float(alpha)
     return math.sqrt(max(float(alpha), 0.0))
 
 
@@ -62,7 +69,7 @@ def _rgb(v) -> tuple:
 
 
 def _ggx(node) -> None:
-    node.distribution = "GGX"
+    node.distribution = _OVERRIDES.get("distribution", "GGX")
 
 
 def _new_material(name: str, spec: dict):
@@ -250,6 +257,8 @@ def build(job_path: Path, threads: int) -> dict:
     """Build the scene of ``job.json`` in an empty Blender; returns checks for the report."""
     job = json.loads(Path(job_path).read_text(encoding="utf-8"))
     geometry = dict(np.load(Path(job_path).with_name("geometry.npz")))
+    _OVERRIDES.clear()
+    _OVERRIDES.update(job.get("cycles_overrides", {}))
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
     sc.render.engine = "CYCLES"
@@ -257,6 +266,8 @@ def build(job_path: Path, threads: int) -> dict:
     sc.render.resolution_x, sc.render.resolution_y = int(film["width"]), int(film["height"])
     sc.render.resolution_percentage = 100
     sc.cycles.pixel_filter_type, sc.cycles.filter_width = job["cycles_filter"]     # convert.cycles_filter
+    if "filter_width" in _OVERRIDES:
+        sc.cycles.filter_width = float(_OVERRIDES["filter_width"])
     img = sc.render.image_settings
     img.file_format = "OPEN_EXR"
     img.color_depth = "32"
