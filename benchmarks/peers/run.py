@@ -148,6 +148,8 @@ class SceneRun:
     regions_dropped: list = field(default_factory=list)
     load_avg: tuple = ()
     retries: int = 0
+    label_image: np.ndarray | None = None    # (H, W) region labels of the agreement check
+    label_names: list = field(default_factory=list)
 
 
 def measure_scene(cy: CyclesProcess, sc: PeerScene, quick: bool, cache: Path, log, workers: int) -> SceneRun:
@@ -170,7 +172,7 @@ def measure_scene(cy: CyclesProcess, sc: PeerScene, quick: bool, cache: Path, lo
         for i, spp in enumerate(spps):
             seed_l, seed_c = SEED_L + 100 * rep + i, SEED_C + 100 * rep + i
             best = None
-            for attempt in range(MAX_RETRIES + 1):
+            for _ in range(MAX_RETRIES + 1):
                 first_lamina = pair % 2 == 0
                 a = _lamina(data, spp, seed_l, workers) if first_lamina else _cycles(cy, spp, seed_c)
                 b = _cycles(cy, spp, seed_c) if first_lamina else _lamina(data, spp, seed_l, workers)
