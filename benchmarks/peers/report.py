@@ -248,6 +248,15 @@ def section(results: list, summaries: list, info: dict, link) -> str:
                       f"{_fmt(t['spp_cycles'])} | {_fmt(t['spp_ratio'])}× | {_fmt(t['cpu_lamina'])} / {_fmt(t['cpu_cycles'])} | "
                       f"{_fmt(t['cpu_ratio'])}× | {_fmt(t['cpu_ratio_sampling'])}× |")
         refs = sr.refs
+        su, t0 = s["lamina_startup"], s["costs"]["lamina"]["t0"]
+        n = results[0].build["info"]["set"]["threads"] if results else 1
+        if su:
+            md += ["", f"Start-up per render (fixed cost, intercept of CPU time vs spp): Lamina {_fmt(t0)} s, Cycles "
+                   f"{_fmt(s['costs']['cycles']['t0'])} s (scene sync and BVH build in one process). Lamina's parts, "
+                   f"measured alone (`startup.py`): {n} worker interpreters with their imports {n} × "
+                   f"{_fmt(su['interpreter_imports'])} s, scene load {n + 1} × {_fmt(su['scene_load'])} s (master and "
+                   f"workers), embree build {n} × {_fmt(su['embree_build'])} s: {_fmt(su['predicted_t0'])} s; the rest, "
+                   f"{_fmt(t0 - su['predicted_t0'])} s, is the process pool and the first work items' warm-up."]
         md += ["", f"References: Lamina {refs['lamina']['spp']} spp ({_fmt(refs['lamina']['cpu'])} s CPU"
                f"{', cached' if refs['lamina']['cached'] else ''}), Cycles {refs['cycles']['spp']} spp as 4 independent "
                f"renders ({_fmt(refs['cycles']['cpu'])} s CPU{', cached' if refs['cycles']['cached'] else ''}). "

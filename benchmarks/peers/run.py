@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..measure import reference, render
-from . import agree, convert, metrics
+from . import agree, convert, metrics, startup
 from .cycles_process import CyclesProcess
 from .scenes import PeerScene
 
@@ -150,6 +150,7 @@ class SceneRun:
     retries: int = 0
     label_image: np.ndarray | None = None    # (H, W) region labels of the agreement check
     label_names: list = field(default_factory=list)
+    startup: dict = field(default_factory=dict)   # Lamina's start-up parts (startup.py)
 
 
 def measure_scene(cy: CyclesProcess, sc: PeerScene, quick: bool, cache: Path, log, workers: int) -> SceneRun:
@@ -166,6 +167,7 @@ def measure_scene(cy: CyclesProcess, sc: PeerScene, quick: bool, cache: Path, lo
             "cycles": cycles_reference(cy, job_dir, sc.name, ref_spp, cache, log)}
     out = SceneRun(sc, data, size, build, refs)
     _agreement(out)
+    out.startup = startup.lamina_startup(data, workers)
 
     pair = 0
     for rep in range(repeats):
@@ -254,6 +256,7 @@ def summarise(sr: SceneRun) -> dict:
             "cost_ratio": cost_ratio,
             "cost_ratio_total": costs["lamina"]["us_per_px_sample_total"] / costs["cycles"]["us_per_px_sample_total"],
             "any_extrapolated": any(r["extrapolated"] for r in rows), "background_load": load,
+            "lamina_startup": sr.startup,
             "retries": sr.retries, "load_avg": list(sr.load_avg)}
 
 
