@@ -171,3 +171,13 @@ def test_converter_passes_the_loaders_triangles_and_filter(tmp_path):
         for o in job["objects"]:
             np.testing.assert_array_equal(geo[f"o{o['index']}_pos"], soup.vertices[soup.object_id == o["index"]])
         assert job["cycles_filter"] == ["BLACKMAN_HARRIS", 1.5]
+
+
+def test_command_line_refuses_contradictions(tmp_path, capsys):
+    from benchmarks.__main__ import main
+    with pytest.raises(SystemExit) as e:
+        main(["peers", "--only", "tve", "--out", str(tmp_path)])
+    assert e.value.code == 2 and "alone" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        main(["peers", "--peer-scenes", "cornell,nope", "--out", str(tmp_path)])
+    assert e.value.code == 2 and "nope" in capsys.readouterr().err
