@@ -87,10 +87,16 @@ def targets(err_a: list, err_b: list, n: int = 3) -> list[float]:
 def cost(runs: list[dict], pixels: int) -> dict:
     """Fixed cost t0 and marginal CPU per sample from time = t0 + c·spp; per pixel-sample in µs
     (= CPU seconds per spp per megapixel) both marginal and total at the largest spp."""
-    spp = [r["spp"] for r in runs]
-    cpu = [r["cpu"] for r in runs]
+    spp = np.asarray([r["spp"] for r in runs], float)
+    cpu = np.asarray([r["cpu"] for r in runs], float)
     t0, c = fit_cost(spp, cpu)
-    top = max(spp)
-    tot = float(np.mean([r["cpu"] for r in runs if r["spp"] == top]))
-    return {"t0": t0, "per_spp": c, "us_per_px_sample": c / pixels * 1e6,
-            "us_per_px_sample_total": tot / (top * pixels) * 1e6, "max_spp": top}
+    # Standard error of the slope (ordinary least squares): the timing noise of a shared machine
+    # makes the marginal cost of cheap scenes uncertain, and the report says by how much.
+    resid = cpu - (t0 + c * spp)
+    dof = max(spp.size - 2, 1)
+    sxx = float(((spp - spp.mean()) ** 2).sum())
+    se = math.sqrt(float(resid @ resid) / dof / sxx) if sxx > 0 else float("nan")
+    top = float(spp.max())
+    tot = float(cpu[spp == top].mean())
+    return {"t0": t0, "per_spp": c, "us_per_px_sample": c / pixels * 1e6, "us_per_px_sample_se": se / pixels * 1e6,
+            "us_per_px_sample_total": tot / (top * pixels) * 1e6, "max_spp": int(top)}

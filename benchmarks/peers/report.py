@@ -219,12 +219,16 @@ def section(results: list, summaries: list, info: dict, link) -> str:
         dark_txt = f"{'yes' if not vd['ok'] else '**no**'} ({vd['failed']} regions)" if sr.scene.same_material else "–"
         ext = " (extrapolated)" if s["any_extrapolated"] else ""
         md.append(f"| {sr.scene.name}{' †' if not sr.scene.same_material else ''} | **{_fmt(s['cpu_ratio'])}×**{ext} | "
-                  f"**{_fmt(s['cpu_ratio_sampling'])}×** | {_fmt(s['spp_ratio'])}× | {_fmt(cl['us_per_px_sample'])} / "
-                  f"{_fmt(cc['us_per_px_sample'])} ({_fmt(s['cost_ratio'])}×) | {_fmt(cl['us_per_px_sample_total'])} / "
+                  f"**{_fmt(s['cpu_ratio_sampling'])}×** ± {s['cost_ratio_rse'] * 100:.0f} % | {_fmt(s['spp_ratio'])}× | "
+                  f"{_fmt(cl['us_per_px_sample'])} ± {_fmt(cl['us_per_px_sample_se'], 2)} / "
+                  f"{_fmt(cc['us_per_px_sample'])} ± {_fmt(cc['us_per_px_sample_se'], 2)} ({_fmt(s['cost_ratio'])}×) | "
+                  f"{_fmt(cl['us_per_px_sample_total'])} / "
                   f"{_fmt(cc['us_per_px_sample_total'])} | {_fmt(cl['t0'])} s / {_fmt(cc['t0'])} s | {agree_txt} | {dark_txt} | "
                   f"{_load(s['background_load']['lamina'])} / {_load(s['background_load']['cycles'])}; "
                   f"{s['load_avg'][0]:.2f} → {s['load_avg'][1]:.2f} |")
-    md += ["", "† different materials (Lamina's 2-interface coat vs Cycles' Principled BSDF with Coat): the ratios "
+    md += ["", "± = standard error from the least-squares fit of CPU time against spp (the marginal cost, and through "
+           "it the start-up-excluded ratio; the spp ratio's own scatter is not included).", "",
+           "† different materials (Lamina's 2-interface coat vs Cycles' Principled BSDF with Coat): the ratios "
            "compare CPU time to equal **own relative** noise (relative RMSE = RMSE / mean of the own reference), "
            "not equal work.", "",
            "Ratios are geometric means over the targets of each scene (per-target values below). A ratio > 1 means "
@@ -239,7 +243,7 @@ def section(results: list, summaries: list, info: dict, link) -> str:
     md += [f"| {a} | {b} | {c} | {d} |" for a, b, c, d in DIFFERENT]
     md += ["", f"Cycles defaults kept, as read back from bpy: {', '.join(f'`{k}` = {v}' for k, v in kept.items())}.", ""]
     for sr, s in zip(results, summaries):
-        md += [f"### {sr.scene.name}", "", sr.scene.title + ".", "", f"![{sr.scene.name}]({link(f'peers_{sr.scene.name}.png')})", ""]
+        md += [f"### Lamina vs Cycles: {sr.scene.name}", "", sr.scene.title + ".", "", f"![{sr.scene.name}]({link(f'peers_{sr.scene.name}.png')})", ""]
         metric = "RMSE" if s["metric"] == "rmse" else "relative RMSE"
         md += [f"| target {metric} | spp Lamina / Cycles | ratio | CPU s Lamina / Cycles (whole renders) | ratio | "
                "ratio, start-up excluded |", "|---|---|---|---|---|---|"]

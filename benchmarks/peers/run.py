@@ -231,7 +231,11 @@ def summarise(sr: SceneRun) -> dict:
     cl, cc = metrics.curve(L, key), metrics.curve(C, key)
     pixels = sr.size * sr.size
     costs = {"lamina": metrics.cost(L, pixels), "cycles": metrics.cost(C, pixels)}
-    cost_ratio = costs["lamina"]["us_per_px_sample"] / costs["cycles"]["us_per_px_sample"]
+    cl_, cc_ = costs["lamina"], costs["cycles"]
+    cost_ratio = cl_["us_per_px_sample"] / cc_["us_per_px_sample"]
+    # Relative standard error of the ratio (independent fits, first order).
+    cost_ratio_rse = math.hypot(cl_["us_per_px_sample_se"] / cl_["us_per_px_sample"],
+                                cc_["us_per_px_sample_se"] / cc_["us_per_px_sample"])
     rows = []
     for t in metrics.targets(cl["err"], cc["err"]):
         spp_l, xl = metrics.at_error(cl["spp"], cl["err"], t)
@@ -253,7 +257,7 @@ def summarise(sr: SceneRun) -> dict:
     load = {name: float(np.mean(v)) if v else float("nan") for name, v in long_.items()}
     return {"metric": key, "curves": {"lamina": cl, "cycles": cc}, "costs": costs, "targets": rows,
             "cpu_ratio": geo("cpu_ratio"), "spp_ratio": geo("spp_ratio"), "cpu_ratio_sampling": geo("cpu_ratio_sampling"),
-            "cost_ratio": cost_ratio,
+            "cost_ratio": cost_ratio, "cost_ratio_rse": cost_ratio_rse,
             "cost_ratio_total": costs["lamina"]["us_per_px_sample_total"] / costs["cycles"]["us_per_px_sample_total"],
             "any_extrapolated": any(r["extrapolated"] for r in rows), "background_load": load,
             "lamina_startup": sr.startup,
