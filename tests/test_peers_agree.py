@@ -147,10 +147,6 @@ def test_converter_refuses_what_it_cannot_make_equal(tmp_path):
         with pytest.raises(convert.Unsupported):
             convert.prepare(with_material(bad), tmp_path / "bad")
     d = copy.deepcopy(base)
-    d["film"]["filter"] = {"type": "gaussian", "width": 1.5}
-    with pytest.raises(convert.Unsupported):
-        convert.prepare(d, tmp_path / "bad")
-    d = copy.deepcopy(base)
     d["lights"] = [{"type": "area", "to_world": np.eye(4).tolist(), "power": 1, "cutoff_angle": 30}]
     with pytest.raises(convert.Unsupported):
         convert.prepare(d, tmp_path / "bad")
@@ -160,7 +156,8 @@ def test_converter_passes_the_loaders_triangles_and_filter(tmp_path):
     import json
 
     from backend.scene.loader import load_scene_data
-    assert convert.cycles_filter({"type": "blackman-harris", "width": 3.0}) == ("BLACKMAN_HARRIS", 1.5)
+    assert convert.cycles_filter({"type": "blackman-harris", "width": 3.0}) == ("BLACKMAN_HARRIS", 3.0)
+    assert convert.cycles_filter({"type": "gaussian", "width": 1.5}) == ("GAUSSIAN", 1.5)
     assert convert.cycles_filter({"type": "box", "width": 1.0}) == ("BOX", 1.0)
     for sc in PEER_SCENES:
         data = sc.build(16)

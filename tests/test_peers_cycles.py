@@ -36,7 +36,7 @@ def test_settings_made_equal(built):
     bpy, _, _, info, _ = built
     sc = bpy.context.scene
     c = sc.cycles
-    assert (c.pixel_filter_type, c.filter_width) == ("BLACKMAN_HARRIS", 1.5)   # Lamina width 3
+    assert (c.pixel_filter_type, c.filter_width) == ("BLACKMAN_HARRIS", 1.5)   # the same width
     assert c.max_bounces == c.diffuse_bounces == c.glossy_bounces == c.transmission_bounces == MAX_BOUNCES
     assert c.min_light_bounces == RR_DEPTH - 1
     assert c.sample_clamp_direct == 0 and c.sample_clamp_indirect == 0 and c.blur_glossy == 0

@@ -73,9 +73,11 @@ def _hit_area_light(light: dict, o: np.ndarray, d: np.ndarray) -> np.ndarray:
 
 
 def filter_radius(data: dict) -> float:
-    """Half the support of the scene's pixel filter (Lamina's width is the full support)."""
+    """Half the support of the scene's pixel filter (backend/film.py: SUPPORT × width)."""
+    from backend.film import SUPPORT
     filt = data["film"].get("filter", {})
-    return float(filt.get("width", 1.0 if filt.get("type") == "box" else 1.5)) / 2.0
+    kind = filt.get("type", "blackman-harris")
+    return SUPPORT[kind] * float(filt.get("width", 1.0 if kind == "box" else 1.5)) / 2.0
 
 
 def labels(data: dict, soup_vertices: np.ndarray, object_id: np.ndarray, half_width: float | None = None):

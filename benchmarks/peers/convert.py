@@ -72,17 +72,11 @@ def coat_over_body(name: str, m: dict) -> tuple[dict, dict]:
 
 
 def cycles_filter(filt: dict) -> tuple[str, float]:
-    """Lamina ``film.filter`` → (Cycles filter type, ``filter_width``) with the same support:
-    Lamina's width is the full support; Cycles' box also, its Blackman-Harris is stretched to
-    twice ``filter_width`` (scene/film.cpp, ``filter_table``). Lamina's Gaussian has a fixed
-    σ = 0.5 px cut at ±width/2, which no Cycles width reproduces: not converted."""
+    """Lamina ``film.filter`` → (Cycles filter type, ``filter_width``): the same type and width,
+    which mean the same filter in both (backend/film.py follows Cycles' ``filter_table``)."""
     kind = filt.get("type", "blackman-harris")
     width = float(filt.get("width", 1.0 if kind == "box" else 1.5))
-    if kind == "box":
-        return "BOX", width
-    if kind == "blackman-harris":
-        return "BLACKMAN_HARRIS", width / 2.0
-    raise Unsupported(f"pixel filter {kind} has no Cycles equivalent")
+    return {"box": "BOX", "blackman-harris": "BLACKMAN_HARRIS", "gaussian": "GAUSSIAN"}[kind], width
 
 
 def prepare(data: dict, job_dir: Path, cycles_overrides: dict | None = None) -> Path:

@@ -26,8 +26,8 @@ EQUAL = [
      "checked: Blender's `view_frame`, normalised, equals the description to < 1e-7"),
     ("resolution", "96 × 96 (layered scene 80 × 80), 100 %", ""),
     ("pixel filter", "Blackman-Harris spanning ±1.5 px (Cycles' default look)",
-     f"Lamina `film.filter` width {FILM_FILTER['width']:g} = Cycles `filter_width` {FILM_FILTER['width'] / 2:g} "
-     "(Cycles doubles a Blackman-Harris width, Lamina's width is the full support)"),
+     f"`film.filter` width {FILM_FILTER['width']:g} = Cycles `filter_width` {FILM_FILTER['width']:g} "
+     "(the same definition: Cycles' filter_table)"),
     ("max bounces", f"{MAX_BOUNCES} in total", "Cycles' diffuse / glossy / transmission limits raised to the same "
      "(defaults 4 / 4 / 12), volume 0: Lamina has only the total"),
     ("Russian roulette", f"from the same bounce", f"Lamina `rr_depth` {RR_DEPTH} ↔ Cycles `min_light_bounces` {RR_DEPTH - 1} "

@@ -7,9 +7,8 @@ dielectric (rough or smooth), the two-interface coat (layered scene only), area 
 ``spread``, a point light with an IES profile, a constant world and a perspective camera.
 
 Settings shared by every scene (see docs/benchmarks.md, "Lamina vs Cycles"): GGX with the
-height-correlated Smith masking (Lamina's default, what Cycles uses), the Blackman-Harris pixel
-filter of Cycles' default look (``FILM_FILTER``: Lamina width 3 = Cycles ``filter_width`` 1.5, see
-there), ``max_bounces`` = ``MAX_BOUNCES``, Russian roulette from
+height-correlated Smith masking (Lamina's default, what Cycles uses), Blender's default pixel
+filter (``FILM_FILTER``, the same width in both), ``max_bounces`` = ``MAX_BOUNCES``, Russian roulette from
 ``RR_DEPTH``, no clamping. Conductors carry Lamina's own measured RGB (eta, k) explicitly, so the
 converter passes the very same numbers to Cycles' Physical Conductor.
 """
@@ -27,12 +26,10 @@ MAX_BOUNCES = 8
 #: Lamina's default Russian-roulette depth; Cycles gets ``min_light_bounces`` = RR_DEPTH − 1,
 #: which makes the first bounce subject to roulette the same (to_cycles.py explains the indexing).
 RR_DEPTH = 3
-#: Cycles' default pixel filter is Blackman-Harris with ``filter_width`` 1.5, but Cycles doubles a
-#: Blackman-Harris width before building its table (``filter_table`` in scene/film.cpp): the
-#: filter spans ±1.5 px. Lamina's ``film.filter.width`` is the full support (its default 1.5 spans
-#: ±0.75 px, half of Cycles' — found by this benchmark's edge regions). Width 3 here is exactly
-#: Cycles' default filter; to_cycles.py converts the width back (w / 2 for Blackman-Harris).
-FILM_FILTER = {"type": "blackman-harris", "width": 3.0}
+#: Cycles' default pixel filter: Blackman-Harris, ``filter_width`` 1.5, which spans ±1.5 px (Cycles
+#: doubles a Blackman-Harris width in ``filter_table``, scene/film.cpp). Lamina's width means the
+#: same since this benchmark's edge regions found it spanning half that (up to 13 σ apart).
+FILM_FILTER = {"type": "blackman-harris", "width": 1.5}      # Blender's default, both renderers
 
 
 def _metal(name: str, alpha: float) -> dict:

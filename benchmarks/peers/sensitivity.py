@@ -6,7 +6,8 @@ mistake each, compared region by region with Lamina's (cached) reference.
 Not part of the report (it re-renders Cycles references: about a minute of CPU). The mistakes are
 the ones the converter has to get right and a reader could doubt:
 
-* ``filter``    — Cycles' ``filter_width`` given Lamina's number (3) instead of half of it;
+* ``filter``    — Cycles' ``filter_width`` twice the scene's (3 instead of 1.5: the mistake this
+  benchmark found in Lamina's own filter);
 * ``multiscatter`` — Cycles' default Multiscatter GGX instead of plain GGX;
 * ``r = α``     — Lamina's α passed as Cycles' roughness slider (Cycles squares it).
 

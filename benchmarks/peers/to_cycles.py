@@ -6,9 +6,9 @@ talks to ``cycles_child.py`` over a pipe). It supports exactly what ``convert.py
 **The settings made equal** (also listed in docs/benchmarks.md; every number comes from the job,
 i.e. from the Lamina scene dict):
 
-* resolution, 100 %; the pixel filter: same type and the same support (``convert.cycles_filter``: Cycles'
-  Blackman-Harris ``filter_width`` w spans ±w pixels, Lamina's width w spans ±w/2, so Lamina's
-  default 1.5 is half as wide as Cycles' default 1.5; the scenes use Cycles' default look);
+* resolution, 100 %; the pixel filter: the same type and width (``convert.cycles_filter``), which
+  mean the same filter in both since Lamina follows Cycles' ``filter_table`` (Blackman-Harris
+  ``filter_width`` w spans ±w pixels; this benchmark found that Lamina's used to span ±w/2);
 * ``max_bounces`` = the scene's, and the per-type limits (diffuse, glossy, transmission) raised to
   the same number, because Lamina has only the total; volume bounces 0 (no volumes);
 * Russian roulette from the same bounce: Cycles applies roulette at a surface whose bounce count
