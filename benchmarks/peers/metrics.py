@@ -100,3 +100,14 @@ def cost(runs: list[dict], pixels: int) -> dict:
     tot = float(cpu[spp == top].mean())
     return {"t0": t0, "per_spp": c, "us_per_px_sample": c / pixels * 1e6, "us_per_px_sample_se": se / pixels * 1e6,
             "us_per_px_sample_total": tot / (top * pixels) * 1e6, "max_spp": int(top)}
+
+
+def slope(spp: list, err: list) -> float:
+    """Least-squares slope of log error against log spp (−½ for independent samples; steeper
+    where stratification pays); NaN with fewer than three finite points."""
+    x = np.log(np.asarray(spp, float))
+    y = np.log(np.asarray(err, float))
+    ok = np.isfinite(x) & np.isfinite(y)
+    if ok.sum() < 3:
+        return float("nan")
+    return float(np.polyfit(x[ok], y[ok], 1)[0])

@@ -196,7 +196,8 @@ def section(results: list, summaries: list, info: dict, link) -> str:
     """``link(path)`` gives the Markdown path of a figure."""
     md = ["## 0. Lamina vs Cycles", "",
           f"Each scene is described once (a Lamina scene dict) and rendered by Lamina and by Cycles "
-          f"(bpy {info.get('blender', '?')}, CPU, {info['threads']} threads; Lamina {info['threads']} worker processes) "
+          f"(bpy {info.get('blender', '?')}, CPU, {info['threads']} threads; Lamina {info['threads']} workers: threads, or "
+          f"processes for scenes with layered stacks) "
           "with the settings below made equal. Every render is measured against its **own** renderer's converged "
           "reference (reference noise removed). Runs of the two renderers are interleaved pair by pair "
           "(order alternating A B / B A, independent seeds, "
@@ -245,6 +246,8 @@ def section(results: list, summaries: list, info: dict, link) -> str:
     for sr, s in zip(results, summaries):
         md += [f"### Lamina vs Cycles: {sr.scene.name}", "", sr.scene.title + ".", "", f"![{sr.scene.name}]({link(f'peers_{sr.scene.name}.png')})", ""]
         metric = "RMSE" if s["metric"] == "rmse" else "relative RMSE"
+        md += [f"Slope of {metric} against spp (log-log, all points): Lamina {_fmt(s['slope']['lamina'])}, Cycles "
+               f"{_fmt(s['slope']['cycles'])} (−0.5 for independent samples).", ""]
         md += [f"| target {metric} | spp Lamina / Cycles | ratio | CPU s Lamina / Cycles (whole renders) | ratio | "
                "ratio, start-up excluded |", "|---|---|---|---|---|---|"]
         for t in s["targets"]:
@@ -270,17 +273,19 @@ def section(results: list, summaries: list, info: dict, link) -> str:
 
 
 def summary_lines(results: list, summaries: list) -> list[str]:
-    parts, costs = [], []
+    parts, costs, slopes = [], [], []
     for sr, s in zip(results, summaries):
         tag = " (different materials, equal own noise)" if not sr.scene.same_material else ""
         parts.append(f"{sr.scene.name} **{_fmt(s['cpu_ratio'], 2)}×** ({_fmt(s['cpu_ratio_sampling'], 2)}× without start-up; "
                      f"{_fmt(s['spp_ratio'], 2)}× the samples){tag}")
         costs.append(f"{sr.scene.name} {_fmt(s['costs']['lamina']['us_per_px_sample'], 2)} vs "
                      f"{_fmt(s['costs']['cycles']['us_per_px_sample'], 2)}")
+        slopes.append(f"{sr.scene.name} {_fmt(s['slope']['lamina'], 2)} vs {_fmt(s['slope']['cycles'], 2)}")
     ok = [agree.verdict(sr.agreement)["ok"] for sr in results if sr.scene.same_material]
     dark = [not agree.verdict(sr.darker)["ok"] for sr in results if sr.scene.same_material]
     return [f"* **Lamina vs Cycles** — CPU time Lamina needs for the error Cycles reaches (Lamina / Cycles): "
             + "; ".join(parts) + ".",
             "* **CPU µs per pixel-sample** (marginal), Lamina vs Cycles: " + "; ".join(costs) + ". Converged images agree "
             f"region by region in {sum(ok)} of {len(ok)} equal-material scenes; a 1 % darker Lamina image fails the check "
-            f"in {sum(dark)} of {len(dark)}."]
+            f"in {sum(dark)} of {len(dark)}.",
+            "* **Error vs samples** (log-log slope), Lamina vs Cycles: " + "; ".join(slopes) + "."]

@@ -258,6 +258,7 @@ def summarise(sr: SceneRun) -> dict:
     return {"metric": key, "curves": {"lamina": cl, "cycles": cc}, "costs": costs, "targets": rows,
             "cpu_ratio": geo("cpu_ratio"), "spp_ratio": geo("spp_ratio"), "cpu_ratio_sampling": geo("cpu_ratio_sampling"),
             "cost_ratio": cost_ratio, "cost_ratio_rse": cost_ratio_rse,
+            "slope": {"lamina": metrics.slope(cl["spp"], cl["err"]), "cycles": metrics.slope(cc["spp"], cc["err"])},
             "cost_ratio_total": costs["lamina"]["us_per_px_sample_total"] / costs["cycles"]["us_per_px_sample_total"],
             "any_extrapolated": any(r["extrapolated"] for r in rows), "background_load": load,
             "lamina_startup": sr.startup,
