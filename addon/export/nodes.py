@@ -65,6 +65,7 @@ class NodeTranslator:
             return {"type": "diffuse", "color": [0.0, 0.0, 0.0]}   # nothing connected renders black
         if out.inputs.get("Displacement") is not None and out.inputs["Displacement"].is_linked:
             self.note("displacement (ignored)")
+
         return self.shader(node)
 
     def shader(self, node) -> dict:
@@ -126,7 +127,8 @@ class NodeTranslator:
         if src.projection != "FLAT" or src.extension not in ("REPEAT",):
             self.note(f"{src.name}: {src.projection.lower()} projection / {src.extension.lower()} "
                       f"extension (rendered as flat, repeating)")
-        return self.images.texture(src.image, squared=squared)
+        return self.images.label(self.images.texture(src.image, squared=squared),
+                                 f"node '{src.name}' (image '{src.image.name}' → {node.name}.{name})")
 
     def _unused(self, node, name: str, ok) -> None:
         """Note an input whose value Lamina cannot represent (``ok(value)`` says it is harmless)."""
@@ -262,7 +264,10 @@ class NodeTranslator:
             return None
         colour = self.colour(node, "Emission Color")
         if isinstance(colour, dict):
+            source = self.images.labels.get(id(colour))
             colour = dict(colour)
+            if source is not None:
+                self.images.label(colour, source[1])
             scale = colour.get("scale", 1.0)
             colour["scale"] = [strength * s for s in (scale if isinstance(scale, list) else [scale] * 3)]
             return colour
@@ -284,6 +289,19 @@ class NodeTranslator:
         out["eta"] = [1.0, 1.0, 1.0]
         out["k"] = f0_to_conductor_k(colour)
         return out
+
+
+def volume_note(mat) -> str | None:
+    """A note if the material's output has a Volume shader connected (Lamina renders surfaces)."""
+    tree = getattr(mat, "node_tree", None)
+    if tree is None or not _uses_nodes(mat):
+        return None
+    out = tree.get_output_node("CYCLES") or tree.get_output_node("ALL")
+    sock = out.inputs.get("Volume") if out is not None else None
+    node = _follow(sock)[0] if sock is not None else None
+    if node is None:
+        return None
+    return f"material '{mat.name}': {label(node)} → Volume output (volumes are not rendered: ignored)"
 
 
 def _uses_nodes(mat) -> bool:
