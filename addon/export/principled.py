@@ -53,6 +53,7 @@ import numpy as np
 
 TABLE = Path(__file__).with_name("principled_table.json")
 MAX_LOOP_GAIN = 0.9          # ρ′·R↓ stays below this: a convergent, low-variance inner walk
+METAL_SPREAD = 1.8           # coated metals: how fast with roughness their reflection turns diffuse
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
@@ -374,12 +375,27 @@ def _coated(target, coat: dict, base_kind: str, eta_l: float, rough: float, alph
         media = [{"thickness": 1.0, "sigma_t": 0.0}, {"thickness": 1.0, "sigma_t": 0.0}]
     else:
         t = table()
-        curve_in = np.array([lookup("lamina_conductor", f, rough, "f0")[inside].mean() for f in t["f0"]])
-        curve_all = np.array([lookup("lamina_conductor", f, rough, "f0").mean() for f in t["f0"]])
+        b = int(t["bins"])
+        centres = (np.arange(b) + 0.5) / b                          # bin centres in cos²θ
+        mu2_in = 1.0 - (1.0 - centres) / n_eff ** 2                  # each outside bin, refracted
+        curves = np.array([lookup("lamina_conductor", f, rough, "f0") for f in t["f0"]])   # (F, B)
+        m_in_f = np.array([np.interp(mu2_in, centres, c) for c in curves])                 # (F, B)
+        m_all_f = curves.mean(axis=1)
+        # A metal reflects (mostly) specularly: a smooth one sends the light back out the way it
+        # came (per viewing bin: in through the coat at that bin's refracted angle, out again), a
+        # rough one spreads it like diffuse light inside the coat; the blend is fitted to
+        # Lamina's layered BSDF (tests/test_principled_table.py checks three roughnesses).
+        s_exit = float(np.clip(1.0 - METAL_SPREAD * rough, 0.0, 1.0))
+        exit_ = s_exit * top["T"] + (1.0 - s_exit) * top["Td"]        # (B,)
+        back = s_exit * Rc + (1.0 - s_exit) * top["Rd"]
 
         def albedo_of(f0):
-            m_in, m_all = np.interp(f0, t["f0"], curve_in), np.interp(f0, t["f0"], curve_all)
-            return Rc + Tc * m_in * Tc / (1.0 - top["Rd"] * m_all)
+            out = np.empty(3)
+            for c in range(3):
+                m_in = np.array([np.interp(f0[c], t["f0"], m_in_f[:, k]) for k in range(b)])
+                m_all = np.interp(f0[c], t["f0"], m_all_f)
+                out[c] = np.mean(top["R"] + top["T"] * m_in * exit_ / (1.0 - back * m_all))
+            return out
 
         f0 = solve(albedo_of, 0.0, 1.0)
         clamped = bool(np.any(albedo_of(np.zeros(3)) > target + 1e-4) or np.any(albedo_of(np.ones(3)) < target - 1e-4))
