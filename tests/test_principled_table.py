@@ -144,8 +144,10 @@ def test_cycles_ior_remap_and_transmission_tint():
     glass, notes = P.principled_material({"transmission": 1.0, "base_color": (0.64, 0.81, 1.0), "ior": 1.45})
     assert glass["type"] == "dielectric" and glass["ior"] == pytest.approx(1.45)
     assert glass["transmission_color"] == pytest.approx([0.8, 0.9, 1.0])        # √base per crossing
-    half, notes = P.principled_material({"transmission": 0.5})
-    assert half["type"] == "dielectric" and any("Transmission Weight 0.5" in n for n in notes)
+    half, notes = P.principled_material({"transmission": 0.4})
+    assert half["type"] == "layered" and any("Transmission Weight 0.4" in n for n in notes)
+    mostly, notes = P.principled_material({"transmission": 0.6})
+    assert mostly["type"] == "dielectric" and any("Transmission Weight 0.6" in n for n in notes)
 
 
 def test_emission_is_attenuated_like_cycles_layers():

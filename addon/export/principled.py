@@ -32,8 +32,9 @@ What is matched, and how (docs/blender.md, "Principled BSDF"):
   coat's reflectance at normal incidence to weight × its value; the coat tint's absorption goes
   into the body colour (or the metal's reflectance), the base being chosen with the adding rule
   for two layers (``_coated``);
-* transmission: weight ≥ ½ renders glass (transmission colour √base per crossing, as Cycles),
-  weight < ½ the opaque stack with the weighted reflection albedo;
+* transmission: weight ≥ ½ renders glass (transmission colour √base per crossing, as Cycles);
+  below, the opaque stack whose albedo is the weighted mix of the glass's (what it reflects plus
+  what it lets through, for a closed object under uniform light) and the opaque part's;
 * sheen: its albedo (Cycles' measured sheen layer) is added to the body albedo; the grazing
   lobe itself is not reproduced;
 * emission: colour × strength × the mean attenuation of the sheen and coat layers above it.
@@ -54,6 +55,7 @@ import numpy as np
 TABLE = Path(__file__).with_name("principled_table.json")
 MAX_LOOP_GAIN = 0.9          # ρ′·R↓ stays below this: a convergent, low-variance inner walk
 METAL_SPREAD = 1.8           # coated metals: how fast with roughness their reflection turns diffuse
+GLASS_FROM = 0.5             # Transmission Weight from which the material renders as glass
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
@@ -206,7 +208,11 @@ def principled_material(p: dict, info: dict | None = None) -> tuple[dict, list[s
     glass_r = cycles_specular(eta_t, rough, (1.0, 1.0, 1.0))[0]        # glass reflection (same Fresnel)
     target_base = plastic
     if trans > 0.0:
-        target_base = trans * glass_r + (1.0 - trans) * plastic
+        # Under uniform light a closed glass object returns what it reflects plus what it lets
+        # through (R + T = 1 for Cycles' energy-conserving glass), tinted by the base colour
+        # (√base per crossing, two crossings).
+        glass_total = glass_r + (1.0 - glass_r) * np.clip(base, 0.0, 1.0)[:, None]
+        target_base = trans * glass_total + (1.0 - trans) * plastic
     if metallic > 0.0:
         target_base = metallic * metal + (1.0 - metallic) * target_base
     if any(abs(float(c) - 1.0) > 1e-6 for c in list(tint)[:3]):
@@ -254,7 +260,7 @@ def principled_material(p: dict, info: dict | None = None) -> tuple[dict, list[s
     clamped = False
     if metallic >= 1.0 - 1e-6 and trans < 0.5:
         kind = "metal"
-    elif trans >= 0.5:
+    elif trans >= GLASS_FROM:
         kind = "glass"
     else:
         kind = "plastic"
