@@ -87,7 +87,7 @@ def object_notes(obj, kind: str) -> list[str]:
                          f"'{linking.blocker_collection.name}' (ignored: every object casts shadows)")
     if getattr(original, "lightgroup", ""):
         notes.append(f"{kind} '{original.name}': light group '{original.lightgroup}' (ignored)")
-    if getattr(original, "is_shadow_catcher", False):
+    if kind == "object" and getattr(original, "is_shadow_catcher", False):
         notes.append(f"{kind} '{original.name}': shadow catcher (rendered as an ordinary object)")
     return notes
 
