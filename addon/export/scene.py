@@ -133,6 +133,15 @@ class SceneExporter:
         return name
 
     def material_json(self, mat) -> dict:
+        out = self._material_json(mat)
+        # Emission from the front side only (the material's "Emit From"); Cycles' default is both.
+        settings = getattr(mat, "lamina", None)
+        emits = out.get("type") == "emission" or "emission" in out
+        if settings is not None and getattr(settings, "emission_sides", "BOTH") == "FRONT" and emits:
+            out = dict(out, emission_sides="front")
+        return out
+
+    def _material_json(self, mat) -> dict:
         note = volume_note(mat)
         if note is not None and not self.preview:
             self.notes.append(note)

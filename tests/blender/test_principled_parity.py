@@ -77,3 +77,35 @@ def test_known_gaps_are_still_gaps(principled_rows, name):
     if within(*rows[name]):
         pytest.fail(f"{name} now matches Cycles: remove it from KNOWN_GAPS\n{report}")
     pytest.xfail(KNOWN_GAPS[name])
+
+
+def test_one_and_two_sided_emission_match_cycles(tmp_path):
+    """Three emissive panels over a floor (two-sided, front-only seen from the back, front-only
+    facing the camera): the panels and the floor under them (the upper two of 3 × 6 regions)
+    within 2 % / 4σ of Cycles (one-sided there through a Mix Shader on Backfacing). The nearest
+    row of floor, lit at grazing angles, is printed, not checked: there Lamina differs from Cycles
+    by ~2 % already with two-sided emitters only (up to 14 % with a two-sided panel whose back
+    faces that floor; measured, a renderer issue outside the add-on, see docs/blender.md)."""
+    r = result_of(run_cases("parity_cases", ["emission_sides"], tmp=tmp_path, timeout=900), "emission_sides")
+    assert r["cycles_error"] is None and r["lamina_error"] is None, r
+    cyc = channels_named(read_exr_parts(r["cycles"]), ["R", "G", "B"]).astype(np.float64) @ LUMINANCE
+    lam = channels_named(read_exr_parts(r["lamina"]), ["R", "G", "B"]).astype(np.float64) @ LUMINANCE
+    h, w = cyc.shape
+    lines, bad = [], []
+    for i in range(3):
+        for j in range(6):
+            block = (slice(i * h // 3, (i + 1) * h // 3), slice(j * w // 6, (j + 1) * w // 6))
+            c, l = cyc[block], lam[block]
+            diff = (l - c).ravel()
+            se = diff.std(ddof=1) / np.sqrt(diff.size) / c.mean()
+            ratio = l.mean() / c.mean()
+            ok = abs(ratio - 1) <= max(TOLERANCE, K_SIGMA * se)
+            lines.append(f"  region {i},{j}: Cycles {c.mean():.4f} Lamina/Cycles {ratio:.4f} ± {se:.4f}"
+                         f"{'' if ok else (' <--' if i < 2 else ' (not checked)')}")
+            if not ok and i < 2:
+                bad.append((i, j))
+    print("\nEmission parity:\n" + "\n".join(lines))
+    assert not bad, "\n".join(lines)
+    # The front-only panel seen from its back is black in both renders (its regions are dark).
+    back = (slice(0, h // 3), slice(w // 2 - w // 12, w // 2 + w // 12))
+    assert lam[back].min() < 0.05 * lam.max() and cyc[back].min() < 0.05 * cyc.max()

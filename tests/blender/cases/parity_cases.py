@@ -27,6 +27,7 @@ PRINCIPLED = {
                         "Specular Tint": (1.0, 0.6, 0.3, 1), "Roughness": 0.35},
 }
 CELL = 24          # pixels per sphere
+FLOOR_TURN = 0.0
 SPACING = 2.4      # metres between sphere centres
 
 
@@ -99,4 +100,72 @@ def principled_spheres(tmp, spp=256, bounces=6):
     out = _render_both(sc, tmp, "principled", spp, bounces)
     out["names"] = list(PRINCIPLED)
     out["cell"] = CELL
+    return out
+
+
+def _emission_material(name, strength, one_sided_cycles=False):
+    """An Emission shader; for Cycles' one-sided emitter a Mix Shader picks a black emission on
+    back faces (Geometry > Backfacing), Cycles having no one-sided option of its own."""
+    mat = bpy.data.materials.new(name)
+    tree = mat.node_tree
+    tree.nodes.clear()
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    emit = tree.nodes.new("ShaderNodeEmission")
+    emit.inputs["Strength"].default_value = strength
+    emit.inputs["Color"].default_value = (1.0, 0.9, 0.7, 1.0)
+    if not one_sided_cycles:
+        tree.links.new(emit.outputs[0], out.inputs["Surface"])
+        return mat
+    black = tree.nodes.new("ShaderNodeEmission")
+    black.inputs["Strength"].default_value = 0.0
+    geometry = tree.nodes.new("ShaderNodeNewGeometry")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    tree.links.new(geometry.outputs["Backfacing"], mix.inputs["Fac"])
+    tree.links.new(emit.outputs[0], mix.inputs[1])
+    tree.links.new(black.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+def emission_sides(tmp, spp=256, bounces=3, all_two=False):
+    """Two emissive panels above a grey floor, one two-sided and one front-only, each tilted so
+    the camera sees its back while its front lights the floor; a third, front-only, faces the
+    camera. Cycles' one-sided emitters are Mix Shader + Backfacing; Lamina's the material's
+    Emit From = Front Side."""
+    import math
+    sc = build.scene()
+    sc.render.resolution_x, sc.render.resolution_y = 72, 36
+    build.camera(location=(0.0, -7.0, 4.0), target=(0.0, 0.0, 0.5), lens=35)
+    floor = build.plane(size=10, material=build.diffuse_material("Floor", (0.6, 0.6, 0.6)))
+    floor.rotation_euler = (0.0, 0.0, FLOOR_TURN)
+    build.world_colour((0.02, 0.02, 0.02), 1.0)
+    panels = []
+    for i, (name, one_sided, tilt) in enumerate((("Two", False, 2.4), ("Front", True, -2.4),
+                                                 ("Facing", True, 0.9))):
+        obj = build.plane(f"Panel{name}", size=1.2)
+        obj.location = (-2.5 + 2.5 * i, 0.0, 1.2)
+        obj.rotation_euler = (tilt, 0.0, 0.0)
+        one_sided = one_sided and not all_two
+        cyc = _emission_material(f"{name}Cycles", 6.0, one_sided_cycles=one_sided)
+        lam = _emission_material(f"{name}Lamina", 6.0)
+        if one_sided:
+            lam.lamina.emission_sides = "FRONT"
+        obj.data.materials.append(cyc)
+        panels.append((obj, cyc, lam))
+    from .engine_cases import _render_to
+    out = {}
+    _match_cycles(sc, spp, bounces)
+    path = Path(tmp) / "emission_cycles.exr"
+    out["cycles_error"], out["cycles_seconds"] = _render_to(sc, path, multilayer=False)
+    out["cycles"] = str(path)
+    for obj, _, lam in panels:
+        obj.data.materials[0] = lam
+    sc.render.engine = "LAMINA"
+    sc.lamina.samples = spp
+    sc.lamina.max_bounces = bounces
+    sc.lamina.rr_depth = 64
+    sc.lamina.workers = 2
+    path = Path(tmp) / "emission_lamina.exr"
+    out["lamina_error"], out["lamina_seconds"] = _render_to(sc, path, multilayer=False)
+    out["lamina"] = str(path)
     return out
