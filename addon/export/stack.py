@@ -21,11 +21,18 @@ def _source(layer, image) -> str:
     return f"interface '{layer.name}' (image '{image.name}')"
 
 
+def _labelled(images, tex, text: str):
+    """``tex``, remembered by the exporter as coming from ``text`` (names.py); stand-ins for the
+    exporter (preset fingerprints) need not keep labels."""
+    label = getattr(images, "label", None)
+    return label(tex, text) if label is not None else tex
+
+
 def _scalar(value: float, image, images, *, squared: bool = False, layer=None):
     if image is not None and images is not None:
         tex = images.texture(image, scale=value, squared=squared)
         if tex is not None:
-            return images.label(tex, _source(layer, image)) if layer is not None else tex
+            return _labelled(images, tex, _source(layer, image)) if layer is not None else tex
     return value
 
 
@@ -33,7 +40,7 @@ def _colour(value, image, images, layer=None):
     if image is not None and images is not None:
         tex = images.texture(image, scale=rgb(value))
         if tex is not None:
-            return images.label(tex, _source(layer, image)) if layer is not None else tex
+            return _labelled(images, tex, _source(layer, image)) if layer is not None else tex
     return rgb(value)
 
 
@@ -81,7 +88,7 @@ def _axis(layer, images=None):
     if layer.orientation_texture is not None and images is not None:
         tex = images.texture(layer.orientation_texture)
         if tex is not None:
-            return images.label(tex, _source(layer, layer.orientation_texture))
+            return _labelled(images, tex, _source(layer, layer.orientation_texture))
     axis = [f32(v) for v in layer.flake_orientation]
     return axis if any(axis) else [1.0, 0.0, 0.0]
 
@@ -93,7 +100,7 @@ def _density(layer, images):
         if layer.sigma_t_texture is not None and images is not None:
             tex = images.texture(layer.sigma_t_texture, scale=value)
             if tex is not None:
-                return images.label(tex, _source(layer, layer.sigma_t_texture))
+                return _labelled(images, tex, _source(layer, layer.sigma_t_texture))
         return value
     return _scalar(f32(layer.sigma_t), layer.sigma_t_texture, images, layer=layer)
 
@@ -168,7 +175,7 @@ def stack_json(material, images, visiting: tuple = (), *, links: bool = True) ->
         # Nothing below an opaque interface is ever reached; the renderer would refuse the stack.
         # The panel warns (stack_check.py); the render leaves those interfaces out and says so.
         dropped = ", ".join(f"'{layer.name}'" for layer in layers[cut + 1:])
-        if images is not None:
+        if getattr(images, "notes", None) is not None:
             images.notes.append(f"material '{material.name}': interface(s) {dropped} below the opaque "
                                 f"'{layers[cut].name}' are never reached (left out)")
         layers, interfaces = layers[:cut + 1], interfaces[:cut + 1]
