@@ -197,7 +197,7 @@ def principled_material(p: dict, info: dict | None = None) -> tuple[dict, list[s
     sheen_w = max(float(p.get("sheen_weight", 0.0)), 0.0)
     t = table()
     eta_t = min(max(eta, float(t["ior"][0])), float(t["ior"][-1]))
-    if abs(eta_t - eta) > 1e-6 and eta > 1.0 + 1e-6:
+    if abs(eta_t - eta) > 1e-6:
         notes.append(f"IOR {eta:g} (tabulated range {t['ior'][0]:g}–{t['ior'][-1]:g}: albedo matched at {eta_t:g})")
 
     # Cycles, per channel and viewing-angle bin: the base (metal / transmission / specular+diffuse).
@@ -258,12 +258,14 @@ def principled_material(p: dict, info: dict | None = None) -> tuple[dict, list[s
 
     # Lamina: choose the stack.
     clamped = False
-    if metallic >= 1.0 - 1e-6 and trans < 0.5:
+    if metallic >= 1.0 - 1e-6:
         kind = "metal"
-    elif trans >= GLASS_FROM:
+    elif (1.0 - metallic) * trans >= GLASS_FROM:          # the glass's share of the mix
         kind = "glass"
     else:
         kind = "plastic"
+    if kind == "glass" and coat is not None:
+        notes.append("Coat on a transmissive surface (not rendered: glass without coat)")
     if 0.0 < trans < 1.0:
         notes.append(f"Transmission Weight {trans:g} (rendered as {'glass' if kind == 'glass' else 'opaque'}; "
                      f"albedo matched)")
@@ -278,7 +280,6 @@ def principled_material(p: dict, info: dict | None = None) -> tuple[dict, list[s
             out["transmission_color"] = _rgb(colour)
         layers = None
     elif kind == "metal":
-        inner = None
         layers = ("metal", None)
     else:
         # A metallic mix raises the dielectric's reflectance at normal incidence.
