@@ -21,6 +21,15 @@ from .kernels.layered import batch as layered_batch
 from .kernels.layered.table import H_MAXV, StackBuilder
 from .kernels.lights.table import build_light_table
 from .kernels.params import ParamPacker
+from .kernels.sampler import SAMPLERS
+from .lights.environment import ConstantWorld
+
+#: Path segments whose sampling dimensions come from the stratified (Sobol) sampler; deeper ones
+#: use the hashed numbers. Measured (benchmarks/sampler_depth.py, Cornell box 48², 3 seeds):
+#: Sobol on the first hit only gives the error of Sobol everywhere (diffuse spheres, 64 spp:
+#: RMSE 0.0382 vs 0.0382, independent 0.0487; gold + glass: 0.297 vs 0.303, independent 0.369)
+#: while each further stratified bounce costs ~130 ns per lane (3 scrambled 2-D slots).
+STRATIFIED_BOUNCES = 1
 
 
 def _table(corners: np.ndarray) -> np.ndarray:
@@ -58,12 +67,17 @@ class PathTracer:
         packer = ParamPacker()
         stacks = StackBuilder(packer)
         self.materials = build_material_table(scene.materials, packer, stacks)
-        self.light_table = build_light_table(self.lights, packer, scene.radius, s.light_selection)
+        # Next-event estimation never samples a constant world: BSDF sampling is the better
+        # strategy for it everywhere (exact for a Lambertian surface: zero variance, as in
+        # Cycles), and its escaped rays then keep MIS weight 1 (selection probability 0).
+        powers = [0.0 if isinstance(l, ConstantWorld) else float(l.power()) for l in self.lights]
+        self.light_table = build_light_table(self.lights, packer, scene.radius, s.light_selection,
+                                             powers=powers)
         self.textures = packer.table()
         # Layered stacks: their table, and the walks' scratch size (records of two walks).
         self.stacks = stacks.table(self.textures)
         self.walk_capacity = int(max(self.stacks.head[:, H_MAXV].max(), 2))
-        has_lights = any(l.power() > 0 for l in self.lights)
+        has_lights = any(pw > 0 for pw in powers)
         mesh_light = self.lights.index(scene.mesh_light) if scene.mesh_light is not None else -1
         emitter = np.full(max(soup.count, 1), -1, np.int32)
         if scene.mesh_light is not None:
@@ -83,10 +97,10 @@ class PathTracer:
             has_lights, mesh_light,
             np.array([i for i, l in enumerate(self.lights) if l.is_hittable], np.int64),
             np.array([i for i, l in enumerate(self.lights) if l.is_infinite], np.int64),
-            np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights] or [False]))
+            np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights] or [False]),
+            SAMPLERS[s.sampler], STRATIFIED_BOUNCES)
         self.camera = camera_vector(scene.camera)
-        f = scene.pixel_filter
-        self.filter = (f._cdf, f._grid, float(f.width))
+        self.filter = scene.pixel_filter.tables()
         self.any_hidden = bool(soup.count) and not bool(soup.camera_visible.all())
 
     # ------------------------------------------------------------------ work item
@@ -96,6 +110,7 @@ class PathTracer:
         ``FilmAccumulator.add``. ``rng`` is not used (every random number is counter-based)."""
         scene = self.scene
         W, H = scene.width, scene.height
+        pixels = np.ascontiguousarray(pixels, np.int64)
         P = pixels.size
         n = P * spp
         L = np.zeros((n, 3))
@@ -104,9 +119,8 @@ class PathTracer:
         alpha = np.zeros(n)
         cur, nxt = _Queue(n), _Queue(n)
         tmax32 = np.empty(n, np.float32)
-        cdf, grid, fwidth = self.filter
-        camera_rays(self.camera, cdf, grid, fwidth, W, H, self.settings.seed,
-                    np.ascontiguousarray(pixels, np.int64), spp, sample0,
+        camera_rays(self.camera, *self.filter, W, H, self.settings.seed, self.settings.sampler,
+                    pixels, spp, sample0,
                     cur.key, cur.o, cur.d, cur.o32, cur.d32, tmax32)
         cur.slot[:] = np.arange(n)
         cur.beta[:] = 1.0
@@ -133,6 +147,7 @@ class PathTracer:
                 prim, t, b1, b2 = self._skip_hidden(o32, d32, t_in, prim, t, b1, b2)
             counts[:] = 0
             ki.shade(self.geometry, self.materials, self.textures, self.light_table, self.settings, segment,
+                     pixels, spp, sample0,
                      cur.slot[:active], cur.key[:active], cur.o[:active], cur.d[:active], cur.beta[:active],
                      cur.pdf[:active], cur.delta[:active], t_in, prim, t, b1, b2,
                      L, albedo, normal, alpha, *nxt.outputs(),

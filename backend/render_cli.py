@@ -20,6 +20,8 @@ def register(sub) -> None:
     p.add_argument("--png", help="also write a display preview (PNG/JPEG, sRGB)")
     p.add_argument("--spp", type=_positive_int, help="samples per pixel (overrides the scene)")
     p.add_argument("--seed", type=_non_negative_int, help="random seed (overrides the scene)")
+    p.add_argument("--sampler", choices=("sobol", "independent"),
+                   help="path sampler (overrides the scene; default sobol: scrambled Sobol points)")
     p.add_argument("--workers", type=_positive_int, help="worker processes (default: all cores)")
     p.add_argument("--max-bounces", type=_non_negative_int, help="Cycles-style max bounces")
     p.add_argument("--time-limit", type=_number(0.0), help="seconds (0 = none); stop after this time, never before the first full pass")
@@ -146,7 +148,7 @@ def cmd_render(args) -> int:
         scene = load_scene(args.scene)
         options = RenderOptions(spp=args.spp, seed=args.seed, workers=args.workers,
                                 time_limit=args.time_limit, noise_target=args.noise_target,
-                                min_spp=args.min_spp, max_bounces=args.max_bounces,
+                                min_spp=args.min_spp, max_bounces=args.max_bounces, sampler=args.sampler,
                                 resolution=args.resolution)
         options.apply(scene)
         for w in scene.warnings:

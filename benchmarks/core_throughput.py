@@ -27,9 +27,16 @@ def main(argv=None) -> int:
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--max-bounces", type=int, default=6)
+    ap.add_argument("--sampler", choices=("sobol", "independent"), default="sobol")
     args = ap.parse_args(argv)
 
-    scene = load_scene_data(cornell_box(args.size, args.size, args.spp, args.max_bounces), "<cornell>")
+    from backend.kernels.cache import ensure_compiled
+    from backend.kernels.warmup import warm_up
+    ensure_compiled()
+    warm_up()                  # steady state: every kernel loaded before timing
+    data = cornell_box(args.size, args.size, args.spp, args.max_bounces)
+    data["render"]["sampler"] = args.sampler
+    scene = load_scene_data(data, "<cornell>")
     accel = Accelerator(scene.soup)
     tracer = PathTracer(scene, accel)
     accel.recorder = []
@@ -55,7 +62,7 @@ def main(argv=None) -> int:
     c_embree = time.process_time() - c0
     paths = W * H * args.spp
     print(f"machine: {platform.machine()} {platform.processor() or ''}, 1 process, Python {platform.python_version()}, numpy {np.__version__}")
-    print(f"scene: Cornell-like box {W}x{H}, {args.spp} spp, max_bounces {args.max_bounces}, {scene.soup.count} triangles")
+    print(f"scene: Cornell-like box {W}x{H}, {args.spp} spp, max_bounces {args.max_bounces}, {scene.soup.count} triangles, sampler {args.sampler}")
     print(f"render (1 process):   {t_render:8.3f} s  {paths / t_render / 1e3:9.1f} k paths/s  {rays / t_render / 1e6:6.2f} M rays/s  ({rays} rays, {rays / paths:.2f} per path)")
     print(f"embree only, same rays: {t_embree:6.3f} s  {rays / t_embree / 1e6:6.2f} M rays/s")
     print(f"CPU time (robust on a shared machine): render {c_render:.3f} s, embree only {c_embree:.3f} s")

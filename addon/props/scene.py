@@ -7,6 +7,11 @@ from bpy.types import PropertyGroup
 
 from ..constants import ESTIMATORS, PDF_MODES
 
+SAMPLERS = (
+    ("SOBOL", "Sobol", "Owen-scrambled Sobol points: stratified per pixel, less noise at equal samples", 0),
+    ("INDEPENDENT", "Independent", "Independent random numbers (the reference)", 1),
+)
+
 FILTERS = (
     ("BLACKMAN_HARRIS", "Blackman-Harris", "Cycles' default pixel filter", 0),
     ("GAUSSIAN", "Gaussian", "Gaussian pixel filter", 1),
@@ -30,6 +35,8 @@ class LaminaRenderSettings(PropertyGroup):
                           description="Bounces before paths may be terminated at random")
     clamp: FloatProperty(name="Clamp Indirect", default=0.0, min=0.0,
                          description="Clamp indirect sample values (trades bias for fireflies); 0 = off")
+    sampler: EnumProperty(name="Sampler", items=SAMPLERS, default="SOBOL",
+                          description="How samples are placed in each pixel and path dimension")
     seed: IntProperty(name="Seed", default=0, min=0, description="Random seed; same seed and samples "
                                                                "give the same image")
     use_animated_seed: BoolProperty(name="Animated Seed", default=False,

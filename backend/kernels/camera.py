@@ -18,7 +18,8 @@ import math
 import numpy as np
 from numba import njit
 
-from .rng import DIM_FILTER, DIM_LENS, path_key, uniform
+from .rng import DIM_FILTER, DIM_LENS, path_key
+from .sampler import get2, pixel_seed
 from .warp import disk_concentric
 
 CAMERA_SIZE = 32
@@ -40,9 +41,16 @@ def camera_vector(camera) -> np.ndarray:
 
 
 @njit(cache=True, _nrt=False)
-def filter_offset(cdf, grid, width, u):
+def filter_offset(cdf, grid, inverse, kinked, width, u):
     """Offset from the pixel centre [pixels] for u in [0, 1): the inverse of the filter's CDF
-    (piecewise linear between table nodes), centred and scaled to the filter width."""
+    (piecewise linear between table nodes), centred and scaled to the filter's support. A lookup in
+    the uniform-u table where its cell holds no CDF node (exact there), else a binary search."""
+    m = kinked.shape[0]
+    x = u * m
+    i = min(int(x), m - 1)
+    if not kinked[i]:
+        lo_v = inverse[i]
+        return (lo_v + (x - i) * (inverse[i + 1] - lo_v) - 0.5) * width
     lo = 0
     hi = cdf.shape[0] - 1
     while hi - lo > 1:            # largest lo with cdf[lo] <= u
@@ -130,30 +138,34 @@ def generate_batch(cam, st, lens_u, use_lens, o, d, tmin, tmax):
 
 
 @njit(cache=True, _nrt=False)
-def filter_batch(cdf, grid, width, u, out):
+def filter_batch(cdf, grid, inverse, kinked, width, u, out):
     for i in range(u.shape[0]):
-        out[i, 0] = filter_offset(cdf, grid, width, u[i, 0])
-        out[i, 1] = filter_offset(cdf, grid, width, u[i, 1])
+        out[i, 0] = filter_offset(cdf, grid, inverse, kinked, width, u[i, 0])
+        out[i, 1] = filter_offset(cdf, grid, inverse, kinked, width, u[i, 1])
 
 
 @njit(cache=True, _nrt=False, nogil=True)
-def camera_rays(cam, cdf, grid, fwidth, width, height, seed, pixels, spp, sample0,
-                key, o, d, o32, d32, tmax32):
+def camera_rays(cam, cdf, grid, inverse, kinked, fwidth, width, height, seed, sampler, pixels, spp,
+                sample0, key, o, d, o32, d32, tmax32):
     """The primary rays of a work item: lane i is sample ``sample0 + i % spp`` of pixel
     ``pixels[i // spp]`` (flat index, row 0 = top). Writes the lane's random-number key, the ray
     in float64 (shading) and float32 (embree, with its clipped length)."""
     lens = cam[28] > 0.0 and cam[27] > 0.0
     for i in range(key.shape[0]):
         pix = pixels[i // spp]
-        k = path_key(seed, pix, sample0 + i % spp)
+        smp = sample0 + i % spp
+        k = path_key(seed, pix, smp)
         key[i] = k
+        ps = pixel_seed(seed, pix)
         px = pix % width
         py = pix // width
-        ox_ = filter_offset(cdf, grid, fwidth, uniform(k, DIM_FILTER))
-        oy_ = filter_offset(cdf, grid, fwidth, uniform(k, DIM_FILTER + 1))
+        f0, f1 = get2(sampler, ps, k, smp, DIM_FILTER)
+        ox_ = filter_offset(cdf, grid, inverse, kinked, fwidth, f0)
+        oy_ = filter_offset(cdf, grid, inverse, kinked, fwidth, f1)
         s = (px + 0.5 + ox_) / width
         t = (py + 0.5 + oy_) / height
-        ro, rd, tmin, tm = generate(cam, s, t, lens, uniform(k, DIM_LENS), uniform(k, DIM_LENS + 1))
+        l0, l1 = get2(sampler, ps, k, smp, DIM_LENS) if lens else (0.5, 0.5)
+        ro, rd, tmin, tm = generate(cam, s, t, lens, l0, l1)
         # Start at the near clip plane.
         for c in range(3):
             o[i, c] = ro[c] + rd[c] * tmin

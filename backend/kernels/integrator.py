@@ -31,8 +31,8 @@ from numba import njit
 from . import materials as km
 from .layered import batch as layered
 from .lights import dispatch as ld
-from .rng import (SLOT_BSDF, SLOT_BSDF_LOBE, SLOT_LIGHT, SLOT_LIGHT_PICK, SLOT_RR, bounce_dim,
-                  uniform)
+from .rng import SLOT_BSDF, SLOT_LIGHT, SLOT_LIGHT_PICK, SLOT_RR, bounce_dim, uniform
+from .sampler import get2, pixel_seed
 
 SHADOW_EPS = 1e-4   # shadow rays stop this fraction short of the light (not its own surface)
 # Ray offsets (geometry/accel.py): along the geometric normal by a multiple of the float32
@@ -48,7 +48,7 @@ Geometry = namedtuple("Geometry", ["position", "normal", "uv", "geo_normal", "ta
 # Render settings the kernels read (scalars; one Numba type per field).
 Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", "transparent",
                                    "has_lights", "mesh_light", "hittable", "infinite",
-                                   "visible_camera"])
+                                   "visible_camera", "sampler", "stratified_bounces"])
 
 
 @njit(cache=True, _nrt=False)
@@ -228,16 +228,17 @@ def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, de
 
 
 @njit(cache=True, _nrt=False, nogil=True)
-def shade(G, MT, TX, LT, S, segment,
+def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
           slot, key, o, d, beta, prev_pdf, prev_delta, tmax32, prim, t32, b1_32, b2_32,
           L, albedo, normal, alpha,
           nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta,
           sh_slot, sh_o32, sh_d32, sh_t32, sh_c,
           ST, LW, LB, LR, LC, counts):
-    """One bounce for every traced lane (see the module docstring). ``counts`` (int64[5]) gets
-    [next rays, shadow rays, layered lanes, non-finite paths killed, 0]. ``ST``: the layered
-    stack table; ``LW``, ``LB``, ``LR``, ``LC``: the layered walks' scratch and counters
-    (kernels/layered/batch.py)."""
+    """One bounce for every traced lane (see the module docstring). Lane slot ``sl`` is sample
+    ``sample0 + sl % spp`` of pixel ``pixels[sl // spp]`` (for the path sampler). ``counts``
+    (int64[5]) gets [next rays, shadow rays, layered lanes, non-finite paths killed, 0].
+    ``ST``: the layered stack table; ``LW``, ``LB``, ``LR``, ``LC``: the layered walks' scratch
+    and counters (kernels/layered/batch.py)."""
     camera = segment == 0
     last = segment == S.max_segments - 1
     can_nee = S.has_lights and segment + 1 < S.max_segments
@@ -301,8 +302,9 @@ def shade(G, MT, TX, LT, S, segment,
             v = 0.0
         m = G.material[pr]
         wi = (-rd[0], -rd[1], -rd[2])
-        if MT.emits[m]:
-            le = km.emission(MT, TX, m, u, v)     # both faces, as Cycles' emission shader
+        # Both faces emit (as Cycles' emission shader), or the front only (emission_sides).
+        if MT.emits[m] and (not MT.emit_front[m] or _dot(wi, ng) > 0.0):
+            le = km.emission(MT, TX, m, u, v)
             w = 1.0
             if S.mesh_light >= 0:
                 local = G.emitter[pr]
@@ -326,7 +328,16 @@ def shade(G, MT, TX, LT, S, segment,
         tan = (G.tangent[pr, 0], G.tangent[pr, 1], G.tangent[pr, 2])
         fs, ft = _frame(ns, tan)
         wi_l = _local(fs, ft, ns, wi)
-        # 4a. light sample
+        # 4a. light sample (shared with layered lanes) from the sampler's 2-D slots of this bounce.
+        # Stratified numbers for the first bounces, where they pay (direct light at the first
+        # hits); hashed ones deeper, where stratification no longer shows but costs ~40 ns/slot.
+        smode = S.sampler if segment < S.stratified_bounces else 1
+        smp = 0
+        ps = np.uint64(0)
+        if smode == 0:
+            smp = sample0 + sl % spp
+            ps = pixel_seed(S.seed, pixels[sl // spp])
+        u_pick, u_lobe = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_LIGHT_PICK))
         li = -1
         sel_p = 0.0
         wi_w = (0.0, 0.0, 1.0)
@@ -337,11 +348,10 @@ def shade(G, MT, TX, LT, S, segment,
         live = False
         wo_n = (0.0, 0.0, 1.0)
         if can_nee:
-            li, sel_p = ld.select(LT, p, uniform(key[i], bounce_dim(segment, SLOT_LIGHT_PICK)))
+            li, sel_p = ld.select(LT, p, u_pick)
             if li >= 0 and sel_p > 0.0:
-                wi_w, dist, value, lpdf, is_delta = ld.sample(
-                    LT, TX, li, p, uniform(key[i], bounce_dim(segment, SLOT_LIGHT)),
-                    uniform(key[i], bounce_dim(segment, SLOT_LIGHT) + 1))
+                ul0, ul1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_LIGHT))
+                wi_w, dist, value, lpdf, is_delta = ld.sample(LT, TX, li, p, ul0, ul1)
                 wo_n = _local(fs, ft, ns, wi_w)
                 live = max(value[0], max(value[1], value[2])) > 0.0 and _dot(wi_w, ng) * wo_n[2] > 0.0
         if kind == km.LAYERED:
@@ -373,11 +383,9 @@ def shade(G, MT, TX, LT, S, segment,
                  sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
         # 5. continuation
         if not last:
-            wo, weight, spdf, sdelta = km.sample(
-                kind, dist_code, mask_code, prm, 0, wi_l,
-                uniform(key[i], bounce_dim(segment, SLOT_BSDF)),
-                uniform(key[i], bounce_dim(segment, SLOT_BSDF) + 1),
-                uniform(key[i], bounce_dim(segment, SLOT_BSDF_LOBE)))
+            ub0, ub1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_BSDF))
+            wo, weight, spdf, sdelta = km.sample(kind, dist_code, mask_code, prm, 0, wi_l,
+                                                 ub0, ub1, u_lobe)
             if weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0:
                 _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
                           spdf, sdelta, nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta,

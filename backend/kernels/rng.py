@@ -9,7 +9,10 @@ Hash: three rounds of the SplitMix64 finaliser (Steele, Lea, Flood 2014), one pe
 multiplied by a distinct odd constant first. 53 random bits make a double in [0, 1).
 
 Dimension plan of a path (``DIM_*``): the camera uses dimensions 0–3; bounce b uses
-``BOUNCE_BASE + b·BOUNCE_DIMS + k`` for the fixed slots k below.
+``BOUNCE_BASE + b·BOUNCE_DIMS + k`` for the fixed slots k below. Slots are read through the
+path sampler (``sampler.py``: scrambled Sobol by default), which stratifies them in pairs:
+(light selection, BSDF lobe), the light position and the BSDF direction are 2-D slots; Russian
+roulette takes a hashed number (it gains nothing from stratification).
 """
 from __future__ import annotations
 
@@ -20,11 +23,11 @@ DIM_FILTER = 0          # 2: pixel-filter offset
 DIM_LENS = 2            # 2: aperture
 BOUNCE_BASE = 4
 BOUNCE_DIMS = 12
-SLOT_LIGHT_PICK = 0     # 1: which light
-SLOT_LIGHT = 1          # 2: point/direction on the light
-SLOT_BSDF_LOBE = 3      # 1: lobe choice (reflect / refract)
-SLOT_BSDF = 4           # 2: direction
-SLOT_RR = 6             # 1: Russian roulette
+SLOT_LIGHT_PICK = 0     # 2-D slot, first: which light
+SLOT_BSDF_LOBE = 1      #            second: lobe choice (reflect / refract)
+SLOT_LIGHT = 2          # 2-D: point/direction on the light
+SLOT_BSDF = 4           # 2-D: direction
+SLOT_RR = 6             # 1 (hashed): Russian roulette
 SLOT_SPARE = 7          # the layered walks' sub-stream (stream_key); 8..11 free
 
 _M0 = np.uint64(0x9E3779B97F4A7C15)

@@ -111,8 +111,13 @@ class PointLight(Light):
                  _kp.SHAPE_SPHERE if self.is_sphere else _kp.SHAPE_DISK)
         row = b.light(_kc.POINT, delta=self.is_delta, hittable=self.is_hittable,
                       visible_camera=self.visible_camera)
-        row.select_point(self.position, self.radius)
         row.put(_kp.P_POS, self.position)
+        if self.profile is not None or self._has_cone():
+            from ..mathutil import luminance
+            row.select_profile(self.position, self.radius,
+                               max(float(luminance(self.color)), 0.0) * self.watts * INV_4PI)
+        else:
+            row.select_point(self.position, self.radius)
         row.put(_kp.P_INTENSITY, self.intensity)
         row.put(_kp.P_RADIANCE, self.radiance)
         row.f[_kp.P_RADIUS] = self.radius
@@ -134,6 +139,10 @@ class PointLight(Light):
             row.i[_kp.I_IES_NV] = prof.nv
             row.i[_kp.I_IES_FLAGS] = prof.flags
             row.f[_kp.P_IES_SCALE] = self.profile.scale
+
+    def _has_cone(self) -> bool:
+        """Spot lights have a cone factor (spot.py)."""
+        return False
 
     def _pack_spot(self, row) -> None:
         """Spot lights write their cone (spot.py)."""

@@ -60,6 +60,9 @@ class SpotLight(PointLight):
     def _has_factor(self) -> bool:
         return True
 
+    def _has_cone(self) -> bool:
+        return True
+
     def _pack_spot(self, row) -> None:
         row.i[_kp.I_SPOT] = 1
         row.f[_kp.P_COS_HALF] = self.cos_half

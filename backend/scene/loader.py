@@ -32,6 +32,7 @@ class RenderSettings:
     min_spp: int = 16
     time_limit: float = 0.0
     light_selection: str = "local"
+    sampler: str = "sobol"
 
 
 @dataclass
@@ -189,6 +190,7 @@ def parse_settings(node: Node | None, ctx: LoadContext) -> RenderSettings:
     s.min_spp = node.integer("min_spp", s.min_spp, lo=1, hi=1 << 24)
     s.time_limit = node.number("time_limit", s.time_limit, lo=0)
     s.light_selection = node.string("light_selection", s.light_selection, choices=("local", "power"))
+    s.sampler = node.string("sampler", s.sampler, choices=("sobol", "independent"))
     layered = node.optional_child("layered")
     ctx.cache["layered_defaults"] = dict(layered.require_object().value) if layered is not None else {}
     node.finish()
@@ -218,7 +220,16 @@ def parse_material(node: Node):
     if isinstance(node.value, str):
         from ..presets import resolve_preset  # the preset library resolves names
         return resolve_preset(node.value, node)
-    return dispatch(node, load_all())
+    # "emission_sides" (any material): "both" (default, as Cycles) or "front" (the side the
+    # triangles' counter-clockwise winding faces). Read here so every material type takes it.
+    sides = node.string("emission_sides", "both", choices=("both", "front")) if isinstance(node.value, dict) else "both"
+    material = dispatch(node, load_all())
+    if sides == "front":
+        if getattr(material, "emission", None) is None:
+            node.ctx.warn(node.sub("emission_sides"), "the material emits nothing: ignored")
+        else:
+            material.emission_front_only = True
+    return material
 
 
 def parse_materials(node: Node | None):
@@ -350,7 +361,9 @@ def build_mesh_light(soup: TriangleSoup, materials: list):
         slot_of[emissive] = np.arange(len(emissive))
         textured = dict(uvs=soup.uvs64[tri], emission=[materials[mi].emission for mi in emissive],
                         slots=slot_of[soup.material[tri]])
-    light = MeshLight(soup.vertices[tri].astype(np.float64), radiance, two_sided=True, **textured)
+    # Two-sided per triangle unless its material emits from the front only (emission_sides).
+    two_sided = ~np.array([bool(getattr(m, "emission_front_only", False)) for m in materials])[soup.material[tri]]
+    light = MeshLight(soup.vertices[tri].astype(np.float64), radiance, two_sided=two_sided, **textured)
     light.triangle_ids = tri  # global triangle index of each emitter
     return light
 

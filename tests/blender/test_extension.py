@@ -55,7 +55,7 @@ def test_zip_validated_and_contents(built):
 
 
 def test_installs_enables_and_finds_its_backend(built):
-    tmp, path, _ = built
+    tmp, path, log = built
     user = tmp / "user"
     r = result_of(run_cases("install_cases", ["install"], tmp=tmp, dev_load=False,
                             env={"BLENDER_USER_RESOURCES": str(user)},
@@ -75,6 +75,16 @@ def test_installs_enables_and_finds_its_backend(built):
     if any(n.endswith(".whl") for n in zipfile.ZipFile(path).namelist()):
         assert r["unpacked"] and Path(r["unpacked"][0]).resolve().is_relative_to(user.resolve())
     assert r["version"].startswith("Lamina")
+    # Renders with compiled kernels, compiled once into the extension's user folder.
+    assert r["render_code"] == 0 and r["rendered"], r["render_err"]
+    assert "compiling render kernels (first run only)" in r["render_err"]
+    assert Path(r["kernel_dir"]).resolve().is_relative_to(user.resolve()), r["kernel_dir"]
+    assert r["kernel_files"], "no compiled kernel in the extension's user folder"
+    if this_platform() and "warning: no numba wheel" not in log and "warning: no llvmlite wheel" not in log:
+        names = zipfile.ZipFile(path).namelist()
+        assert any(n.startswith("wheels/numba-") for n in names)
+        assert any(n.startswith("wheels/llvmlite-") for n in names)
+        assert r["unpacked_numba"] and r["unpacked_llvmlite"]
 
 
 def test_backend_runs_with_blenders_own_openimageio(tmp_path):

@@ -149,8 +149,67 @@ def plan(P, I, li, p):
 
 
 @njit(cache=True, _nrt=False)
+def _whole_rect(P, I, li):
+    """The common case, a rectangle with no cutoff cone: every point in front of it samples
+    the whole emitter (plan() would choose MODE_SPHRECT or MODE_AREA_RECT on the full box)."""
+    return I[li, I_ELLIPSE] == 0 and not P[li, A_TAN_MAX] < INF
+
+
+@njit(cache=True, _nrt=False)
+def _rect_frame(P, li, p):
+    """Coordinates (x0, y0, z0) of the corner (−hu, −hv) relative to p in the frame
+    (u, v, w = u × v), the emission normal in that frame, and w."""
+    c = get3(P, li, A_CENTER)
+    U = get3(P, li, A_U)
+    V = get3(P, li, A_V)
+    N = get3(P, li, A_N)
+    W = (U[1] * V[2] - U[2] * V[1], U[2] * V[0] - U[0] * V[2], U[0] * V[1] - U[1] * V[0])
+    r = (c[0] - p[0], c[1] - p[1], c[2] - p[2])
+    x0 = dot(r, U) - P[li, A_HALF_U]
+    y0 = dot(r, V) - P[li, A_HALF_V]
+    z0 = dot(r, W)
+    return x0, y0, z0, (dot(N, U), dot(N, V), dot(N, W)), U, V, W
+
+
+@njit(cache=True, _nrt=False)
+def _sample_whole_rect(P, I, li, p, u0, u1):
+    """``sample`` for ``_whole_rect`` lights, all in the spherical-rectangle frame: no region
+    plan, no round trip through emitter and world coordinates (measured 214 → see
+    benchmarks/light_kernels.md)."""
+    x0, y0, z0, n, U, V, W = _rect_frame(P, li, p)
+    lx = 2.0 * P[li, A_HALF_U]
+    ly = 2.0 * P[li, A_HALF_V]
+    h = -(x0 * n[0] + y0 * n[1] + z0 * n[2])          # height of p in front of the emitter
+    if not (h > 0.0 and I[li, I_EMITS] != 0):
+        return ZERO3, 0.0, ZERO3, 0.0
+    sr = _sr.spherical_rect(x0, y0, z0, lx, ly)
+    solid = sr[8]
+    if solid < MIN_SOLID_ANGLE:
+        xu = x0 + u0 * lx                              # tiny solid angle: by area
+        yv = y0 + u1 * ly
+    else:
+        xu, yv = _sr.sample(sr, u0, u1)
+    t = math.sqrt(xu * xu + yv * yv + z0 * z0)
+    if not t > 0.0:
+        return ZERO3, 0.0, ZERO3, 0.0
+    inv_t = 1.0 / t
+    w = (xu * inv_t, yv * inv_t, z0 * inv_t)
+    cos_out = -(w[0] * n[0] + w[1] * n[1] + w[2] * n[2])
+    if not cos_out > 0.0:
+        return ZERO3, 0.0, ZERO3, 0.0
+    pdf = 1.0 / solid if solid >= MIN_SOLID_ANGLE else t * t / (cos_out * P[li, A_AREA])
+    le = radiance(P, I, li, cos_out)
+    inv = 1.0 / pdf
+    wi = (w[0] * U[0] + w[1] * V[0] + w[2] * W[0], w[0] * U[1] + w[1] * V[1] + w[2] * W[1],
+          w[0] * U[2] + w[1] * V[2] + w[2] * W[2])
+    return wi, t, (le[0] * inv, le[1] * inv, le[2] * inv), pdf
+
+
+@njit(cache=True, _nrt=False)
 def sample(P, I, li, aux, p, u0, u1):
     """(wi, dist, value = radiance/pdf, solid-angle pdf); value and pdf 0 where p gets nothing."""
+    if _whole_rect(P, I, li):
+        return _sample_whole_rect(P, I, li, p, u0, u1)
     mode, pu, pv, h, a0, a1, b0, b1, sr, solid = plan(P, I, li, p)
     if mode == MODE_NONE:
         return ZERO3, 0.0, ZERO3, 0.0
@@ -233,6 +292,14 @@ def pdf_hit(P, I, li, aux, o, d, t):
     cos_out = -dot(d, get3(P, li, A_N))
     if not cos_out > 0.0:
         return 0.0
+    if _whole_rect(P, I, li):
+        x0, y0, z0, n, _, _, _ = _rect_frame(P, li, o)
+        if not (-(x0 * n[0] + y0 * n[1] + z0 * n[2]) > 0.0 and I[li, I_EMITS] != 0):
+            return 0.0
+        solid = _sr.spherical_rect(x0, y0, z0, 2.0 * P[li, A_HALF_U], 2.0 * P[li, A_HALF_V])[8]
+        if solid < MIN_SOLID_ANGLE:
+            return t * t / (P[li, A_AREA] * cos_out)
+        return 1.0 / solid
     mode, pu, pv, h, a0, a1, b0, b1, sr, solid = plan(P, I, li, o)
     if mode == MODE_NONE:
         return 0.0

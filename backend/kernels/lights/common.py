@@ -38,6 +38,7 @@ C_SEL_POS = 1      # 1..3: where the light is, for the received-power estimate [
 C_SEL_SIZE2 = 4    # squared size [m²] below which the distance stops mattering (≥ 1e-8)
 C_SEL_NORMAL = 5   # 5..7: one-sided emitters' normal
 C_SEL_AREA = 8     # one-sided emitters' area [m²]
+C_SEL_INTENSITY = 9  # SEL_PROFILE: luminance of the unit-factor intensity, lum · P/(4π) [W/sr]
 FIRST = 12
 
 I_SEL = 0          # how selection weighs the light at a point: SEL_*
@@ -46,6 +47,8 @@ I_FIRST = 1
 SEL_UNIFORM = 0    # the same everywhere: power / (π R²) (infinite lights)
 SEL_POINT = 1      # power / (4π max(d², size²))
 SEL_ONE_SIDED = 2  # power · max(cos, 0.05) / (π max(d², area)) in front, 0 behind
+SEL_PROFILE = 3    # point/spot/IES with a directional factor: I(ω) / max(d², size²), ω towards p,
+                   # so no sample goes where the spot cone or the IES table is zero
 
 ZERO3 = (0.0, 0.0, 0.0)
 INF = math.inf

@@ -26,15 +26,17 @@ from numba import njit
 
 from .. import discrete as _d
 from ..vec import dot
-from .common import C_POWER, C_SEL_AREA, C_SEL_NORMAL, C_SEL_POS, C_SEL_SIZE2, I_SEL, SEL_ONE_SIDED, SEL_UNIFORM
+from .common import (C_POWER, C_SEL_AREA, C_SEL_INTENSITY, C_SEL_NORMAL, C_SEL_POS, C_SEL_SIZE2,
+                     I_SEL, SEL_ONE_SIDED, SEL_PROFILE, SEL_UNIFORM)
+from .point import directional_factor
 
 INV_PI = 1.0 / math.pi
 
 
 @njit(cache=True, _nrt=False, inline="always")
-def received_power_row(P, j, how, radius, p):
-    """Power of light j (parameter matrix P, selection kind ``how``) as received at point p
-    (W/m² scale; see the module docstring); ``radius`` = the scene radius R [m]."""
+def received_power_row(P, I, aux, j, how, radius, p):
+    """Power of light j (parameter matrices P, I, selection kind ``how``) as received at point
+    p (W/m² scale; see the module docstring); ``radius`` = the scene radius R [m]."""
     power = P[j, C_POWER]
     if not power > 0.0:
         return 0.0
@@ -49,27 +51,33 @@ def received_power_row(P, j, how, radius, p):
         cos_e = min(max(h / math.sqrt(max(d2, 1e-300)), 0.0), 1.0)
         # Near the emitter the received scale saturates at its own area (no 1/d² blow-up).
         return power * max(cos_e, 0.05) * INV_PI / max(d2, P[j, C_SEL_AREA])
+    if how == SEL_PROFILE:
+        # Intensity towards p (spot cone × IES table): zero where the profile is zero, so no
+        # sample is spent on a light that cannot reach p.
+        n = math.sqrt(d2)
+        w = (rel[0] / n, rel[1] / n, rel[2] / n) if n > 0.0 else (0.0, 0.0, -1.0)
+        return P[j, C_SEL_INTENSITY] * directional_factor(P, I, j, aux, w) / max(d2, P[j, C_SEL_SIZE2])
     return power * 0.25 * INV_PI / max(d2, P[j, C_SEL_SIZE2])
 
 
 @njit(cache=True, _nrt=False, inline="always")
 def received_power(lt, j, p):
     """Power of light j as received at point p (W/m² scale)."""
-    return received_power_row(lt.params, j, lt.iparams[j, I_SEL], lt.sel_radius, p)
+    return received_power_row(lt.params, lt.iparams, lt.aux, j, lt.iparams[j, I_SEL], lt.sel_radius, p)
 
 
 @njit(cache=True, _nrt=False)
-def _total(params, iparams, active, radius, p):
+def _total(params, iparams, aux, active, radius, p):
     total = 0.0
     for k in range(active.shape[0]):
         j = active[k]
-        total += received_power_row(params, j, iparams[j, I_SEL], radius, p)
+        total += received_power_row(params, iparams, aux, j, iparams[j, I_SEL], radius, p)
     return total
 
 
 @njit(cache=True, _nrt=False)
-def _select_local(params, iparams, active, radius, p, u):
-    total = _total(params, iparams, active, radius, p)
+def _select_local(params, iparams, aux, active, radius, p, u):
+    total = _total(params, iparams, aux, active, radius, p)
     by_power = not total > 0.0
     if by_power:
         # nothing reaches p: the global table (the contributions are 0 anyway)
@@ -79,14 +87,14 @@ def _select_local(params, iparams, active, radius, p, u):
     c = 0.0
     for k in range(active.shape[0]):
         j = active[k]
-        w = params[j, C_POWER] if by_power else received_power_row(params, j, iparams[j, I_SEL], radius, p)
+        w = params[j, C_POWER] if by_power else received_power_row(params, iparams, aux, j, iparams[j, I_SEL], radius, p)
         c += w
         if u < c / total:           # a bin of zero width is never the first with u < cdf
             return j, w / total
     # u at the very top (rounding of the cdf): the last bin of positive weight
     for k in range(active.shape[0] - 1, -1, -1):
         j = active[k]
-        w = params[j, C_POWER] if by_power else received_power_row(params, j, iparams[j, I_SEL], radius, p)
+        w = params[j, C_POWER] if by_power else received_power_row(params, iparams, aux, j, iparams[j, I_SEL], radius, p)
         if w > 0.0:
             return j, w / total
     return -1, 0.0
@@ -101,7 +109,7 @@ def select(lt, p, u):
     if lt.local_selection == 0:
         k, prob, _ = _d.sample_1d(lt.sel_dist, 0, na, u)
         return lt.sel_active[k], prob
-    return _select_local(lt.params, lt.iparams, lt.sel_active, lt.sel_radius, p, u)
+    return _select_local(lt.params, lt.iparams, lt.aux, lt.sel_active, lt.sel_radius, p, u)
 
 
 @njit(cache=True, _nrt=False, inline="always")
@@ -111,7 +119,7 @@ def select_prob(lt, p, li):
         return 0.0
     if lt.local_selection == 0:
         return lt.sel_pmf[li]
-    total = _total(lt.params, lt.iparams, lt.sel_active, lt.sel_radius, p)
+    total = _total(lt.params, lt.iparams, lt.aux, lt.sel_active, lt.sel_radius, p)
     if total > 0.0:
         return received_power(lt, li, p) / total
     return lt.sel_pmf[li]

@@ -39,8 +39,8 @@ from collections import namedtuple
 
 import numpy as np
 
-from .common import (C_POWER, C_SEL_AREA, C_SEL_NORMAL, C_SEL_POS, C_SEL_SIZE2, I_SEL, NI, NP,
-                     SEL_ONE_SIDED, SEL_POINT, SEL_UNIFORM)
+from .common import (C_POWER, C_SEL_AREA, C_SEL_INTENSITY, C_SEL_NORMAL, C_SEL_POS, C_SEL_SIZE2,
+                     I_SEL, NI, NP, SEL_ONE_SIDED, SEL_POINT, SEL_PROFILE, SEL_UNIFORM)
 
 LightTable = namedtuple("LightTable", [
     "kind", "is_delta", "is_infinite", "is_hittable", "visible_camera",
@@ -76,6 +76,13 @@ class LightRow:
         self.i[I_SEL] = SEL_POINT
         self.put(C_SEL_POS, position)
         self.f[C_SEL_SIZE2] = max(float(size) ** 2, 1e-8)
+
+    def select_profile(self, position, size: float, intensity: float):
+        """A point light whose emission has a directional factor (spot cone, IES): weighed by its
+        intensity towards the point; ``intensity`` = luminance × P/(4π) at factor 1."""
+        self.select_point(position, size)
+        self.i[I_SEL] = SEL_PROFILE
+        self.f[C_SEL_INTENSITY] = float(intensity)
 
     def select_one_sided(self, center, normal, area: float):
         self.i[I_SEL] = SEL_ONE_SIDED
