@@ -92,12 +92,12 @@ def list_presets(dirs=None) -> list[Path]:
 
 def load_preset_document(path: Path) -> dict:
     path = Path(path)
+    from .scene.reader import read_json
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise LaminaError(f"{path}: not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}") from None
-    except (OSError, UnicodeDecodeError) as exc:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise LaminaError(f"{path}: cannot read preset: {exc}") from None
+    data = read_json(text, str(path))
     if not isinstance(data, dict) or not isinstance(data.get("material"), dict):
         raise LaminaError(f"{path}: a preset file needs a \"material\" object")
     return data
@@ -325,14 +325,18 @@ def material_source(name_or_path: str) -> tuple[dict, str, Path, str]:
     text = str(name_or_path)
     p = Path(text)
     if p.suffix.lower() == ".json" or "/" in text or os.sep in text:
-        if not p.is_file():
-            raise LaminaError(f"{text}: material file not found")
+        from .scene.reader import path_problem, read_json
+        problem = path_problem(text)
+        if problem:
+            raise LaminaError(f"{text[:60]}: {problem}")
         try:
-            data = json.loads(p.read_text(encoding="utf-8"))
-        except json.JSONDecodeError as exc:
-            raise LaminaError(f"{p}: not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}") from None
-        except (OSError, UnicodeDecodeError) as exc:
+            found = p.is_file()
+            text_data = p.read_text(encoding="utf-8") if found else None
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
             raise LaminaError(f"{p}: cannot read: {exc}") from None
+        if not found:
+            raise LaminaError(f"{text}: material file not found")
+        data = read_json(text_data, str(p))
         if not isinstance(data, dict):
             raise LaminaError(f"{p}: expected a material object")
         if isinstance(data.get("material"), dict) and "type" not in data:

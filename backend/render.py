@@ -17,6 +17,17 @@ Parallelism (``RenderOptions.parallel``):
 * ``"processes"``: worker processes (``spawn``), each loading the scene and building its own
   embree scene; for scenes dominated by the layered BSDF's NumPy walks, which hold the GIL.
 Kernels are compiled (or loaded from the cache) once, before any worker starts.
+
+Failures (docs/cli.md, "When a worker fails"):
+* A worker *process* that dies (SIGKILL, the out-of-memory killer, a crash) breaks the process
+  pool. The items not yet returned are submitted again to a fresh pool; since every item is a
+  pure function of its key and results are merged in item order, the image is bit-identical to an
+  undisturbed render. The loss is reported in one warning; after ``MAX_WORKER_LOSSES`` losses the
+  render stops with an error and the samples merged so far are kept (``RenderResult.error``).
+* When the stop request came with the loss (SIGTERM to the whole process group, as a farm manager
+  or ``timeout`` sends it, kills the workers too), the render stops as interrupted instead.
+* An exception inside an item (a worker thread, a worker process, or the serial loop) stops the
+  render the same way, with an error naming it: nothing is lost silently.
 """
 from __future__ import annotations
 
@@ -24,14 +35,18 @@ import math
 import os
 import signal
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import TimeoutError as FutureTimeout
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from . import stats
+from .errors import LaminaError
 from .film import FilmAccumulator
+from .limits import MAX_WORKER_LOSSES, MAX_WORKERS
 from .mathutil import LUMINANCE
 
 LANES_PER_ITEM = 1 << 16   # paths per work item: large enough to amortise NumPy call overhead
@@ -76,6 +91,7 @@ class RenderResult:
     interrupted: bool
     stats: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    error: str | None = None       # why the render stopped early (the film holds what was merged)
 
 
 # --------------------------------------------------------------------------- worker side
@@ -92,9 +108,14 @@ def _scene_from_source(source):
 
 
 def _init_worker(source, options: RenderOptions):
-    # Ctrl-C goes to the whole process group; the master decides how to stop.
+    # Ctrl-C goes to the whole process group; the master decides how to stop. (SIGTERM keeps its
+    # default: the pool terminates workers with it, and a worker that ignored it could hang the
+    # pool's shutdown. The master tells a stop from a lost worker, see _ProcessItems.)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _setup_local(source, options)
+    try:
+        _setup_local(source, options)
+    except Exception as exc:  # noqa: BLE001 - reported by the first item, not as a traceback
+        _WORKER["setup_error"] = exc
 
 
 def _setup_local(source, options: RenderOptions, scene=None):
@@ -111,6 +132,10 @@ def _setup_local(source, options: RenderOptions, scene=None):
 
 def _render_item(item) -> tuple:
     key, pixels, spp, seed, sample0 = item
+    if "setup_error" in _WORKER:
+        raise _WORKER["setup_error"]
+    if os.environ.get("LAMINA_TEST_FAULT_DIR"):
+        _injected_fault(os.environ["LAMINA_TEST_FAULT_DIR"])
     tracer = _WORKER["tracer"]
     accel = _WORKER["accel"]
     # Only the layered BSDF's NumPy walks draw from this generator; everything else uses the
@@ -125,6 +150,206 @@ def _render_item(item) -> tuple:
     info["cpu_time"] = time.thread_time() - t0
     info["paths"] = int(pixels.size) * spp
     return key, result, info
+
+
+def _injected_fault(folder: str) -> None:
+    """Tests only (``LAMINA_TEST_FAULT_DIR``): each file in the folder is one fault, taken by the
+    first item that removes it: ``kill*`` SIGKILLs this process, ``segv*`` sends it SIGSEGV,
+    ``raise*`` raises an exception. Bounded and deterministic in count."""
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError:
+        return
+    for name in names:
+        try:
+            os.unlink(os.path.join(folder, name))
+        except OSError:
+            continue                       # another worker took it
+        if name.startswith("kill"):
+            os.kill(os.getpid(), signal.SIGKILL)
+        elif name.startswith("segv"):
+            os.kill(os.getpid(), signal.SIGSEGV)
+        elif name.startswith("raise"):
+            raise RuntimeError(f"injected fault ({name})")
+        return
+
+
+# --------------------------------------------------------------------------- running items
+
+class _Stopped(Exception):
+    """A stop request (signal, cancel) arrived while items were outstanding."""
+
+
+class _Failed(Exception):
+    """The render cannot go on; the message says why (it becomes ``RenderResult.error``)."""
+
+
+def _failure_text(exc: BaseException) -> str:
+    """One line naming an exception raised inside an item and where (no traceback)."""
+    if isinstance(exc, LaminaError):
+        return str(exc)
+    where = ""
+    remote = getattr(exc, "__cause__", None)
+    text = str(remote) if remote is not None and type(remote).__name__ == "_RemoteTraceback" else ""
+    if text:
+        import re
+        found = re.findall(r'File "([^"]+)", line (\d+)', text)
+        if found:
+            where = f" at {Path(found[-1][0]).name}:{found[-1][1]}"
+    elif exc.__traceback__ is not None:
+        import traceback
+        frames = traceback.extract_tb(exc.__traceback__)
+        if frames:
+            where = f" at {Path(frames[-1].filename).name}:{frames[-1].lineno}"
+    message = str(exc).strip().splitlines()[0][:200] if str(exc).strip() else ""
+    return (f"a render worker failed ({type(exc).__name__}{': ' + message if message else ''}{where}); "
+            f"this is a bug in Lamina, please report it with the scene")
+
+
+def _wait(future, should_stop):
+    """The future's result, checking for a stop request every 0.2 s."""
+    while True:
+        if should_stop():
+            raise _Stopped
+        try:
+            return future.result(timeout=0.2)
+        except FutureTimeout:
+            continue
+
+
+class _SerialItems:
+    """Items rendered one after the other in this thread."""
+
+    def run(self, items, should_stop):
+        for item in items:
+            try:
+                result = _render_item(item)
+            except Exception as exc:  # noqa: BLE001 - any failure stops the render, named
+                raise _Failed(_failure_text(exc)) from exc
+            yield result
+
+    def close(self, stopped: bool) -> None:
+        pass
+
+
+class _ThreadItems:
+    """Worker threads sharing this process's scene (threads cannot die alone: an exception in
+    one is a failure of the render)."""
+
+    def __init__(self, workers: int):
+        self.pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="lamina-render")
+
+    def run(self, items, should_stop):
+        futures = [self.pool.submit(_render_item, item) for item in items]
+        try:
+            for f in futures:
+                try:
+                    result = _wait(f, should_stop)
+                except (_Stopped, FutureTimeout):
+                    raise
+                except Exception as exc:  # noqa: BLE001
+                    raise _Failed(_failure_text(exc)) from exc
+                yield result
+        finally:
+            for f in futures:
+                f.cancel()
+
+    def close(self, stopped: bool) -> None:
+        # Threads cannot be killed: wait for the items they are on (each is short).
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+class _ProcessItems:
+    """Worker processes (spawned, each loading the scene) that survive the loss of workers: the
+    items a broken pool did not return are redone by a fresh pool (module docstring)."""
+
+    def __init__(self, workers: int, source, options, warn):
+        self.workers, self.source, self.options, self.warn = workers, source, options, warn
+        self.losses = 0
+        self.pool = self._start()
+
+    def _start(self):
+        return ProcessPoolExecutor(max_workers=self.workers, mp_context=_spawn_context(),
+                                   initializer=_init_worker, initargs=(self.source, self.options))
+
+    def _submit(self, item) -> Future:
+        try:
+            return self.pool.submit(_render_item, item)
+        except (BrokenProcessPool, RuntimeError) as exc:   # broke before the item was queued
+            f = Future()
+            f.set_exception(BrokenProcessPool(str(exc)))
+            return f
+
+    def run(self, items, should_stop):
+        futures = [self._submit(item) for item in items]
+        i = 0
+        while i < len(items):
+            try:
+                result = _wait(futures[i], should_stop)
+            except (_Stopped, FutureTimeout):
+                raise
+            except BrokenProcessPool:
+                futures = self._recover(items, futures, i, should_stop)
+                continue
+            except Exception as exc:  # noqa: BLE001
+                raise _Failed(_failure_text(exc)) from exc
+            yield result
+            i += 1
+
+    def _recover(self, items, futures, first, should_stop):
+        procs = _pool_processes(self.pool)
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        codes = _terminate_processes(procs)
+        # SIGTERM to the whole process group reaches this process too: give its handler a
+        # moment, then a stop request wins over redoing the items.
+        for _ in range(5):
+            if should_stop():
+                raise _Stopped
+            time.sleep(0.05)
+        self.losses += 1
+        how = _describe_exits(codes)
+        redo = [j for j in range(first, len(futures)) if not _has_result(futures[j])]
+        if self.losses > MAX_WORKER_LOSSES:
+            raise _Failed(f"worker processes were lost {self.losses} times (last: {how}); the render "
+                          f"stopped after {MAX_WORKER_LOSSES} recoveries. Too little memory? Try "
+                          f"fewer --workers")
+        self.pool = self._start()
+        futures = list(futures)
+        for j in redo:
+            futures[j] = self._submit(items[j])
+        self.warn(f"a worker process was lost ({how}); its work ({len(redo)} item(s) not yet "
+                  f"returned) is redone by new workers: the image is unaffected "
+                  f"(loss {self.losses} of at most {MAX_WORKER_LOSSES})")
+        return futures
+
+    def close(self, stopped: bool) -> None:
+        if stopped:
+            procs = _pool_processes(self.pool)     # shutdown() forgets them
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            _terminate_processes(procs)
+        else:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _has_result(future) -> bool:
+    return future.done() and not future.cancelled() and future.exception() is None
+
+
+def _describe_exits(codes: list) -> str:
+    """How the lost worker ended, from the pool's exit codes (the pool terminates the others
+    with SIGTERM, so a different signal is the cause)."""
+    other = [c for c in codes if c is not None and c < 0 and -c != signal.SIGTERM]
+    if other:
+        try:
+            name = signal.Signals(-other[0]).name
+        except ValueError:
+            name = f"signal {-other[0]}"
+        hint = ", e.g. by the out-of-memory killer" if -other[0] == signal.SIGKILL else ""
+        return f"killed by {name}{hint}"
+    status = [c for c in codes if c is not None and c > 0]
+    if status:
+        return f"exited with status {status[0]}"
+    return "terminated by SIGTERM"
 
 
 # --------------------------------------------------------------------------- master side
@@ -166,6 +391,7 @@ class Renderer:
         self.partial_callback = partial_callback
         self.partial_interval = partial_interval
         self._stop = False
+        self._warnings: list[str] = []
 
     def request_stop(self, *_):
         self._stop = True
@@ -183,7 +409,7 @@ class Renderer:
         block = choose_spp_block(all_pixels.size, spp)
         rounds = math.ceil(spp / block)
         workers = self.options.workers or os.cpu_count() or 1
-        workers = max(1, min(workers, 64))
+        workers = max(1, min(workers, MAX_WORKERS))
         totals: dict = {}
         t_start = time.perf_counter()
         cpu_start = time.process_time()
@@ -199,18 +425,12 @@ class Renderer:
         self.on_progress({"event": "start", "width": W, "height": H, "spp": spp, "workers": workers,
                           "parallel": parallel})
 
-        executor = None
+        error = None
         if workers > 1 and parallel == "processes":
-            executor = ProcessPoolExecutor(max_workers=workers, mp_context=_spawn_context(),
-                                           initializer=_init_worker, initargs=(self.source, self.options))
-            mapper = executor.map
+            runner = _ProcessItems(workers, self.source, self.options, self._warn)
         else:
             _setup_local(self.source, self.options, scene)
-            mapper = map
-            if workers > 1:
-                from concurrent.futures import ThreadPoolExecutor
-                executor = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="lamina-render")
-                mapper = executor.map
+            runner = _ThreadItems(workers) if workers > 1 else _SerialItems()
         try:
             for r in range(rounds):
                 if self._stop:                     # a stop request between two passes
@@ -222,7 +442,7 @@ class Renderer:
                     break                          # the limit passed during the first pass
                 this_block = min(block, spp - r * block)
                 items = plan_round(active, this_block, r, s.seed, r * block)
-                for key, result, info in mapper(_render_item, items):
+                for key, result, info in runner.run(items, lambda: self._stop):
                     band = items[key[1]][1]
                     dropped = film.add(band, result)
                     if dropped:
@@ -260,19 +480,20 @@ class Renderer:
                             active = active[~converged]
                     continue
                 break
-        except KeyboardInterrupt:
+        except (_Stopped, KeyboardInterrupt):
             interrupted = True
+        except _Failed as exc:
+            error = str(exc)
         finally:
-            if executor is not None:
-                threads = parallel != "processes"
-                # Threads cannot be killed: wait for the items they are on (each is short).
-                executor.shutdown(wait=threads or not (self._stop or interrupted), cancel_futures=True)
-                if (self._stop or interrupted) and not threads:
-                    _terminate_pool(executor)
+            runner.close(stopped=self._stop or interrupted or error is not None)
         elapsed = time.perf_counter() - t_start
         totals["master_cpu_time"] = time.process_time() - cpu_start
         return RenderResult(film, spp_done, elapsed, totals.get("cpu_time", 0.0), interrupted, totals,
-                            list(scene.warnings))
+                            list(scene.warnings) + self._warnings, error)
+
+    def _warn(self, message: str) -> None:
+        self._warnings.append(message)
+        self.on_progress({"event": "warning", "message": message})
 
 
 def default_parallel(scene) -> str:
@@ -288,18 +509,32 @@ def _spawn_context():
     return multiprocessing.get_context("spawn")
 
 
-def _terminate_pool(executor) -> None:
-    procs = getattr(executor, "_processes", None) or {}
-    for p in list(procs.values()):
+def _pool_processes(executor) -> list:
+    return list((getattr(executor, "_processes", None) or {}).values())
+
+
+def _terminate_processes(procs: list) -> list:
+    """Stop worker processes now (SIGTERM, then SIGKILL after 2 s); their exit codes."""
+    for p in procs:
         try:
             p.terminate()
         except Exception:  # noqa: BLE001 - best effort on shutdown
             pass
-    for p in list(procs.values()):
+    for p in procs:
         try:
             p.join(timeout=2)
+            if p.is_alive():
+                p.kill()
+                p.join(timeout=1)
         except Exception:  # noqa: BLE001
             pass
+    codes = []
+    for p in procs:
+        try:
+            codes.append(p.exitcode)
+        except Exception:  # noqa: BLE001
+            codes.append(None)
+    return codes
 
 
 def install_signal_handlers(renderer: Renderer) -> None:
