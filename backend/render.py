@@ -19,11 +19,14 @@ Parallelism (``RenderOptions.parallel``):
 Kernels are compiled (or loaded from the cache) once, before any worker starts.
 
 Failures (docs/cli.md, "When a worker fails"):
-* A worker *process* that dies (SIGKILL, the out-of-memory killer, a crash) breaks the process
-  pool. The items not yet returned are submitted again to a fresh pool; since every item is a
-  pure function of its key and results are merged in item order, the image is bit-identical to an
-  undisturbed render. The loss is reported in one warning; after ``MAX_WORKER_LOSSES`` losses the
-  render stops with an error and the samples merged so far are kept (``RenderResult.error``).
+* A worker *process* that dies (SIGKILL, the out-of-memory killer, a crash) is replaced by a new
+  one and the item it was on goes back to the queue. Every item is a pure function of its key and
+  results are merged in item order, so the image is bit-identical to an undisturbed render. Each
+  loss is one warning; after ``MAX_WORKER_LOSSES`` losses the render stops with an error and the
+  samples merged so far are kept (``RenderResult.error``). The workers are plain processes with
+  one pipe each (``_ProcessItems``), not a ``ProcessPoolExecutor``: its manager thread blocks
+  for ever on a result that a killed worker left half-written, and a broken pool can only be
+  replaced whole.
 * When the stop request came with the loss (SIGTERM to the whole process group, as a farm manager
   or ``timeout`` sends it, kills the workers too), the render stops as interrupted instead.
 * An exception inside an item (a worker thread, a worker process, or the serial loop) stops the
@@ -35,9 +38,8 @@ import math
 import os
 import signal
 import time
-from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -107,17 +109,6 @@ def _scene_from_source(source):
     return load_scene_data(data, where, Path(base) if base else None)
 
 
-def _init_worker(source, options: RenderOptions):
-    # Ctrl-C goes to the whole process group; the master decides how to stop. (SIGTERM keeps its
-    # default: the pool terminates workers with it, and a worker that ignored it could hang the
-    # pool's shutdown. The master tells a stop from a lost worker, see _ProcessItems.)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        _setup_local(source, options)
-    except Exception as exc:  # noqa: BLE001 - reported by the first item, not as a traceback
-        _WORKER["setup_error"] = exc
-
-
 def _setup_local(source, options: RenderOptions, scene=None):
     from .geometry.accel import Accelerator
     from .integrator import PathTracer
@@ -132,8 +123,6 @@ def _setup_local(source, options: RenderOptions, scene=None):
 
 def _render_item(item) -> tuple:
     key, pixels, spp, seed, sample0 = item
-    if "setup_error" in _WORKER:
-        raise _WORKER["setup_error"]
     if os.environ.get("LAMINA_TEST_FAULT_DIR"):
         _injected_fault(os.environ["LAMINA_TEST_FAULT_DIR"])
     tracer = _WORKER["tracer"]
@@ -259,97 +248,154 @@ class _ThreadItems:
         self.pool.shutdown(wait=True, cancel_futures=True)
 
 
+class _Worker:
+    """One spawned worker process and the pipe to it; ``item`` is the index it is rendering."""
+
+    def __init__(self, ctx, source, options):
+        self.conn, child = ctx.Pipe(duplex=True)
+        self.proc = ctx.Process(target=_worker_main, args=(child, source, options), daemon=True,
+                                name="lamina-worker")
+        self.proc.start()
+        child.close()           # so that the worker's death reads as end-of-file here
+        self.item = None
+
+    def stop(self, kill: bool) -> None:
+        try:
+            if kill:
+                self.proc.kill()
+            else:
+                self.conn.send(None)
+        except (OSError, ValueError):
+            pass
+        self.proc.join(timeout=None if kill else 10)
+        if self.proc.is_alive():
+            self.proc.kill()
+            self.proc.join(timeout=5)
+        self.conn.close()
+
+
+def _worker_main(conn, source, options) -> None:
+    """A worker process: load the scene, then render the items it is sent until told to stop
+    (None) or the master is gone (end of file)."""
+    # Ctrl-C goes to the whole process group; the master decides how to stop.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        _setup_local(source, options)
+        setup_error = None
+    except Exception as exc:  # noqa: BLE001 - reported with the first item
+        setup_error = _failure_text(exc)
+    while True:
+        try:
+            message = conn.recv()
+        except (EOFError, OSError):
+            return
+        if message is None:
+            return
+        index, item = message
+        if setup_error is not None:
+            reply = ("error", index, setup_error)
+        else:
+            try:
+                reply = ("ok", index, _render_item(item))
+            except Exception as exc:  # noqa: BLE001 - any failure stops the render, named
+                reply = ("error", index, _failure_text(exc))
+        try:
+            conn.send(reply)
+        except (OSError, ValueError):
+            return
+
+
 class _ProcessItems:
-    """Worker processes (spawned, each loading the scene) that survive the loss of workers: the
-    items a broken pool did not return are redone by a fresh pool (module docstring)."""
+    """Worker processes (spawned, each loading the scene), one item at a time each, over one pipe
+    per worker. A worker that dies (its pipe ends, its process sentinel fires) is replaced by a
+    new one and its item goes back to the queue, to whichever worker is free first (module
+    docstring). No pool manager thread: nothing can hang on a half-written result."""
 
     def __init__(self, workers: int, source, options, warn):
-        self.workers, self.source, self.options, self.warn = workers, source, options, warn
+        self.ctx = _spawn_context()
+        self.source, self.options, self.warn = source, options, warn
         self.losses = 0
-        self.pool = self._start()
-
-    def _start(self):
-        return ProcessPoolExecutor(max_workers=self.workers, mp_context=_spawn_context(),
-                                   initializer=_init_worker, initargs=(self.source, self.options))
-
-    def _submit(self, item) -> Future:
-        try:
-            return self.pool.submit(_render_item, item)
-        except (BrokenProcessPool, RuntimeError) as exc:   # broke before the item was queued
-            f = Future()
-            f.set_exception(BrokenProcessPool(str(exc)))
-            return f
+        self.workers = [_Worker(self.ctx, source, options) for _ in range(workers)]
 
     def run(self, items, should_stop):
-        futures = [self._submit(item) for item in items]
-        i = 0
-        while i < len(items):
-            try:
-                result = _wait(futures[i], should_stop)
-            except (_Stopped, FutureTimeout):
-                raise
-            except BrokenProcessPool:
-                futures = self._recover(items, futures, i, should_stop)
+        from collections import deque
+        from multiprocessing.connection import wait
+        queue = deque(range(len(items)))
+        results: dict = {}
+        next_out = 0
+        while next_out < len(items):
+            if next_out in results:
+                yield results.pop(next_out)
+                next_out += 1
                 continue
-            except Exception as exc:  # noqa: BLE001
-                raise _Failed(_failure_text(exc)) from exc
-            yield result
-            i += 1
+            if should_stop():
+                raise _Stopped
+            for w in self.workers:
+                if w.item is None and queue:
+                    w.item = queue.popleft()
+                    try:
+                        w.conn.send((w.item, items[w.item]))
+                    except (OSError, ValueError):
+                        pass                       # dead: its sentinel says so below
+            busy = [w for w in self.workers if w.item is not None]
+            ready = set(wait([w.conn for w in busy] + [w.proc.sentinel for w in busy], timeout=0.2))
+            for k, w in enumerate(self.workers):
+                if w.item is None or not ({w.conn, w.proc.sentinel} & ready):
+                    continue
+                reply = None
+                if w.conn in ready or w.conn.poll():
+                    try:
+                        reply = w.conn.recv()
+                    except (EOFError, OSError):
+                        reply = None               # died, possibly halfway through a reply
+                if reply is None:
+                    queue.appendleft(w.item)
+                    self.workers[k] = self._replace(w, should_stop)
+                    continue
+                kind, index, payload = reply
+                w.item = None
+                if kind != "ok":
+                    raise _Failed(payload)
+                results[index] = payload
 
-    def _recover(self, items, futures, first, should_stop):
-        procs = _pool_processes(self.pool)
-        self.pool.shutdown(wait=False, cancel_futures=True)
-        codes = _terminate_processes(procs)
+    def _replace(self, w: _Worker, should_stop) -> _Worker:
+        """A new worker for one that died (its item is already back in the queue)."""
+        w.proc.join(timeout=2)
+        code = w.proc.exitcode
+        w.stop(kill=True)
         # SIGTERM to the whole process group reaches this process too: give its handler a
-        # moment, then a stop request wins over redoing the items.
+        # moment; a stop request wins over redoing the work.
         for _ in range(5):
             if should_stop():
                 raise _Stopped
             time.sleep(0.05)
         self.losses += 1
-        how = _describe_exits(codes)
-        redo = [j for j in range(first, len(futures)) if not _has_result(futures[j])]
+        how = _describe_exit(code)
         if self.losses > MAX_WORKER_LOSSES:
             raise _Failed(f"worker processes were lost {self.losses} times (last: {how}); the render "
                           f"stopped after {MAX_WORKER_LOSSES} recoveries. Too little memory? Try "
                           f"fewer --workers")
-        self.pool = self._start()
-        futures = list(futures)
-        for j in redo:
-            futures[j] = self._submit(items[j])
-        self.warn(f"a worker process was lost ({how}); its work ({len(redo)} item(s) not yet "
-                  f"returned) is redone by new workers: the image is unaffected "
-                  f"(loss {self.losses} of at most {MAX_WORKER_LOSSES})")
-        return futures
+        self.warn(f"a worker process was lost ({how}); its work item is redone by a new worker: "
+                  f"the image is unaffected (loss {self.losses} of at most {MAX_WORKER_LOSSES})")
+        return _Worker(self.ctx, self.source, self.options)
 
     def close(self, stopped: bool) -> None:
-        if stopped:
-            procs = _pool_processes(self.pool)     # shutdown() forgets them
-            self.pool.shutdown(wait=False, cancel_futures=True)
-            _terminate_processes(procs)
-        else:
-            self.pool.shutdown(wait=True, cancel_futures=True)
+        for w in self.workers:
+            w.stop(kill=stopped)
 
 
-def _has_result(future) -> bool:
-    return future.done() and not future.cancelled() and future.exception() is None
-
-
-def _describe_exits(codes: list) -> str:
-    """How the lost worker ended, from the pool's exit codes (the pool terminates the others
-    with SIGTERM, so a different signal is the cause)."""
-    other = [c for c in codes if c is not None and c < 0 and -c != signal.SIGTERM]
-    if other:
+def _describe_exit(code) -> str:
+    """How a worker process ended, from its exit code."""
+    if code is not None and code < 0:
         try:
-            name = signal.Signals(-other[0]).name
+            name = signal.Signals(-code).name
         except ValueError:
-            name = f"signal {-other[0]}"
-        hint = ", e.g. by the out-of-memory killer" if -other[0] == signal.SIGKILL else ""
+            name = f"signal {-code}"
+        hint = ", e.g. by the out-of-memory killer" if -code == signal.SIGKILL else ""
         return f"killed by {name}{hint}"
-    status = [c for c in codes if c is not None and c > 0]
-    if status:
-        return f"exited with status {status[0]}"
-    return "terminated by SIGTERM"
+    if code:
+        return f"exited with status {code}"
+    return "its connection closed"
 
 
 # --------------------------------------------------------------------------- master side
@@ -507,34 +553,6 @@ def default_parallel(scene) -> str:
 def _spawn_context():
     import multiprocessing
     return multiprocessing.get_context("spawn")
-
-
-def _pool_processes(executor) -> list:
-    return list((getattr(executor, "_processes", None) or {}).values())
-
-
-def _terminate_processes(procs: list) -> list:
-    """Stop worker processes now (SIGTERM, then SIGKILL after 2 s); their exit codes."""
-    for p in procs:
-        try:
-            p.terminate()
-        except Exception:  # noqa: BLE001 - best effort on shutdown
-            pass
-    for p in procs:
-        try:
-            p.join(timeout=2)
-            if p.is_alive():
-                p.kill()
-                p.join(timeout=1)
-        except Exception:  # noqa: BLE001
-            pass
-    codes = []
-    for p in procs:
-        try:
-            codes.append(p.exitcode)
-        except Exception:  # noqa: BLE001
-            codes.append(None)
-    return codes
 
 
 def install_signal_handlers(renderer: Renderer) -> None:

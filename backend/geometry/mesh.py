@@ -223,6 +223,12 @@ def drop_degenerate(mesh: Mesh, node: Node | None = None) -> Mesh:
 # --------------------------------------------------------------------------- built-in shapes
 
 def _parse_shape(node: Node) -> Mesh:
+    # A size so small that float32 positions collapse gives zero-area triangles: an error (the
+    # built-in shapes are otherwise never degenerate).
+    return drop_degenerate(_shape(node), node)
+
+
+def _shape(node: Node) -> Mesh:
     shape = node.string("shape", choices=("sphere", "rectangle", "cube", "disk"))
     if shape == "sphere":
         return uv_sphere(node.number("radius", 1.0, lo=0, lo_open=True),
@@ -272,7 +278,7 @@ def disk(radius: float, segments: int) -> Mesh:
     pos = np.concatenate([[[0, 0, 0]], ring]).astype(np.float32)
     k = np.arange(segments)
     tris = np.stack([np.zeros_like(k), 1 + k, 1 + (k + 1) % segments], 1).astype(np.int32)
-    uv = (pos[:, :2] / (2 * radius) + 0.5).astype(np.float32)
+    uv = (np.concatenate([[[0.0, 0.0]], ring[:, :2] / (2 * radius)]) + 0.5).astype(np.float32)
     nrm = np.tile(np.array([0, 0, 1], np.float32), (segments, 3, 1))
     return Mesh(pos, tris, nrm, uv[tris], None)
 

@@ -328,7 +328,10 @@ class Node:
             raise self.ctx.error(f"{path}[3]", f"expected [0, 0, 0, 1] (an affine transform, as Blender's "
                                                f"matrix_world), got {[_fmt_g(v) for v in m[3]]}")
         m[3] = [0.0, 0.0, 0.0, 1.0]
-        if abs(np.linalg.det(m[:3, :3])) < 1e-12:
+        m[np.abs(m) < 1e-300] = 0.0             # subnormal entries only make LAPACK warn
+        with np.errstate(all="ignore"):          # subnormal entries: det may warn
+            det = float(np.linalg.det(m[:3, :3]))
+        if not abs(det) >= 1e-12:
             raise self.ctx.error(path, "matrix is singular (zero scale?)")
         return m
 
