@@ -65,10 +65,15 @@ def find_preset(name: str, dirs=None) -> Path | None:
     """The file of preset ``name`` in ``dirs`` (default: ``preset_dirs()``), first match wins."""
     if not name or "/" in name or "\\" in name or name.startswith("."):
         return None            # a name, never a path (no escaping the preset folders)
+    if len(name) > 200 or "\x00" in name:
+        return None            # no file system has such a name
     for folder in (preset_dirs() if dirs is None else [Path(d) for d in dirs]):
         direct = folder / f"{name}.json"
-        if direct.is_file():
-            return direct
+        try:
+            if direct.is_file():
+                return direct
+        except OSError:
+            return None
         for candidate in _preset_files(folder):
             if candidate.stem == name:
                 return candidate
@@ -298,11 +303,12 @@ def close_preset_names(name: str, names: list[str], most: int = 5) -> list[str]:
 
 def unknown_preset_message(name: str) -> str:
     names = [p.stem for p in list_presets()]
-    close = close_preset_names(name, names)
+    close = close_preset_names(name, names) if len(name) <= 100 else []
     hint = f" (did you mean: {', '.join(close)}?)" if close else (
         f" (known: {', '.join(names[:12])}{', ...' if len(names) > 12 else ''}; "
         "`python -m backend presets list`)" if names else "")
-    return f"unknown material preset {name!r}{hint}"
+    from .limits import short
+    return f"unknown material preset {short(name)!r}{hint}"
 
 
 def resolve_preset(name: str, node):
