@@ -14,8 +14,9 @@ Parallelism (``RenderOptions.parallel``):
 * ``"threads"`` (default): worker threads of this process share one scene, one embree BVH and
   one set of compiled kernels. embree's ``run()`` and the compiled kernels (``nogil``) release
   the GIL, so analytic scenes scale with cores without loading anything twice.
-* ``"processes"``: worker processes (``spawn``), each loading the scene and building its own
-  embree scene; for scenes dominated by the layered BSDF's NumPy walks, which hold the GIL.
+* ``"processes"``: worker processes for scenes dominated by the layered BSDF's NumPy walks,
+  which hold the GIL. On Linux they are forked once this process holds the scene and its BVH,
+  and share both; elsewhere they are spawned and each loads the scene (``_ProcessItems``).
 Kernels are compiled (or loaded from the cache) once, before any worker starts.
 
 Failures (docs/cli.md, "When a worker fails"):
@@ -249,12 +250,19 @@ class _ThreadItems:
 
 
 class _Worker:
-    """One spawned worker process and the pipe to it; ``item`` is the index it is rendering."""
+    """One worker process and the pipe to it; ``item`` is the index it is rendering."""
 
-    def __init__(self, ctx, source, options):
+    def __init__(self, ctx, source, options, prepared: bool):
         self.conn, child = ctx.Pipe(duplex=True)
-        self.proc = ctx.Process(target=_worker_main, args=(child, source, options), daemon=True,
-                                name="lamina-worker")
+        self.proc = ctx.Process(target=_worker_main, args=(child, source, options, prepared),
+                                daemon=True, name="lamina-worker")
+        if prepared:                # forked: buffered output would be written twice
+            import sys
+            for stream in (sys.stdout, sys.stderr):
+                try:
+                    stream.flush()
+                except (OSError, ValueError, AttributeError):
+                    pass
         self.proc.start()
         child.close()           # so that the worker's death reads as end-of-file here
         self.item = None
@@ -274,16 +282,20 @@ class _Worker:
         self.conn.close()
 
 
-def _worker_main(conn, source, options) -> None:
-    """A worker process: load the scene, then render the items it is sent until told to stop
-    (None) or the master is gone (end of file)."""
-    # Ctrl-C goes to the whole process group; the master decides how to stop.
+def _worker_main(conn, source, options, prepared: bool = False) -> None:
+    """A worker process: load the scene (unless ``prepared``: forked from a master that holds
+    it), then render the items it is sent until told to stop (None) or the master is gone (end
+    of file)."""
+    # Ctrl-C goes to the whole process group; the master decides how to stop. SIGTERM ends a
+    # worker (a forked one would otherwise inherit the master's handler and ignore it).
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        _setup_local(source, options)
-        setup_error = None
-    except Exception as exc:  # noqa: BLE001 - reported with the first item
-        setup_error = _failure_text(exc)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    setup_error = None
+    if not prepared:
+        try:
+            _setup_local(source, options)
+        except Exception as exc:  # noqa: BLE001 - reported with the first item
+            setup_error = _failure_text(exc)
     while True:
         try:
             message = conn.recv()
@@ -306,16 +318,38 @@ def _worker_main(conn, source, options) -> None:
 
 
 class _ProcessItems:
-    """Worker processes (spawned, each loading the scene), one item at a time each, over one pipe
-    per worker. A worker that dies (its pipe ends, its process sentinel fires) is replaced by a
-    new one and its item goes back to the queue, to whichever worker is free first (module
-    docstring). No pool manager thread: nothing can hang on a half-written result."""
+    """Worker processes, one item at a time each, over one pipe per worker. A worker that dies
+    (its pipe ends, its process sentinel fires) is replaced by a new one and its item goes back
+    to the queue, to whichever worker is free first (module docstring). No pool manager thread:
+    nothing can hang on a half-written result.
 
-    def __init__(self, workers: int, source, options, warn):
-        self.ctx = _spawn_context()
+    On Linux the workers are *forked* from this process after it has loaded the scene and built
+    the BVH, so they share both (copy-on-write pages that nobody writes: scene arrays, textures,
+    embree's BVH): a render's peak memory grows by a worker's working set, not by a scene copy,
+    per extra worker (benchmarks/worker_memory.py), and a lost worker is replaced in
+    milliseconds. The child never builds a BVH or calls into embree's task system, which is what
+    makes forking a process with embree's threads safe; it only traces. Elsewhere (no fork on
+    Windows, an unsafe one on macOS), or with ``LAMINA_WORKER_START=spawn``, workers are spawned
+    and each loads the scene itself."""
+
+    def __init__(self, workers: int, source, options, warn, scene=None):
+        self.fork = scene is not None and _fork_workers()
+        if self.fork:
+            import multiprocessing
+            self.ctx = multiprocessing.get_context("fork")
+            _setup_local(source, options, scene)
+            # embree builds the BVH on the first query: build it here, once, before forking.
+            accel = _WORKER["accel"]
+            if not getattr(accel._scene, "is_committed", 1):
+                accel.intersect(np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]))
+        else:
+            self.ctx = _spawn_context()
         self.source, self.options, self.warn = source, options, warn
         self.losses = 0
-        self.workers = [_Worker(self.ctx, source, options) for _ in range(workers)]
+        self.workers = [self._new() for _ in range(workers)]
+
+    def _new(self) -> _Worker:
+        return _Worker(self.ctx, self.source, self.options, self.fork)
 
     def run(self, items, should_stop):
         from collections import deque
@@ -377,11 +411,18 @@ class _ProcessItems:
                           f"fewer --workers")
         self.warn(f"a worker process was lost ({how}); its work item is redone by a new worker: "
                   f"the image is unaffected (loss {self.losses} of at most {MAX_WORKER_LOSSES})")
-        return _Worker(self.ctx, self.source, self.options)
+        return self._new()
 
     def close(self, stopped: bool) -> None:
         for w in self.workers:
             w.stop(kill=stopped)
+
+
+def _fork_workers() -> bool:
+    import multiprocessing
+    import sys
+    return (sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
+            and os.environ.get("LAMINA_WORKER_START", "fork") != "spawn")
 
 
 def _describe_exit(code) -> str:
@@ -473,7 +514,7 @@ class Renderer:
 
         error = None
         if workers > 1 and parallel == "processes":
-            runner = _ProcessItems(workers, self.source, self.options, self._warn)
+            runner = _ProcessItems(workers, self.source, self.options, self._warn, scene)
         else:
             _setup_local(self.source, self.options, scene)
             runner = _ThreadItems(workers) if workers > 1 else _SerialItems()

@@ -79,6 +79,19 @@ def _tree(pid: int) -> list[int]:
     return out
 
 
+def _workers(pids: list[int]) -> list[int]:
+    """Those of ``pids`` that are render workers (not multiprocessing's resource tracker)."""
+    out = []
+    for p in pids:
+        try:
+            with open(f"/proc/{p}/cmdline", "rb") as f:
+                if b"resource_tracker" not in f.read():
+                    out.append(p)
+        except OSError:
+            pass
+    return out
+
+
 def _mem(pid: int) -> tuple[int, int]:
     """(PSS, RSS) in bytes of one process (0, 0 if gone)."""
     try:
@@ -103,7 +116,7 @@ def measure(scene_path: Path, workers: int, out: Path) -> dict:
     proc = subprocess.Popen([sys.executable, "-c", code, "render", str(scene_path), "-o", str(out),
                              "--workers", str(workers), "--progress", "json"], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    peak = {"pss": 0, "rss": 0, "procs": 0}
+    peak = {"pss": 0, "rss": 0, "procs": 0, "pss_with_workers": 0}
     done = threading.Event()
 
     def sample():
@@ -111,8 +124,11 @@ def measure(scene_path: Path, workers: int, out: Path) -> dict:
             pids = _tree(proc.pid)
             mem = [_mem(p) for p in pids]
             pss, rss = sum(m[0] for m in mem), sum(m[1] for m in mem)
+            alive = len([m for m in mem if m[1]])
             if pss > peak["pss"]:
-                peak.update(pss=pss, procs=len([m for m in mem if m[1]]))
+                peak.update(pss=pss, procs=alive)
+            if len(_workers(pids[1:])) >= 2:
+                peak["pss_with_workers"] = max(peak["pss_with_workers"], pss)
             peak["rss"] = max(peak["rss"], rss)
             time.sleep(0.05)
 
@@ -128,6 +144,7 @@ def measure(scene_path: Path, workers: int, out: Path) -> dict:
     maxrss = next(ln.split()[1:] for ln in stderr.splitlines() if ln.startswith("MAXRSS"))
     return {"workers": workers, "parallel": start["parallel"], "seconds": time.perf_counter() - t0,
             "peak_pss": peak["pss"], "peak_rss": peak["rss"], "processes_at_peak": peak["procs"],
+            "peak_pss_while_workers": peak["pss_with_workers"],
             "maxrss_self": int(maxrss[0]) * 1024, "maxrss_largest_child": int(maxrss[1]) * 1024}
 
 
@@ -151,7 +168,8 @@ def main(argv=None) -> int:
             r = measure(path, w, work / "out.exr")
             rows.append((kind, r))
             print(f"{kind:9s} workers={w}: {r['parallel']:9s} peak PSS {r['peak_pss'] / 2**30:5.2f} GiB, "
-                  f"peak RSS sum {r['peak_rss'] / 2**30:5.2f} GiB ({r['processes_at_peak']} processes), "
+                  f"({r['processes_at_peak']} processes; while worker processes ran: "
+                  f"{r['peak_pss_while_workers'] / 2**30:5.2f} GiB), peak RSS sum {r['peak_rss'] / 2**30:5.2f} GiB, "
                   f"ru_maxrss self {r['maxrss_self'] / 2**30:5.2f} GiB, largest child "
                   f"{r['maxrss_largest_child'] / 2**30:5.2f} GiB, {r['seconds']:.0f} s", flush=True)
     for kind in args.kind:
