@@ -28,7 +28,8 @@ def check_material(mat: dict) -> list[tuple[str, str]]:
         kind = itf.get("type")
         if kind in OPAQUE:
             out.append(("WARNING", f"Interface {i + 1} ({kind}) is opaque: the "
-                                   f"{n - 1 - i} interface(s) below it are never reached"))
+                                   f"{n - 1 - i} interface(s) below it are never reached "
+                                   f"(renders leave them out)"))
             break
     last = interfaces[-1].get("type") if interfaces else None
     if last in ("dielectric", "null"):

@@ -529,6 +529,8 @@ class Renderer:
                     break                          # the limit passed during the first pass
                 this_block = min(block, spp - r * block)
                 items = plan_round(active, this_block, r, s.seed, r * block)
+                round_pixels = sum(item[1].size for item in items)
+                round_done = 0
                 for key, result, info in runner.run(items, lambda: self._stop):
                     band = items[key[1]][1]
                     dropped = film.add(band, result)
@@ -536,11 +538,15 @@ class Renderer:
                         info["samples_nonfinite_dropped"] = info.get("samples_nonfinite_dropped", 0) + dropped
                     stats.merge(totals, info)
                     done_samples += band.size * this_block
+                    round_done += band.size
                     now = time.perf_counter()
                     elapsed = now - t_start
                     frac = min(done_samples / max(planned_samples, 1), 1.0)
                     rate = done_samples / max(elapsed, 1e-9)
+                    # "samples": samples per pixel so far, counting the part of this round that is
+                    # done (a round may hold many samples per pixel on small images).
                     self.on_progress({"event": "progress", "done": spp_done, "round": r,
+                                      "samples": round(spp_done + this_block * round_done / max(round_pixels, 1), 2),
                                       "total": spp, "fraction": round(frac, 4), "elapsed": round(elapsed, 3),
                                       "eta": round((planned_samples - done_samples) / max(rate, 1e-9), 2),
                                       "samples_per_second": round(rate, 1)})
@@ -557,6 +563,12 @@ class Renderer:
                         break
                 else:
                     spp_done += this_block
+                    elapsed = time.perf_counter() - t_start
+                    self.on_progress({"event": "progress", "done": spp_done, "round": r, "samples": spp_done,
+                                      "total": spp, "fraction": round(min(done_samples / max(planned_samples, 1), 1.0), 4),
+                                      "elapsed": round(elapsed, 3),
+                                      "eta": round((planned_samples - done_samples) / max(done_samples / max(elapsed, 1e-9), 1e-9), 2),
+                                      "samples_per_second": round(done_samples / max(elapsed, 1e-9), 1)})
                     if s.noise_target > 0:
                         ready = film.count[active] >= s.min_spp
                         if ready.any():

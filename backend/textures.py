@@ -94,6 +94,10 @@ class Param:
         """Average value (scalar or (3,)), e.g. for light power estimates."""
         raise NotImplementedError
 
+    def kernel_pack(self, packer, channels: int, factor) -> tuple[np.ndarray, int]:
+        """(values, texture id or −1) for the compiled kernels (backend/kernels/params.py)."""
+        raise NotImplementedError
+
 
 class ConstantParam(Param):
     def __init__(self, value: Any, channels: int):
@@ -106,6 +110,10 @@ class ConstantParam(Param):
 
     def mean(self) -> np.ndarray:
         return self.value.reshape(3) if self.channels == 3 else self.value
+
+    def kernel_pack(self, packer, channels: int, factor) -> tuple[np.ndarray, int]:
+        values = np.broadcast_to(self.value.reshape(-1) * factor, (channels,))
+        return np.array(values, np.float64), -1
 
 
 class ImageParam(Param):
@@ -134,33 +142,17 @@ class ImageParam(Param):
         m = self.texels.reshape(-1, self.channels).mean(axis=0).astype(np.float64) * self.scale
         return m if self.channels == 3 else m[0]
 
+    def kernel_pack(self, packer, channels: int, factor) -> tuple[np.ndarray, int]:
+        values = np.broadcast_to(self.scale * factor, (channels,))
+        return np.array(values, np.float64), packer.texture_id(self.texels)
 
-def parse_param(value: Any, path: str, ctx, channels: int, lo, hi, lo_open: bool, color: bool) -> Param:
-    from .scene.reader import Node, check_number, check_vector
 
-    if isinstance(value, dict):
-        node = Node(value, path, ctx)
-        file = node.string("texture")
-        colorspace = node.string("colorspace", "auto", choices=("auto", "sRGB", "linear"))
-        channel = node.integer("channel", -1, lo=-1, hi=3)
-        # A parameter that cannot be negative cannot take a negative scale either.
-        scale_lo = 0.0 if lo is not None and lo >= 0 else None
-        if channels == 3:
-            scale = node.rgb("scale", [1.0, 1.0, 1.0], lo=scale_lo)
-        else:
-            scale = np.asarray(node.number("scale", 1.0, lo=scale_lo))
-        node.finish()
-        texels = load_texels(ctx, file, f"{path}.texture", channels, channel, colorspace, color)
-        texels = sanitise_texels(texels, ctx, path, lo, hi, scale)
-        return ImageParam(texels, channels, scale, file)
-    if channels == 3:
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            value = [value] * 3
-        v = check_vector(value, 3, path, ctx, lo, hi, what="an RGB colour or {\"texture\": ...}")
-        return ConstantParam(v, 3)
-    if isinstance(value, list):
-        raise ctx.error(path, f"expected a number or {{\"texture\": ...}}, got a list of {len(value)}")
-    return ConstantParam(check_number(value, path, ctx, lo, hi, lo_open), 1)
+def image_param(ctx, file: str, path: str, channels: int, channel: int, colorspace: str, color: bool,
+                lo, hi, scale) -> "ImageParam":
+    """The image texture of a parameter field (``path``), read, decoded and sanitised."""
+    texels = load_texels(ctx, file, f"{path}.texture", channels, channel, colorspace, color)
+    texels = sanitise_texels(texels, ctx, path, lo, hi, scale)
+    return ImageParam(texels, channels, scale, file)
 
 
 def load_texels(ctx, file: str, path: str, channels: int, channel: int, colorspace: str,

@@ -3,6 +3,7 @@
     python -m benchmarks            full run → benchmarks/REPORT.md + benchmarks/report/*.png
     python -m benchmarks --quick    small sizes, for development → benchmarks/report-quick/
     python -m benchmarks --only tve,stress   some sections only (the report says it is partial)
+    python -m benchmarks peers      the Lamina vs Cycles section alone → benchmarks/report-peers/
 
 References are cached in benchmarks/.cache/ (not in git), keyed by the scene, the sample count
 and a hash of backend/ — any change of the renderer renders them again.
@@ -22,11 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from . import machine, sections, stress
+from . import machine, peers, sections, stress
 from .scenes import BENCH_SCENES
 
 HERE = Path(__file__).resolve().parent
-SECTIONS = ("tve", "compare", "overhead", "stress")
+SECTIONS = ("peers", "tve", "compare", "overhead", "stress")
 STAGING = ".report-staging"     # inside the output folder; a finished run moves out of it
 
 
@@ -90,6 +91,8 @@ METHOD = """## Method
 
 def summary(ctx: sections.Context, stress_totals: dict | None) -> str:
     md = ["## Summary", ""]
+    # The comparison with Cycles is the yardstick of the renderer's speed work: it leads.
+    md += ctx.results.get("peers", {}).get("summary_lines", [])
     tve = ctx.results.get("time_vs_error", {})
     if tve:
         md.append("* **Slope of RMSE vs CPU time** (expect −½): " + ", ".join(
@@ -152,17 +155,27 @@ def stress_section(quick: bool, log) -> tuple[str, dict]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.splitlines()[0])
+    ap.add_argument("command", nargs="?", choices=["peers"],
+                    help="peers: only the Lamina vs Cycles section, into benchmarks/report-peers/")
     ap.add_argument("--quick", action="store_true", help="small sizes for development (report-quick/)")
     ap.add_argument("--only", help=f"comma-separated sections: {','.join(SECTIONS)}")
     ap.add_argument("--out", type=Path, help="folder for REPORT.md and report/ (default benchmarks/)")
     ap.add_argument("--cache", type=Path, default=HERE / ".cache", help="reference cache folder")
     ap.add_argument("--workers", type=int, default=1, help="worker processes for the time-vs-error series")
     ap.add_argument("--scenes", help="comma-separated scene names (default: all of scenes.BENCH_SCENES)")
+    ap.add_argument("--peer-scenes", help="comma-separated scene names of the Lamina vs Cycles section "
+                    "(default: all of peers.scenes.PEER_SCENES)")
     args = ap.parse_args(argv)
     only = [s.strip() for s in args.only.split(",")] if args.only else None
+    if args.command == "peers":
+        if only and only != ["peers"]:
+            ap.error("`peers` runs that section alone; do not combine it with --only")
+        only = ["peers"]
     if only and any(s not in SECTIONS for s in only):
         ap.error(f"--only takes {', '.join(SECTIONS)}")
-    out = args.out or (HERE / "report-quick" if args.quick else HERE)
+    # The section alone goes to its own folder, so it never replaces the committed full report.
+    default_out = HERE / "report-peers" if args.command == "peers" else HERE
+    out = args.out or (HERE / "report-quick" if args.quick else default_out)
     # Figures go to a staging folder and replace the published ones only when the run is
     # complete: an interrupted run leaves REPORT.md and its figures as they were (a run stopped
     # halfway once left the committed report pointing at 13 deleted figures).
@@ -170,7 +183,8 @@ def main(argv=None) -> int:
     shutil.rmtree(staging, ignore_errors=True)
     report_dir = staging / "report"
     report_dir.mkdir(parents=True)
-    partial = (only or []) + ([f"scenes {args.scenes}"] if args.scenes else [])
+    partial = (only or []) + ([f"scenes {args.scenes}"] if args.scenes else []) \
+        + ([f"peer scenes {args.peer_scenes}"] if args.peer_scenes else [])
     command = "python -m benchmarks" + ("" if not sys.argv[1:] else " " + shlex.join(sys.argv[1:]))
     t_start = time.perf_counter()
     info = machine.describe()
@@ -181,6 +195,14 @@ def main(argv=None) -> int:
     ctx = sections.Context(args.quick, report_dir, args.cache, args.workers, log)
     want = lambda s: only is None or s in only  # noqa: E731
     body = []
+    if want("peers"):
+        log("Lamina vs Cycles")
+        from .peers.scenes import PEER_SCENES
+        names = [n.strip() for n in args.peer_scenes.split(",")] if args.peer_scenes else None
+        unknown = [n for n in names or [] if n not in {s.name for s in PEER_SCENES}]
+        if unknown:
+            ap.error(f"unknown peer scene(s) {', '.join(unknown)}; known: {', '.join(s.name for s in PEER_SCENES)}")
+        body.append(peers.section(ctx, names))
     if want("tve") or want("compare") or want("overhead"):
         log("time vs error")
         chosen = BENCH_SCENES

@@ -12,11 +12,16 @@ from backend.film import PixelFilter
 ALPHA = 1e-3
 
 
+SUPPORT = {"blackman-harris": 2.0, "gaussian": 3.0}     # Cycles: scene/film.cpp, filter_table
+
+
 def _profile(kind, width, x):
-    """Filter value at offset x (pixels) over [−width/2, width/2], unnormalised."""
-    v = x / width + 0.5          # position across the support in [0, 1]
+    """Cycles' filter value at offset x (pixels), unnormalised: Blackman–Harris over ±width,
+    Gaussian exp(−2 (6x/(3 width))²) over ±1.5 width."""
     if kind == "gaussian":
-        return np.exp(-2.0 * x * x)
+        v = x * 6.0 / (3.0 * width)
+        return np.exp(-2.0 * v * v)
+    v = x / (2.0 * width) + 0.5  # position across the support in [0, 1]
     a = 2.0 * np.pi * v
     return 0.35875 - 0.48829 * np.cos(a) + 0.14128 * np.cos(2 * a) - 0.01168 * np.cos(3 * a)
 
@@ -25,11 +30,12 @@ def _profile(kind, width, x):
 def test_filter_offsets_follow_the_profile(kind, width):
     n, bins = 400_000, 40
     x = PixelFilter(kind, width).sample(np.random.default_rng(5).random((n, 2)))
-    assert np.all(np.abs(x) <= width / 2)
-    edges = np.linspace(-width / 2, width / 2, bins + 1)
+    half = SUPPORT[kind] * width / 2
+    assert np.all(np.abs(x) <= half) and np.abs(x).max() > 0.7 * half   # the whole support is used
+    edges = np.linspace(-half, half, bins + 1)
     g, w = np.polynomial.legendre.leggauss(16)
-    mid, half = 0.5 * (edges[1:] + edges[:-1]), 0.5 * np.diff(edges)
-    mass = (_profile(kind, width, mid[:, None] + half[:, None] * g) * w).sum(axis=1) * half
+    mid, hw = 0.5 * (edges[1:] + edges[:-1]), 0.5 * np.diff(edges)
+    mass = (_profile(kind, width, mid[:, None] + hw[:, None] * g) * w).sum(axis=1) * hw
     expected = n * mass / mass.sum()
     for axis in range(2):
         observed = np.histogram(x[:, axis], edges)[0]

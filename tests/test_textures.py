@@ -5,7 +5,8 @@ import pytest
 
 from backend.errors import SceneError
 from backend.scene.reader import LoadContext
-from backend.textures import parse_param, srgb_to_linear
+from backend.scene.reader import parse_param
+from backend.textures import srgb_to_linear
 
 
 def write_image(path, pixels, fmt=oiio.FLOAT):

@@ -2,7 +2,9 @@
 """Lamina developer entry point: the README's two commands and a few helpers.
 
     python3.11 tools/dev.py demo     render the demo scene to out/demo.exr and out/demo.png
-    python3.11 tools/dev.py test     run the whole test suite (pytest)
+    python3.11 tools/dev.py test     run the whole test suite (pytest) under Python 3.11 (Blender 4.2-5.0),
+                             then the Blender tests under Python 3.13 with the newest bpy
+                             (Blender 5.1+, NumPy 2.x) in .venv-313; --only-311 / --only-313
     python3.11 tools/dev.py bench    run the benchmark report (benchmarks/)
     python3.11 tools/dev.py build    build the Blender extension zip into build/
     python3.11 tools/dev.py showcase render the showcase scene to out/showcase.exr and out/showcase.png
@@ -10,7 +12,9 @@
     python3.11 tools/dev.py thumbnails  render the preset thumbnails and the gallery (docs/presets.md)
 
 Each command first creates or updates a local virtual environment (.venv) with the pinned
-requirements, so nothing but python3.11 needs to be installed. The environment is only
+requirements, so nothing but python3.11 needs to be installed. ``test`` also creates .venv-313
+(requirements-313.txt) when a Python 3.13 is found (on PATH, through pyenv, or named by
+LAMINA_PYTHON313); without one that part is skipped with one line saying so. The environment is only
 re-installed when a requirements file changes (a hash of them is stored inside .venv).
 Only the standard library is used here: this file runs before anything is installed.
 """
@@ -26,10 +30,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 VENV = ROOT / ".venv"
 STAMP = VENV / ".lamina-requirements"
+VENV_313 = ROOT / ".venv-313"
+REQUIREMENTS_313 = ROOT / "requirements-313.txt"
 
 
-def venv_python() -> Path:
-    return VENV / ("Scripts/python.exe" if os.name == "nt" else "bin/python")
+def venv_python(venv: Path = VENV) -> Path:
+    return venv / ("Scripts/python.exe" if os.name == "nt" else "bin/python")
 
 
 def requirements_for(kind: str) -> Path:
@@ -62,10 +68,72 @@ def ensure_venv(kind: str) -> Path:
     return venv_python()
 
 
-def run(cmd: list[str]) -> int:
+def run(cmd: list[str], extra_env: dict | None = None) -> int:
     env = dict(os.environ)
     env.setdefault("PYTHONHASHSEED", "0")
+    env.update(extra_env or {})
     return subprocess.call(cmd, cwd=ROOT, env=env)
+
+
+def _works(cmd: list[str], env: dict | None = None) -> bool:
+    try:
+        out = subprocess.run([*cmd, "-c", "import sys, venv; print(sys.version_info[:2] == (3, 13))"],
+                             capture_output=True, text=True, timeout=60, env=env)
+    except (OSError, subprocess.SubprocessError):
+        return False
+    return out.returncode == 0 and out.stdout.strip() == "True"
+
+
+def find_python313() -> tuple[list[str], dict] | None:
+    """A Python 3.13 interpreter (command, environment): $LAMINA_PYTHON313, python3.13 on PATH,
+    or a pyenv-installed 3.13 (pyenv's shim needs PYENV_VERSION naming it)."""
+    named = os.environ.get("LAMINA_PYTHON313")
+    if named:
+        return ([named], {}) if _works([named]) else None
+    if _works(["python3.13"]):
+        return ["python3.13"], {}
+    try:
+        versions = subprocess.run(["pyenv", "versions", "--bare"], capture_output=True, text=True,
+                                  timeout=60).stdout.split()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    for version in sorted((v for v in versions if v.startswith("3.13")), reverse=True):
+        env = dict(os.environ, PYENV_VERSION=version)
+        if _works(["python3.13"], env):
+            return ["python3.13"], {"PYENV_VERSION": version}
+    return None
+
+
+def ensure_venv_313(found: tuple[list[str], dict]) -> Path:
+    """Create/update .venv-313 from requirements-313.txt (a hash of it is stored inside)."""
+    stamp = VENV_313 / ".lamina-requirements"
+    wanted = "313:" + hashlib.sha256(REQUIREMENTS_313.read_bytes()).hexdigest()
+    py = venv_python(VENV_313)
+    if stamp.exists() and stamp.read_text().strip() == wanted and py.exists():
+        return py
+    cmd, extra = found
+    if not py.exists():
+        print(f"[lamina] creating virtual environment in {VENV_313} (Python 3.13)", flush=True)
+        subprocess.check_call([*cmd, "-m", "venv", str(VENV_313)], env=dict(os.environ, **extra))
+    print(f"[lamina] installing {REQUIREMENTS_313.name} into .venv-313 (first run only)", flush=True)
+    subprocess.check_call([str(py), "-m", "pip", "install", "--disable-pip-version-check", "-q",
+                           "-r", str(REQUIREMENTS_313)])
+    stamp.write_text(wanted + "\n")
+    return py
+
+
+def test_313(rest: list[str]) -> int:
+    """The Blender tests (pytest -m blender) with the newest bpy under Python 3.13 / NumPy 2.x."""
+    found = find_python313()
+    if found is None:
+        print("[lamina] skipped the Blender 5.1+ tests: no Python 3.13 found "
+              "(install python3.13, or set LAMINA_PYTHON313)", flush=True)
+        return 0
+    py = ensure_venv_313(found)
+    print("[lamina] Blender tests under Python 3.13 (bpy 5.3.0, NumPy 2.x), .venv-313", flush=True)
+    paths = [] if any(arg.startswith("tests") for arg in rest) else ["tests"]
+    status = run([str(py), "-m", "pytest", "-q", "-m", "blender", *paths, *rest])
+    return 0 if status == 5 else status          # 5: the selection holds no Blender test
 
 
 def main(argv: list[str]) -> int:
@@ -93,10 +161,18 @@ def main(argv: list[str]) -> int:
         py = ensure_venv("runtime")
         return run([str(py), "-m", "backend", "presets", "thumbnails", *rest])
     if command == "test":
-        py = ensure_venv("dev")
-        # Always name the tests folder, so pytest finds tests/pytest.ini (see the comment there).
-        paths = [] if any(arg.startswith("tests") for arg in rest) else ["tests"]
-        return run([str(py), "-m", "pytest", "-q", *paths, *rest])
+        only_311, only_313 = "--only-311" in rest, "--only-313" in rest
+        rest = [a for a in rest if a not in ("--only-311", "--only-313")]
+        status = 0
+        if not only_313:
+            py = ensure_venv("dev")
+            # Always name the tests folder, so pytest finds tests/pytest.ini (see the comment there).
+            paths = [] if any(arg.startswith("tests") for arg in rest) else ["tests"]
+            status = run([str(py), "-m", "pytest", "-q", *paths, *rest])
+        if not only_311:
+            status_313 = test_313(rest)
+            status = status or status_313
+        return status
     if command == "bench":
         py = ensure_venv("dev")
         return run([str(py), "-m", "benchmarks", *rest])

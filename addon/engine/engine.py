@@ -109,13 +109,18 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
     def render(self, depsgraph):
         workdir = Path(tempfile.mkdtemp(prefix="lamina-"))
         keep = False
+        self._exported = None
+        self._renderer_warnings: list[str] = []
         try:
             keep = _keep_files() and not self.is_preview
             self._render(depsgraph, workdir)
+            self._warn_once()
         except (RenderFailure, ExportError) as exc:
+            self._warn_once()
             self._fail(str(exc))
         except Exception as exc:  # noqa: BLE001 - anything else still must not pass silently
             traceback.print_exc()
+            self._warn_once()
             self._fail(f"internal error: {type(exc).__name__}: {exc}")
         finally:
             if self.job is not None:
@@ -126,13 +131,27 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
             else:
                 shutil.rmtree(workdir, ignore_errors=True)
 
+    def _warn_once(self) -> None:
+        """The render's one warning: everything the export and the renderer could not render as
+        asked, by Blender name (object, material, node...)."""
+        exported = getattr(self, "_exported", None)
+        if exported is None or self.is_preview:
+            return
+        text = exported.warning_text(extra=self._renderer_warnings)
+        self._exported = None                    # once per render
+        if text:
+            print(text, file=sys.stderr)
+            self.report({"WARNING"}, text)
+
     def _fail(self, message: str) -> None:
         message = f"Lamina: {message}"
         print(message, file=sys.stderr)
         if self.is_preview:
             return                               # thumbnails fail quietly (console only)
+        # report() alone: it makes bpy.ops.render.render raise with the message (background
+        # mode) and shows it in the status bar; error_set() as well would show it twice (and on
+        # its own crashed bpy 5.0.1 in background mode).
         self.report({"ERROR"}, message)
-        self.error_set(message)
 
     def _render(self, depsgraph, workdir: Path) -> None:
         scene = depsgraph.scene
@@ -148,9 +167,7 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
                                 camera_object=self.camera_override or scene.camera,
                                 samples=_preview_samples() if preview else None,
                                 seed_offset=seed_offset, preview=preview)
-        warning = exported.warning_text()
-        if warning and not preview:
-            self.report({"WARNING"}, warning)
+        self._exported = exported                # its notes are reported with the renderer's, once
         if not preview:
             print(f"Lamina: exported {exported.stats['triangles']} triangles "
                   f"({exported.stats['meshes']} meshes, {exported.stats['instances']} instances) "
@@ -168,7 +185,7 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         # One view layer per render() call: write into that layer of the result.
         result = self.begin_result(0, 0, rect[2], rect[3], layer=depsgraph.view_layer.name)
         try:
-            status = self._run(cmd, result, partial, rect, height)
+            status = self._run(cmd, result, partial, rect, height, exported)
         except BaseException:
             self.end_result(result, cancel=True)
             raise
@@ -185,11 +202,12 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         fill_passes(result, combined, aovs, rect, height)
         self.end_result(result)
 
-    def _run(self, cmd, result, partial: Path, rect, height: int) -> str:
+    def _run(self, cmd, result, partial: Path, rect, height: int, exported=None) -> str:
         env = child_environment(_user_env())
         self.job = job = BackendJob(cmd, env=env)
         error = None
-        warnings: list[str] = []
+        describe = exported.describe if exported is not None else (lambda text: text)
+        warnings = self._renderer_warnings
         last_partial = None
         while True:
             for event in job.poll(0.1):
@@ -203,9 +221,9 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
                         fill_passes(result, image, None, rect, height)
                         self.update_result(result)
                 elif kind == "warning":
-                    warnings.append(str(event.get("message", "")))
+                    warnings.append(describe(str(event.get("message", ""))))
                 elif kind == "error":
-                    error = str(event.get("message", "render failed"))
+                    error = describe(str(event.get("message", "render failed")))
                 elif kind == "compiling":
                     # First render after installing or updating: the kernels compile once.
                     self.update_stats("", "Lamina | Compiling render kernels (first run only)")
@@ -222,10 +240,8 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
             if job.finished():
                 break
         code = job.wait()
-        if warnings and not self.is_preview:
-            self.report({"WARNING"}, "Lamina renderer: " + "; ".join(dict.fromkeys(warnings)))
         if error is None and code != 0:
-            error = job.failure_message()
+            error = describe(job.failure_message())
         if error is not None:
             if last_partial is not None:
                 # The result already shows that image (update_result merged it); say that it
@@ -239,11 +255,18 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         self.update_progress(min(max(fraction, 0.0), 1.0))
         if self.is_preview:
             return
-        total = event.get("total", 0)
-        done = event.get("done", 0)
-        elapsed = _format_seconds(event.get("elapsed", 0.0))
-        eta = _format_seconds(event.get("eta", 0.0))
-        self.update_stats("", f"Lamina | Sample {done}/{total} | Time {elapsed} | Remaining {eta}")
+        self.update_stats("", progress_text(event))
+
+
+def progress_text(event: dict) -> str:
+    """The status bar during a render: samples per pixel done (within a round too: the backend's
+    ``samples``), elapsed and remaining time."""
+    total = int(event.get("total", 0))
+    samples = float(event.get("samples", event.get("done", 0)))
+    shown = min(int(samples + 1e-6), total) if total else int(samples)
+    elapsed = _format_seconds(event.get("elapsed", 0.0))
+    eta = _format_seconds(event.get("eta", 0.0))
+    return f"Lamina | Sample {shown}/{total} | Time {elapsed} | Remaining {eta}"
 
 
 CLASSES = (LaminaRenderEngine,)

@@ -44,6 +44,15 @@ class ImageExporter:
         self.notes = notes          # unsupported things, collected for the one warning
         self._cache: dict = {}
         self._used_names: set[str] = set()
+        # id(texture reference) → (reference, label): where each reference came from (a node, a
+        # stack interface), so backend errors about it can name it (names.py).
+        self.labels: dict[int, tuple] = {}
+
+    def label(self, tex, text: str):
+        """Remember that the texture reference ``tex`` comes from ``text``; returns ``tex``."""
+        if isinstance(tex, dict):
+            self.labels[id(tex)] = (tex, text)
+        return tex
 
     # -- public
 

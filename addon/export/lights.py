@@ -69,6 +69,47 @@ def ies_source(light, notes: list[str]):
     return None
 
 
+# Cycles' candela → W/sr conversion (lm/W), the same number as backend/ies/profile.py's
+# LUMINOUS_EFFICACY (a test checks): I [W/sr] = power [W] × cd / 177.83 (DESIGN.md §3).
+LUMINOUS_EFFICACY = 177.83
+_PEAK_CACHE: dict = {}
+
+
+def ies_peak_candela(entry: dict) -> float:
+    """The largest candela value of an IES profile (``{"file": ...}`` or ``{"data": ...}``), with
+    the file's candela multiplier and ballast factors applied, read by the backend's LM-63 reader
+    (bpy-free, NumPy only). Raises the reader's error for a malformed file."""
+    from ...backend.ies.lm63 import parse_lm63, read_lm63, to_cycles_frame
+    if "file" in entry:
+        path = Path(entry["file"])
+        key = ("file", str(path), path.stat().st_mtime_ns if path.is_file() else None)
+    else:
+        key = ("data", hash(entry["data"]))
+    if key not in _PEAK_CACHE:
+        parsed = read_lm63(entry["file"]) if "file" in entry else parse_lm63(entry["data"], "IES text")
+        _PEAK_CACHE[key] = float(to_cycles_frame(parsed)[2].max())
+        if len(_PEAK_CACHE) > 64:
+            _PEAK_CACHE.pop(next(iter(_PEAK_CACHE)))
+    return _PEAK_CACHE[key]
+
+
+def ies_peak(light) -> dict | None:
+    """What the IES panel shows: the profile's peak in candela and the light's resulting peak
+    radiant intensity in W/sr (Cycles' units: power × IES-node strength × 2^exposure × cd / 177.83;
+    the light colour multiplies that per channel). None without a profile; ``{"error": ...}`` for
+    a file the reader rejects."""
+    found = ies_source(light, [])
+    if found is None:
+        return None
+    entry, strength = found
+    try:
+        cd = ies_peak_candela(entry)
+    except Exception as exc:  # noqa: BLE001 - shown in the panel, the render reports it too
+        return {"error": str(exc)}
+    watts = float(light.energy) * strength * 2.0 ** float(getattr(light, "exposure", 0.0))
+    return {"candela": cd, "watts": watts, "w_per_sr": watts * cd / LUMINOUS_EFFICACY}
+
+
 def light_json(obj, matrix_world, notes: list[str]) -> dict | None:
     light = obj.data
     kind = light.type

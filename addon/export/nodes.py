@@ -65,6 +65,7 @@ class NodeTranslator:
             return {"type": "diffuse", "color": [0.0, 0.0, 0.0]}   # nothing connected renders black
         if out.inputs.get("Displacement") is not None and out.inputs["Displacement"].is_linked:
             self.note("displacement (ignored)")
+
         return self.shader(node)
 
     def shader(self, node) -> dict:
@@ -126,7 +127,8 @@ class NodeTranslator:
         if src.projection != "FLAT" or src.extension not in ("REPEAT",):
             self.note(f"{src.name}: {src.projection.lower()} projection / {src.extension.lower()} "
                       f"extension (rendered as flat, repeating)")
-        return self.images.texture(src.image, squared=squared)
+        return self.images.label(self.images.texture(src.image, squared=squared),
+                                 f"node '{src.name}' (image '{src.image.name}' → {node.name}.{name})")
 
     def _unused(self, node, name: str, ok) -> None:
         """Note an input whose value Lamina cannot represent (``ok(value)`` says it is harmless)."""
@@ -153,7 +155,20 @@ class NodeTranslator:
         colour = self.colour(node, "Color")
         out = {"type": "conductor", "roughness": self.scalar(node, "Roughness", 0.5, allow_texture=True, squared=True),
                "distribution": _distribution(node)}
+        # Cycles' Glossy BSDF (multiscatter GGX, constant Fresnel) reflects its colour under
+        # uniform light; the conductor's F0 is chosen to give that albedo (principled.py).
+        if not isinstance(colour, dict) and getattr(node, "distribution", "MULTI_GGX") == "MULTI_GGX":
+            colour = self._matched_f0(colour, node, "Roughness", lambda c, r: c)
         return self._conductor_from_f0(out, colour)
+
+    def _matched_f0(self, colour, node, rough_name: str, target_of):
+        from .principled import conductor_f0
+        r = float(node.inputs[rough_name].default_value)
+        target = target_of(colour, r)
+        f0, clamped = conductor_f0(target, min(max(r, 0.0), 1.0))
+        if clamped:
+            self.note(f"{node.name}: an albedo the conductor cannot reach (clamped)")
+        return [round(float(v), 6) for v in f0]
 
     def metallic(self, node) -> dict:
         self._normal(node)
@@ -168,8 +183,13 @@ class NodeTranslator:
                 out["eta"] = rgb(node.inputs["IOR"].default_value)
                 out["k"] = rgb(node.inputs["Extinction"].default_value)
             return out
-        self._unused(node, "Edge Tint", lambda v: True)
-        return self._conductor_from_f0(out, self.colour(node, "Base Color"))
+        self._unused(node, "Edge Tint", lambda v: all(abs(c - 1.0) < 1e-6 for c in v[:3]))
+        colour = self.colour(node, "Base Color")
+        if not isinstance(colour, dict):
+            from .principled import cycles_metal
+            colour = self._matched_f0(colour, node, "Roughness",
+                                      lambda c, r: cycles_metal(c, min(max(r, 0.0), 1.0)).mean(axis=1))
+        return self._conductor_from_f0(out, colour)
 
     def glass(self, node) -> dict:
         self._normal(node)
@@ -192,54 +212,81 @@ class NodeTranslator:
                 "strength": float(self.scalar(node, "Strength", 1.0))}
 
     def principled(self, node) -> dict:
+        """Principled BSDF → a stack whose albedo matches Cycles' (principled.py)."""
+        from .principled import principled_material
         self._normal(node)
         self._unused(node, "Alpha", lambda v: v >= 1.0)
         self._unused(node, "Subsurface Weight", lambda v: v == 0.0)
-        self._unused(node, "Sheen Weight", lambda v: v == 0.0)
         self._unused(node, "Anisotropic", lambda v: v == 0.0)
         self._unused(node, "Thin Film Thickness", lambda v: v == 0.0)
         self._unused(node, "Diffuse Roughness", lambda v: v == 0.0)
-        self._unused(node, "Specular IOR Level", lambda v: abs(v - 0.5) < 1e-6)
-        self._unused(node, "Specular Tint", lambda v: all(abs(c - 1.0) < 1e-6 for c in v[:3]))
-        metallic = self._weight(node, "Metallic")
-        transmission = self._weight(node, "Transmission Weight")
+        self._unused(node, "Coat Normal", lambda v: True)
+        value = lambda name, default=0.0: self._value(node, name, default)       # noqa: E731
+        colour = lambda name: rgb(node.inputs[name].default_value)              # noqa: E731
         base_colour = self.colour(node, "Base Color")
         roughness = self.scalar(node, "Roughness", 0.5, allow_texture=True, squared=True)
-        ior = float(node.inputs["IOR"].default_value)
-        dist = _distribution(node)
-        if metallic >= 0.5:
-            base = self._conductor_from_f0({"type": "conductor", "roughness": roughness,
-                                            "distribution": dist}, base_colour)
-        elif transmission >= 0.5:
-            base = {"type": "dielectric", "ior": ior, "roughness": roughness, "distribution": dist}
-            if isinstance(base_colour, dict) or any(abs(c - 1.0) > 1e-6 for c in base_colour):
-                base["transmission_color"] = base_colour
-        else:
-            # Principled's dielectric base: a specular dielectric boundary over a diffuse body,
-            # with nothing (a clear, empty medium) between them.
-            base = {"type": "layered",
-                    "interfaces": [{"type": "dielectric", "ior": ior, "roughness": roughness,
-                                    "distribution": dist},
-                                   {"type": "diffuse", "color": base_colour}],
-                    "media": [dict(CLEAR_MEDIUM)]}
-        coat = self._weight(node, "Coat Weight", threshold=None)
-        if coat > 0.0:
-            if coat < 1.0:
-                self.note(f"{node.name}: Coat Weight {coat:g} (rendered as a full coat)")
-            self._unused(node, "Coat Tint", lambda v: all(abs(c - 1.0) < 1e-6 for c in v[:3]))
-            self._unused(node, "Coat Normal", lambda v: True)
-            coat_layer = {"type": "dielectric", "ior": float(node.inputs["Coat IOR"].default_value),
-                          "roughness": self.scalar(node, "Coat Roughness", 0.03, allow_texture=True, squared=True),
-                          "distribution": dist}
-            if base.get("type") == "layered":
-                base = {"type": "layered", "interfaces": [coat_layer, *base["interfaces"]],
-                        "media": [dict(CLEAR_MEDIUM), *base["media"]]}
-            else:
-                base = {"type": "layered", "interfaces": [coat_layer, base], "media": [dict(CLEAR_MEDIUM)]}
+        params = {"base_color": base_colour if not isinstance(base_colour, dict) else [0.5, 0.5, 0.5],
+                  "metallic": value("Metallic"), "roughness": value("Roughness", 0.5),
+                  "ior": value("IOR", 1.5), "specular_ior_level": value("Specular IOR Level", 0.5),
+                  "specular_tint": colour("Specular Tint"),
+                  "transmission": value("Transmission Weight"),
+                  "coat_weight": value("Coat Weight"), "coat_roughness": value("Coat Roughness", 0.03),
+                  "coat_ior": value("Coat IOR", 1.5), "coat_tint": colour("Coat Tint"),
+                  "sheen_weight": value("Sheen Weight"), "sheen_roughness": value("Sheen Roughness", 0.5),
+                  "sheen_tint": colour("Sheen Tint"), "distribution": _distribution(node)}
         emission = self._emission(node)
-        if emission is not None:
-            base["emission"] = emission
-        return base
+        textured_emission = isinstance(emission, dict)
+        if emission is not None and not textured_emission:
+            params["emission"] = emission
+        out, notes = principled_material(params)
+        for text in notes:
+            self.note(f"{node.name}: {text}")
+        if isinstance(roughness, dict):
+            self.note(f"{node.name}: textured Roughness (albedo matched at its value {params['roughness']:g})")
+            self._set_roughness(out, roughness)
+        if isinstance(base_colour, dict):
+            out = self._textured_base(node, out, base_colour)
+        if textured_emission:
+            out["emission"] = emission
+        return out
+
+    def _value(self, node, name: str, default: float = 0.0) -> float:
+        sock = node.inputs.get(name)
+        if sock is None:
+            return default
+        if sock.is_linked and _follow(sock)[0] is not None:
+            self.note(f"{node.name}.{name} is connected (not supported; value used)")
+        return float(sock.default_value)
+
+    @staticmethod
+    def _set_roughness(out: dict, roughness) -> None:
+        """The base lobe's roughness texture (the interface under a coat, else the top one)."""
+        if out.get("type") == "layered":
+            itfs = out["interfaces"]
+            target = itfs[-2] if itfs[-1].get("type") == "diffuse" else itfs[-1]
+            target["roughness"] = roughness
+        else:
+            out["roughness"] = roughness
+
+    def _textured_base(self, node, out: dict, texture: dict) -> dict:
+        """A textured base colour: the body's albedo is the texture times the mapping's gain at
+        mid-grey (the table maps colours nonlinearly; this is exact at 0.5)."""
+        self.note(f"{node.name}: textured Base Color (albedo matched at mid-grey)")
+        tex = dict(texture)
+        source = self.images.labels.get(id(texture))
+        if source is not None:
+            self.images.label(tex, source[1])
+        if out.get("type") == "layered" and out["interfaces"][-1].get("type") == "diffuse":
+            gain = [c / 0.5 for c in out["interfaces"][-1]["color"]]
+            scale = tex.get("scale", 1.0)
+            scale = scale if isinstance(scale, list) else [scale] * 3
+            tex["scale"] = [round(a * b, 6) for a, b in zip(scale, gain)]
+            out["interfaces"][-1]["color"] = tex
+        elif out.get("type") == "dielectric":
+            self.note(f"{node.name}: textured Base Color on glass (mid-grey tint used)")
+        elif out.get("type") == "conductor":
+            self.note(f"{node.name}: textured metal colour (mid-grey used)")
+        return out
 
     # ---------------------------------------------------------------- helpers
 
@@ -262,7 +309,10 @@ class NodeTranslator:
             return None
         colour = self.colour(node, "Emission Color")
         if isinstance(colour, dict):
+            source = self.images.labels.get(id(colour))
             colour = dict(colour)
+            if source is not None:
+                self.images.label(colour, source[1])
             scale = colour.get("scale", 1.0)
             colour["scale"] = [strength * s for s in (scale if isinstance(scale, list) else [scale] * 3)]
             return colour
@@ -284,6 +334,19 @@ class NodeTranslator:
         out["eta"] = [1.0, 1.0, 1.0]
         out["k"] = f0_to_conductor_k(colour)
         return out
+
+
+def volume_note(mat) -> str | None:
+    """A note if the material's output has a Volume shader connected (Lamina renders surfaces)."""
+    tree = getattr(mat, "node_tree", None)
+    if tree is None or not _uses_nodes(mat):
+        return None
+    out = tree.get_output_node("CYCLES") or tree.get_output_node("ALL")
+    sock = out.inputs.get("Volume") if out is not None else None
+    node = _follow(sock)[0] if sock is not None else None
+    if node is None:
+        return None
+    return f"material '{mat.name}': {label(node)} → Volume output (volumes are not rendered: ignored)"
 
 
 def _uses_nodes(mat) -> bool:

@@ -17,9 +17,11 @@ from .camera import CameraError, camera_json, film_json, film_size
 from .images import ImageExporter, safe_name
 from .lights import light_json
 from .mesh import mesh_arrays, sanitise, write_npz
-from .nodes import DEFAULT_MATERIAL, NodeTranslator
+from .names import FieldNames
+from .nodes import DEFAULT_MATERIAL, NodeTranslator, volume_note
 from .preset_link import edited_note
 from .stack import StackError, stack_json
+from .unsupported import light_data_notes, object_notes, scene_notes
 from .world import world_json
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
@@ -43,9 +45,16 @@ class ExportResult:
     crop: list | None
     notes: list[str] = field(default_factory=list)
     stats: dict = field(default_factory=dict)
+    names: FieldNames = field(default_factory=FieldNames)
 
-    def warning_text(self, limit: int = 12) -> str | None:
-        return warning_text(self.notes, limit)
+    def warning_text(self, limit: int = 12, extra: list[str] | None = None) -> str | None:
+        """The render's one warning: the export's notes plus ``extra`` (the renderer's warnings,
+        already in Blender names)."""
+        return warning_text(list(self.notes) + list(extra or []), limit)
+
+    def describe(self, message: str) -> str:
+        """A renderer message with scene-file paths replaced by Blender names (names.py)."""
+        return self.names.describe(message)
 
 
 def warning_text(notes: list[str], limit: int = 12) -> str | None:
@@ -107,6 +116,7 @@ class SceneExporter:
         self.objects: list[dict] = []
         self.lights: list[dict] = []
         self.stats = {"triangles": 0, "meshes": 0, "instances": 0}
+        self.names = FieldNames()
 
     # ---------------------------------------------------------------- materials
 
@@ -123,6 +133,18 @@ class SceneExporter:
         return name
 
     def material_json(self, mat) -> dict:
+        out = self._material_json(mat)
+        # Emission from the front side only (the material's "Emit From"); Cycles' default is both.
+        settings = getattr(mat, "lamina", None)
+        emits = out.get("type") == "emission" or "emission" in out
+        if settings is not None and getattr(settings, "emission_sides", "BOTH") == "FRONT" and emits:
+            out = dict(out, emission_sides="front")
+        return out
+
+    def _material_json(self, mat) -> dict:
+        note = volume_note(mat)
+        if note is not None and not self.preview:
+            self.notes.append(note)
         settings = getattr(mat, "lamina", None)
         if settings is not None and settings.use_stack:
             note = edited_note(mat)
@@ -182,6 +204,8 @@ class SceneExporter:
             entry = light_json(obj, inst.matrix_world.copy(), self.notes)
             if entry is not None:
                 self.lights.append(entry)
+                if not self.preview:
+                    self.notes.extend(object_notes(obj, "light") + light_data_notes(obj))
             return
         if kind in UNSUPPORTED_GEOMETRY:
             self.notes.append(f"object '{obj.name}': {UNSUPPORTED_GEOMETRY[kind]} are not supported (skipped)")
@@ -206,6 +230,8 @@ class SceneExporter:
             slot.material is not None and slot.material.name.startswith(PREVIEW_FLOOR) for slot in obj.material_slots)
         if not getattr(obj, "visible_camera", True) or hidden_floor:
             entry["visible_camera"] = False
+        if not self.preview:
+            self.notes.extend(object_notes(obj, "object"))
         self.objects.append(entry)
         self.stats["instances"] += 1
 
@@ -222,6 +248,8 @@ class SceneExporter:
             raise ExportError(str(exc)) from None
         for inst in self.depsgraph.object_instances:
             self.add_instance(inst)
+        if not self.preview:
+            self.notes.extend(scene_notes(scene, getattr(self.depsgraph, "view_layer", None)))
         doc = {"format": "lamina-scene", "version": 1,
                "_generator": "Lamina Blender add-on",
                "film": film_json(scene, width, height),
@@ -232,6 +260,8 @@ class SceneExporter:
                "objects": self.objects,
                "lights": self.lights,
                "world": world_json(scene.world, self.images, self.notes)}
+        self.names = FieldNames().collect(doc, self.images.labels, DEFAULT_SLOT,
+                                          scene.world.name if scene.world is not None else None)
         return doc
 
 
@@ -262,4 +292,5 @@ def export_scene(depsgraph, directory, *, camera_object=None, samples: int | Non
     tmp.replace(path)
     stats = dict(exporter.stats, seconds=round(time.perf_counter() - t0, 4))
     film = doc["film"]
-    return ExportResult(path, film["width"], film["height"], film.get("crop"), exporter.notes, stats)
+    return ExportResult(path, film["width"], film["height"], film.get("crop"), exporter.notes, stats,
+                        exporter.names)

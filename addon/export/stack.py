@@ -17,25 +17,36 @@ def alpha(r: float) -> float:
     return f32(float(r) * float(r))
 
 
-def _scalar(value: float, image, images, *, squared: bool = False):
+def _source(layer, image) -> str:
+    return f"interface '{layer.name}' (image '{image.name}')"
+
+
+def _labelled(images, tex, text: str):
+    """``tex``, remembered by the exporter as coming from ``text`` (names.py); stand-ins for the
+    exporter (preset fingerprints) need not keep labels."""
+    label = getattr(images, "label", None)
+    return label(tex, text) if label is not None else tex
+
+
+def _scalar(value: float, image, images, *, squared: bool = False, layer=None):
     if image is not None and images is not None:
         tex = images.texture(image, scale=value, squared=squared)
         if tex is not None:
-            return tex
+            return _labelled(images, tex, _source(layer, image)) if layer is not None else tex
     return value
 
 
-def _colour(value, image, images):
+def _colour(value, image, images, layer=None):
     if image is not None and images is not None:
         tex = images.texture(image, scale=rgb(value))
         if tex is not None:
-            return tex
+            return _labelled(images, tex, _source(layer, image)) if layer is not None else tex
     return rgb(value)
 
 
 def _microfacet(layer, images) -> dict:
     out = {"roughness": _scalar(alpha(layer.roughness), layer.roughness_texture, images,
-                                squared=not layer.roughness_texture_alpha)}
+                                squared=not layer.roughness_texture_alpha, layer=layer)}
     if layer.use_anisotropy:
         out["roughness_v"] = alpha(layer.roughness_v)
     out["distribution"] = layer.distribution.lower()
@@ -60,7 +71,7 @@ def interface_json(layer, images, visiting: tuple, links: bool = True) -> dict:
             out["tint"] = rgb(layer.tint)
         return out
     if kind == "DIFFUSE":
-        return {"type": "diffuse", "color": _colour(layer.color, layer.color_texture, images)}
+        return {"type": "diffuse", "color": _colour(layer.color, layer.color_texture, images, layer)}
     if kind == "NULL":
         return {"type": "null"}
     if kind == "MATERIAL":
@@ -77,7 +88,7 @@ def _axis(layer, images=None):
     if layer.orientation_texture is not None and images is not None:
         tex = images.texture(layer.orientation_texture)
         if tex is not None:
-            return tex
+            return _labelled(images, tex, _source(layer, layer.orientation_texture))
     axis = [f32(v) for v in layer.flake_orientation]
     return axis if any(axis) else [1.0, 0.0, 0.0]
 
@@ -89,9 +100,9 @@ def _density(layer, images):
         if layer.sigma_t_texture is not None and images is not None:
             tex = images.texture(layer.sigma_t_texture, scale=value)
             if tex is not None:
-                return tex
+                return _labelled(images, tex, _source(layer, layer.sigma_t_texture))
         return value
-    return _scalar(f32(layer.sigma_t), layer.sigma_t_texture, images)
+    return _scalar(f32(layer.sigma_t), layer.sigma_t_texture, images, layer=layer)
 
 
 def is_clear(layer) -> bool:
@@ -101,12 +112,12 @@ def is_clear(layer) -> bool:
 
 
 def medium_json(layer, images) -> dict:
-    out = {"thickness": _scalar(f32(layer.thickness), layer.thickness_texture, images),
+    out = {"thickness": _scalar(f32(layer.thickness), layer.thickness_texture, images, layer=layer),
            "sigma_t": _density(layer, images)}
     clear = is_clear(layer)
     if clear:
         return out
-    out["albedo"] = _colour(layer.albedo, layer.albedo_texture, images)
+    out["albedo"] = _colour(layer.albedo, layer.albedo_texture, images, layer)
     if layer.phase == "HG":
         out["phase"] = {"type": "hg", "g": f32(layer.hg_g)}
     elif layer.phase == "MICROFLAKE":
@@ -119,6 +130,23 @@ def medium_json(layer, images) -> dict:
     else:
         out["phase"] = {"type": "isotropic"}
     return out
+
+
+def _opaque(itf: dict) -> bool:
+    kind = itf.get("type")
+    if kind in ("conductor", "diffuse"):
+        return True
+    if kind == "layered":
+        inner = itf.get("interfaces") or []
+        return bool(inner) and _opaque(inner[-1])
+    return False
+
+
+def _first_opaque(interfaces: list[dict]) -> int | None:
+    for i, itf in enumerate(interfaces):
+        if _opaque(itf):
+            return i
+    return None
 
 
 def stack_json(material, images, visiting: tuple = (), *, links: bool = True) -> dict:
@@ -142,6 +170,15 @@ def stack_json(material, images, visiting: tuple = (), *, links: bool = True) ->
     if not layers:
         raise StackError(f"material '{material.name}' has an empty layer stack")
     interfaces = [interface_json(layer, images, visiting, links) for layer in layers]
+    cut = _first_opaque(interfaces)
+    if cut is not None and cut < len(layers) - 1:
+        # Nothing below an opaque interface is ever reached; the renderer would refuse the stack.
+        # The panel warns (stack_check.py); the render leaves those interfaces out and says so.
+        dropped = ", ".join(f"'{layer.name}'" for layer in layers[cut + 1:])
+        if getattr(images, "notes", None) is not None:
+            images.notes.append(f"material '{material.name}': interface(s) {dropped} below the opaque "
+                                f"'{layers[cut].name}' are never reached (left out)")
+        layers, interfaces = layers[:cut + 1], interfaces[:cut + 1]
     if len(layers) == 1:
         out = interfaces[0]
     else:

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import bpy
-from bpy.props import (BoolProperty, CollectionProperty, FloatProperty, FloatVectorProperty,
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
                        IntProperty, PointerProperty, StringProperty)
 from bpy.types import PropertyGroup
 
@@ -21,6 +21,13 @@ class LaminaMaterialSettings(PropertyGroup):
     emission_strength: FloatProperty(name="Strength", default=0.0, min=0.0, soft_max=100.0,
                                      description="Emitted radiance (W m⁻² sr⁻¹) = colour × strength; "
                                                  "0 = not a light")
+    emission_sides: EnumProperty(
+        name="Emit From", default="BOTH",
+        items=(("BOTH", "Both Sides", "Both faces emit (as Cycles)", 0),
+               ("FRONT", "Front Side", "Only the front face emits (the side its normals point to); "
+                                       "the back is black and lights nothing", 1)),
+        description="Which faces of an emissive surface emit light: the stack's emission and the "
+                    "emission of its shader nodes (Emission shader, Principled Emission)")
     # The preset this stack came from (addon/presets/link.py). While the stack is unchanged
     # since then (same fingerprint), export writes the preset's material JSON exactly, so
     # fields the stack editor cannot show are kept; an edit detaches it.

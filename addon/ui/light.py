@@ -3,8 +3,30 @@ from __future__ import annotations
 
 import bpy
 
-from ..export.lights import ies_json
+from ..export.lights import ies_json, ies_peak
 from .base import LaminaPanel
+
+
+def _si(value: float, unit: str) -> str:
+    for factor, prefix in ((1e9, "G"), (1e6, "M"), (1e3, "k")):
+        if abs(value) >= factor:
+            return f"{value / factor:.3g} {prefix}{unit}"
+    return f"{value:.3g} {unit}"
+
+
+def draw_ies_peak(layout, light) -> None:
+    """The profile's peak and what it makes of this light's power (Cycles' units), so that a
+    strength that blows the image out is visible before rendering."""
+    peak = ies_peak(light)
+    if peak is None:
+        return
+    if "error" in peak:
+        layout.label(text=f"IES: {peak['error']}", icon="ERROR")
+        return
+    col = layout.column(align=True)
+    col.label(text=f"Profile peak: {peak['candela']:,.0f} cd", icon="LIGHT_SPOT")
+    col.label(text=f"Peak intensity: {_si(peak['w_per_sr'], 'W/sr')} at {_si(peak['watts'], 'W')} "
+                   f"(× colour; W/sr = W × cd / 177.83)")
 
 
 def draw_light(layout, light) -> None:
@@ -70,6 +92,7 @@ def draw_ies(layout, light) -> None:
         if found is not None:
             source = found.get("file") or "text data-block"
             layout.label(text=f"Using the Cycles IES Texture node ({source})", icon="INFO")
+    draw_ies_peak(layout, light)
 
 
 class LAMINA_PT_light(LaminaPanel, bpy.types.Panel):

@@ -234,6 +234,7 @@ def draw_emission(layout, material) -> None:
     col.use_property_split = True
     col.prop(settings, "emission_color")
     col.prop(settings, "emission_strength")
+    col.prop(settings, "emission_sides")
 
 
 def node_findings(material) -> list[tuple[str, str]]:
@@ -256,6 +257,9 @@ def draw_nodes(layout, material) -> None:
         layout.label(text="No Material Output node", icon="ERROR")
         return
     layout.template_node_view(tree, output, output.inputs["Surface"])
+    col = layout.column()
+    col.use_property_split = True
+    col.prop(material.lamina, "emission_sides", text="Emission From")
     draw_findings(layout, node_findings(material))
 
 

@@ -43,7 +43,7 @@ def camera_vector(camera) -> np.ndarray:
 @njit(cache=True, _nrt=False)
 def filter_offset(cdf, grid, inverse, kinked, width, u):
     """Offset from the pixel centre [pixels] for u in [0, 1): the inverse of the filter's CDF
-    (piecewise linear between table nodes), centred and scaled to the filter width. A lookup in
+    (piecewise linear between table nodes), centred and scaled to the filter's support. A lookup in
     the uniform-u table where its cell holds no CDF node (exact there), else a binary search."""
     m = kinked.shape[0]
     x = u * m

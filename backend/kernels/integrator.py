@@ -299,8 +299,9 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
             v = 0.0
         m = G.material[pr]
         wi = (-rd[0], -rd[1], -rd[2])
-        if MT.emits[m]:
-            le = km.emission(MT, TX, m, u, v)     # both faces, as Cycles' emission shader
+        # Both faces emit (as Cycles' emission shader), or the front only (emission_sides).
+        if MT.emits[m] and (not MT.emit_front[m] or _dot(wi, ng) > 0.0):
+            le = km.emission(MT, TX, m, u, v)
             w = 1.0
             if S.mesh_light >= 0:
                 local = G.emitter[pr]

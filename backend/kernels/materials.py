@@ -8,6 +8,7 @@
   two_sided bool    reflection-only materials are seen from both sides (the integrator turns the
                     frame towards the viewer); transmissive ones are not flipped
   emits     bool    the material has an ``emission``
+  emit_front bool   it emits from the front side only (counter-clockwise winding), else both
   values    float64 (M, NSLOT), tex int32 (M, NSLOT): texturable parameters (kernels/params.py),
                     an RGB parameter takes three consecutive slots and its texture id sits in the
                     first. Slot layout below (EMISSION is common to every kind).
@@ -35,7 +36,7 @@ ETA, K, TINT, AU, AV = 3, 6, 9, 12, 13         # conductor: relative eta, k (RGB
 D_ETA, D_TINT, D_AU, D_AV = 3, 4, 7, 8           # dielectric: relative eta, transmission colour, α
 
 MaterialTable = namedtuple("MaterialTable", ["kind", "dist", "masking", "two_sided", "emits",
-                                             "values", "tex"])
+                                             "values", "tex", "emit_front"])
 
 
 class MaterialRow:
@@ -48,6 +49,7 @@ class MaterialRow:
         self.masking = 0
         self.two_sided = True
         self.emits = False
+        self.emit_front = False
         self.values = np.zeros(NSLOT)
         self.tex = np.full(NSLOT, -1, np.int32)
 
@@ -70,13 +72,14 @@ def build_material_table(materials: list, packer: ParamPacker) -> MaterialTable:
         if getattr(m, "emission", None) is not None:
             row.set(EMISSION, m.emission, 3)
             row.emits = True
+            row.emit_front = bool(getattr(m, "emission_front_only", False))
         rows.append(row)
     if not rows:
         rows.append(MaterialRow(packer))
     return MaterialTable(np.array([r.kind for r in rows], np.int32), np.array([r.dist for r in rows], np.int32),
                          np.array([r.masking for r in rows], np.int32), np.array([r.two_sided for r in rows]),
                          np.array([r.emits for r in rows]), np.stack([r.values for r in rows]),
-                         np.stack([r.tex for r in rows]))
+                         np.stack([r.tex for r in rows]), np.array([r.emit_front for r in rows]))
 
 
 @njit(cache=True, _nrt=False, inline="always")
@@ -93,7 +96,8 @@ def _scalar(mt, tx, m, slot, u, v):
 
 @njit(cache=True, _nrt=False, inline="always")
 def emission(mt, tx, m, u, v):
-    """Emitted radiance [W m⁻² sr⁻¹] of material m at (u, v), both faces."""
+    """Emitted radiance [W m⁻² sr⁻¹] of material m at (u, v) (the caller checks the side of a
+    front-only emitter: ``emit_front``)."""
     if not mt.emits[m]:
         return (0.0, 0.0, 0.0)
     return _rgb(mt, tx, m, EMISSION, u, v)

@@ -28,20 +28,13 @@ class ParamPacker:
         return self._ids[key]
 
     def pack(self, param, channels: int, factor=1.0) -> tuple[np.ndarray, int]:
-        """(values (channels,), texture id or −1) of a Param (textures.py, materials.emission)."""
-        from ..materials.emission import ScaledParam
-        from ..textures import ConstantParam, ImageParam
+        """(values (channels,), texture id or −1) of a Param: each Param kind packs itself
+        (``kernel_pack``: textures.py, materials/emission.py), so this module knows none."""
         factor = np.asarray(factor, dtype=np.float64)
-        if isinstance(param, ScaledParam):
-            return self.pack(param.inner, channels, factor * param.factor)
-        if isinstance(param, ImageParam):
-            values = np.broadcast_to(np.asarray(param.scale, np.float64) * factor, (channels,))
-            return np.array(values, np.float64), self.texture_id(param.texels)
-        if isinstance(param, ConstantParam):
-            values = np.broadcast_to(np.asarray(param.value, np.float64).reshape(-1) * factor, (channels,))
-            return np.array(values, np.float64), -1
         if param is None:
             return np.zeros(channels), -1
+        if hasattr(param, "kernel_pack"):
+            return param.kernel_pack(self, channels, factor)
         # A plain number or RGB triple (materials built in code)
         values = np.broadcast_to(np.asarray(param, np.float64).reshape(-1) * factor, (channels,))
         return np.array(values, np.float64), -1

@@ -80,17 +80,34 @@ def pixel_seed(seed, pixel):
     return _mix32(np.uint64(pixel) ^ _mix32(np.uint64(seed) ^ (np.uint64(seed) >> np.uint64(32))))
 
 
+def _sobol1_bytes() -> np.ndarray:
+    """Sobol dimension 1 (polynomial x + 1: direction numbers v_{k+1} = v_k ^ (v_k >> 1) from
+    2^31, the Pascal matrix mod 2), tabulated per index byte: T[b, x] = XOR of the direction
+    numbers of the bits set in byte value x at byte position b. The shuffled index is a full
+    32-bit number, so this replaces a 32-step bit loop by four lookups (a 8 KiB table)."""
+    v = [0x80000000]
+    for _ in range(31):
+        v.append(v[-1] ^ (v[-1] >> 1))
+    t = np.zeros((4, 256), np.uint64)
+    for b in range(4):
+        for x in range(256):
+            r = 0
+            for bit in range(8):
+                if (x >> bit) & 1:
+                    r ^= v[8 * b + bit]
+            t[b, x] = r
+    return t
+
+
+SOBOL1_BYTES = _sobol1_bytes()
+
+
 @njit(cache=True, _nrt=False)
 def _sobol1_gen(i):
-    """Sobol dimension 1 (polynomial x + 1: the Pascal matrix mod 2) of a 32-bit index."""
-    r = np.uint64(0)
-    v = np.uint64(0x80000000)
-    while i != np.uint64(0):
-        if i & np.uint64(1):
-            r ^= v
-        i >>= np.uint64(1)
-        v ^= v >> np.uint64(1)
-    return r
+    """Sobol dimension 1 of a 32-bit index (see ``_sobol1_bytes``)."""
+    return (SOBOL1_BYTES[0, i & np.uint64(0xFF)] ^ SOBOL1_BYTES[1, (i >> np.uint64(8)) & np.uint64(0xFF)]
+            ^ SOBOL1_BYTES[2, (i >> np.uint64(16)) & np.uint64(0xFF)]
+            ^ SOBOL1_BYTES[3, (i >> np.uint64(24)) & np.uint64(0xFF)])
 
 
 @njit(cache=True, _nrt=False)

@@ -9,8 +9,9 @@ next-event estimation stays unbiased. The integrator intersects the triangles th
 (they are ordinary scene geometry), so this class provides sampling and the MIS density
 ``pdf_hit_triangle`` only.
 
-Scenes use ``two_sided=True``: Cycles' emission shader emits from both faces (measured with
-Cycles 5.0.1). One-sided emission (the counter-clockwise front only) remains available.
+Scenes emit from both faces by default (Cycles' emission shader does, measured with Cycles
+5.0.1); ``two_sided`` is a flag or one flag per triangle, False = the counter-clockwise front only
+(a material's ``"emission_sides": "front"``).
 
 Sampling (a triangle ∝ area × luminance, then a uniform point by Heitz's map; pdf in solid angle
 P(tri)/area × t²/|cos|) is per-lane code in ``backend/kernels/lights/mesh.py``; this class
@@ -29,7 +30,7 @@ from .base import Light
 
 
 class MeshLight(Light):
-    def __init__(self, triangles_world: np.ndarray, radiance: np.ndarray, two_sided: bool = False,
+    def __init__(self, triangles_world: np.ndarray, radiance: np.ndarray, two_sided=False,
                  uvs: np.ndarray | None = None, emission: list | None = None,
                  slots: np.ndarray | None = None):
         """``radiance`` (n, 3) or (3,): per-triangle radiance [W m⁻² sr⁻¹]. For textured emission
@@ -45,7 +46,8 @@ class MeshLight(Light):
         self.area = 0.5 * length
         self.normal = n / np.where(length > 0, length, 1.0)[:, None]
         self.radiance = np.broadcast_to(np.asarray(radiance, dtype=np.float64).reshape(-1, 3), (v.shape[0], 3)).copy()
-        self.two_sided = bool(two_sided)
+        # Per triangle: both faces emit (True) or the front only (False).
+        self.two_sided = np.broadcast_to(np.asarray(two_sided, dtype=bool).reshape(-1), (v.shape[0],)).copy()
         self.textured = emission is not None
         if self.textured:
             if uvs is None or slots is None:
@@ -62,6 +64,7 @@ class MeshLight(Light):
         weight = self.area * np.maximum(luminance(self.radiance), 0.0)
         weight = np.where(np.isfinite(weight), weight, 0.0)
         self._total = float(weight.sum())
+        self._sided_total = float((weight * np.where(self.two_sided, 2.0, 1.0)).sum())
         self.select = Discrete1D(weight) if self._total > 0 else None
         self.pmf = self.select.pmf if self.select is not None else np.zeros(v.shape[0])
 
@@ -71,18 +74,17 @@ class MeshLight(Light):
 
     def power(self) -> float:
         # A Lambertian emitter radiates π L per unit area and side.
-        return np.pi * self._total * (2.0 if self.two_sided else 1.0)
+        return np.pi * self._sided_total
 
     def pack(self, b) -> None:
         row = b.light(_kc.MESH)
         row.select_point(self.position, self.extent)
-        tris = np.concatenate([self.v0, self.e1, self.e2, self.normal, self.area[:, None], self.radiance],
-                              axis=1)
+        tris = np.concatenate([self.v0, self.e1, self.e2, self.normal, self.area[:, None], self.radiance,
+                               self.two_sided[:, None].astype(np.float64)], axis=1)
         assert tris.shape[1] == _km.TRI_STRIDE
         row.i[_km.I_TRI_OFF] = b.aux(tris)
         row.i[_km.I_COUNT] = self.count
         row.i[_km.I_DIST_OFF] = b.aux(self.select.block) if self.select is not None else -1
-        row.i[_km.I_TWO_SIDED] = int(self.two_sided)
         row.i[_km.I_TEXTURED] = int(self.textured)
         if self.textured:
             row.i[_km.I_UV_OFF] = b.aux(self.uvs.reshape(-1, 6))

@@ -142,12 +142,15 @@ class Material:
 
     ``two_sided``: reflection-only materials are seen from both sides (the integrator flips the
     frame towards the arriving direction); transmissive ones are not flipped (the side matters).
-    ``emission``: an RGB radiance Param (W m⁻² sr⁻¹) or None.
+    ``emission``: an RGB radiance Param (W m⁻² sr⁻¹) or None. ``emission_front_only``: it is
+    emitted from the front side only (the scene file's ``"emission_sides": "front"``), else from
+    both sides (as Cycles).
     """
 
     type_name: ClassVar[str] = ""
     two_sided: bool = True
     emission = None
+    emission_front_only: bool = False
 
     def bind(self, ctx: ShadingContext) -> BSDF:
         raise NotImplementedError

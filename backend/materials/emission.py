@@ -1,7 +1,8 @@
 """The ``emission`` material (a black surface that emits) and the shared ``emission`` field.
 
 Every material's parser calls :func:`parse_emission`, so any surface may also emit:
-``"emission": [r, g, b]`` (texturable), radiance in W m⁻² sr⁻¹ on the front side. The
+``"emission": [r, g, b]`` (texturable), radiance in W m⁻² sr⁻¹ from both sides (as Cycles), or
+from the front only with the material's ``"emission_sides": "front"`` (read by the scene loader). The
 ``emission`` material itself has ``color`` × ``strength`` (Blender's Emission shader) and a black
 BSDF (it reflects nothing, so next-event estimation and continuation are skipped).
 """
@@ -30,6 +31,9 @@ class ScaledParam(Param):
 
     def mean(self) -> np.ndarray:
         return self.inner.mean() * self.factor
+
+    def kernel_pack(self, packer, channels: int, factor):
+        return packer.pack(self.inner, channels, factor * self.factor)
 
 
 def scaled(param: Param, factor: float) -> Param:

@@ -241,7 +241,16 @@ def parse_material(node: Node):
     if isinstance(node.value, str):
         from ..presets import resolve_preset  # the preset library resolves names
         return resolve_preset(node.value, node)
-    return dispatch(node, load_all())
+    # "emission_sides" (any material): "both" (default, as Cycles) or "front" (the side the
+    # triangles' counter-clockwise winding faces). Read here so every material type takes it.
+    sides = node.string("emission_sides", "both", choices=("both", "front")) if isinstance(node.value, dict) else "both"
+    material = dispatch(node, load_all())
+    if sides == "front":
+        if getattr(material, "emission", None) is None:
+            node.ctx.warn(node.sub("emission_sides"), "the material emits nothing: ignored")
+        else:
+            material.emission_front_only = True
+    return material
 
 
 def parse_materials(node: Node | None):
@@ -424,7 +433,9 @@ def build_mesh_light(soup: TriangleSoup, materials: list):
         slot_of[emissive] = np.arange(len(emissive))
         textured = dict(uvs=soup.uvs64[tri], emission=[materials[mi].emission for mi in emissive],
                         slots=slot_of[soup.material[tri]])
-    light = MeshLight(soup.vertices[tri].astype(np.float64), radiance, two_sided=True, **textured)
+    # Two-sided per triangle unless its material emits from the front only (emission_sides).
+    two_sided = ~np.array([bool(getattr(m, "emission_front_only", False)) for m in materials])[soup.material[tri]]
+    light = MeshLight(soup.vertices[tri].astype(np.float64), radiance, two_sided=two_sided, **textured)
     light.triangle_ids = tri  # global triangle index of each emitter
     return light
 

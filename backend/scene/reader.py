@@ -341,7 +341,6 @@ class Node:
 
         Returns a :class:`backend.textures.Param`.
         """
-        from ..textures import parse_param
         value = self._get(key, default)
         return parse_param(value, self.sub(key), self.ctx, channels, lo, hi, lo_open,
                            color if color is not None else channels == 3)
@@ -393,3 +392,30 @@ def check_vector(value: Any, size: int, path: str, ctx: LoadContext, lo=None, hi
     if nonzero and not np.any(out):
         raise ctx.error(path, "expected a non-zero vector")
     return out
+
+
+def parse_param(value: Any, path: str, ctx, channels: int, lo, hi, lo_open: bool, color: bool):
+    """A texturable parameter (``backend.textures.Param``): a number, an RGB colour, or
+    ``{"texture": file, "colorspace": …, "channel": …, "scale": …}``."""
+    from ..textures import ConstantParam, image_param
+    if isinstance(value, dict):
+        node = Node(value, path, ctx)
+        file = node.string("texture")
+        colorspace = node.string("colorspace", "auto", choices=("auto", "sRGB", "linear"))
+        channel = node.integer("channel", -1, lo=-1, hi=3)
+        # A parameter that cannot be negative cannot take a negative scale either.
+        scale_lo = 0.0 if lo is not None and lo >= 0 else None
+        if channels == 3:
+            scale = node.rgb("scale", [1.0, 1.0, 1.0], lo=scale_lo)
+        else:
+            scale = np.asarray(node.number("scale", 1.0, lo=scale_lo))
+        node.finish()
+        return image_param(ctx, file, path, channels, channel, colorspace, color, lo, hi, scale)
+    if channels == 3:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            value = [value] * 3
+        v = check_vector(value, 3, path, ctx, lo, hi, what="an RGB colour or {\"texture\": ...}")
+        return ConstantParam(v, 3)
+    if isinstance(value, list):
+        raise ctx.error(path, f"expected a number or {{\"texture\": ...}}, got a list of {len(value)}")
+    return ConstantParam(check_number(value, path, ctx, lo, hi, lo_open), 1)

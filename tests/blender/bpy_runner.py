@@ -38,7 +38,8 @@ def main() -> int:
             results[case] = getattr(module, case)(payload["tmp"], **payload["args"].get(case, {}))
         except Exception:  # noqa: BLE001 - reported to pytest
             results[case] = {"error": traceback.format_exc()}
-    sys.stdout.write("LAMINA-CASE-RESULT " + json.dumps(results) + "\n")
+    # (a leading newline: Blender prints long reports without one at their end)
+    sys.stdout.write("\nLAMINA-CASE-RESULT " + json.dumps(results) + "\n")
     sys.stdout.flush()
     return 0
 

@@ -149,6 +149,16 @@ def test_mesh_arrays_match_blender(results):
     assert r["slots"] == ["A", "B"]
 
 
+def principled():
+    """addon/export/principled.py, loaded on its own (it needs neither bpy nor the package)."""
+    import importlib.util
+    path = Path(__file__).resolve().parents[2] / "addon" / "export" / "principled.py"
+    spec = importlib.util.spec_from_file_location("lamina_principled", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def test_node_materials_translation(results):
     r = result_of(results, "node_materials")
     mats = r["materials"]
@@ -156,7 +166,11 @@ def test_node_materials_translation(results):
     assert plastic["type"] == "layered" and [i["type"] for i in plastic["interfaces"]] == ["dielectric", "diffuse"]
     assert plastic["interfaces"][0]["ior"] == pytest.approx(1.45)
     assert plastic["interfaces"][0]["roughness"] == pytest.approx(0.3 ** 2)     # α = r²
-    assert plastic["interfaces"][1]["color"] == pytest.approx([0.2, 0.4, 0.6])
+    # The body's albedo is chosen so the stack's albedo equals Cycles' (addon/export/principled.py):
+    # brighter than the base colour (the stack keeps less light than Cycles' albedo scaling).
+    mapped, _ = principled().principled_material({"base_color": [0.2, 0.4, 0.6], "roughness": 0.3, "ior": 1.45})
+    assert plastic["interfaces"][1]["color"] == pytest.approx(mapped["interfaces"][1]["color"])
+    assert all(a > b for a, b in zip(plastic["interfaces"][1]["color"], [0.2, 0.4, 0.6]))
     assert plastic["media"] == [{"thickness": 1.0, "sigma_t": 0.0}]
     coated = mats["Coated"]
     assert [i["type"] for i in coated["interfaces"]] == ["dielectric", "dielectric", "diffuse"]
@@ -165,9 +179,15 @@ def test_node_materials_translation(results):
     assert len(coated["media"]) == 2
     gold = mats["Gold"]
     assert gold["type"] == "conductor" and gold["eta"] == [1.0, 1.0, 1.0]
-    # Closed form: a conductor with η = 1 reflects k²/(4 + k²) at normal incidence = base colour.
+    # A conductor with η = 1 reflects F0 = k²/(4 + k²) at normal incidence; F0 is the one whose
+    # albedo equals Cycles' F82 metal of this base colour (1.0 is out of reach: clamped to 0.999).
     k = np.array(gold["k"])
-    np.testing.assert_allclose(k * k / (4 + k * k), [0.999, 0.766, 0.336], rtol=1e-5)   # 1.0 clamps to 0.999
+    f0 = k * k / (4 + k * k)
+    mapped, _ = principled().principled_material({"base_color": [1.0, 0.766, 0.336], "metallic": 1.0,
+                                                  "roughness": 0.2})
+    km = np.array(mapped["k"])
+    np.testing.assert_allclose(f0, km * km / (4 + km * km), rtol=1e-5)
+    assert f0[0] == pytest.approx(0.999, rel=1e-4) and abs(f0[1] - 0.766) < 0.05 and abs(f0[2] - 0.336) < 0.05
     assert gold["roughness"] == pytest.approx(0.04)
     glassy = mats["Glassy"]
     assert glassy["type"] == "dielectric" and glassy["ior"] == pytest.approx(1.33)
@@ -182,7 +202,7 @@ def test_node_materials_translation(results):
     # Unsupported things arrive in ONE warning that names them.
     warning = r["warning"]
     assert warning.startswith("Lamina ignored or approximated:") and "\n" not in warning
-    for needle in ("Noise Texture", "Sheen Weight", "Mix Shader"):
+    for needle in ("Noise Texture", "Sheen", "Mix Shader"):
         assert needle in warning, needle
     assert mats["Mixed"] == {"type": "diffuse", "color": [0.8, 0.8, 0.8]}
 

@@ -8,8 +8,9 @@ The value is the *exact* emitted radiance at the sampled point: for textured emi
 triangle's material emission parameter (``ParamPacker``: constant, or texture × scale) evaluated
 at the UV interpolated with the sample's barycentrics, so next-event estimation stays unbiased.
 
-Scenes use two-sided emission: Cycles' emission shader emits from both faces (measured with
-Cycles 5.0.1). One-sided emission (the counter-clockwise front only) remains available.
+Emission is two-sided by default: Cycles' emission shader emits from both faces (measured with
+Cycles 5.0.1). A material with ``"emission_sides": "front"`` emits from the counter-clockwise
+front only; the flag is per triangle (``T_TWO_SIDED``), so one mesh light holds both kinds.
 
 The integrator intersects the triangles through embree (they are ordinary scene geometry): this
 light is neither hittable nor infinite; ``pdf_hit_triangle`` gives the MIS density of a hit on
@@ -17,7 +18,8 @@ emitter triangle ``tri`` (its index among the emitters: the table maps scene pri
 
 Layout: per triangle, ``TRI_STRIDE`` floats at ``I_TRI_OFF``: v0 (3), e1 = v1 − v0 (3),
 e2 = v2 − v0 (3), unit normal e1 × e2 (3), area [m²], radiance (3) [W m⁻² sr⁻¹] (the per-triangle
-value used to pick triangles, and the emission when nothing is textured). Textured lights add the
+value used to pick triangles, and the emission when nothing is textured), two-sided flag (1 both
+faces, 0 the front only). Textured lights add the
 UV corners (6 per triangle at ``I_UV_OFF``), the emission slot of each triangle (``iaux`` at
 ``I_SLOT_OFF``) and per slot its packed parameter: 3 values in ``aux`` at ``I_EMIT_OFF`` and a
 texture id (−1: constant) in ``iaux`` at ``I_EMIT_TEX_OFF``.
@@ -32,13 +34,13 @@ from ..vec import dot
 from ..warp import triangle_barycentric
 from .common import I_FIRST, ZERO3, aux3, unit_or_zero
 
-TRI_STRIDE = 16
-T_V0, T_E1, T_E2, T_N, T_AREA, T_RAD = 0, 3, 6, 9, 12, 13
+TRI_STRIDE = 17
+T_V0, T_E1, T_E2, T_N, T_AREA, T_RAD, T_TWO_SIDED = 0, 3, 6, 9, 12, 13, 16
 
 I_TRI_OFF = I_FIRST
 I_COUNT = I_FIRST + 1
 I_DIST_OFF = I_FIRST + 2     # 1-D block over the triangles; −1: nothing emits
-I_TWO_SIDED = I_FIRST + 3
+I_RESERVED = I_FIRST + 3     # (was the light-wide two-sided flag; now per triangle)
 I_TEXTURED = I_FIRST + 4
 I_UV_OFF = I_FIRST + 5
 I_SLOT_OFF = I_FIRST + 6
@@ -50,7 +52,7 @@ I_EMIT_TEX_OFF = I_FIRST + 8
 def _cos_light(I, li, aux, r, d):
     """Cosine between the emitter's front and the direction back from it (|·| if two-sided)."""
     c = -dot(d, aux3(aux, r + T_N))
-    return abs(c) if I[li, I_TWO_SIDED] != 0 else c
+    return abs(c) if aux[r + T_TWO_SIDED] != 0.0 else c
 
 
 @njit(cache=True, _nrt=False)
@@ -107,5 +109,5 @@ def eval_triangle(I, li, aux, d, tri):
     """Per-triangle radiance of ``tri`` seen along ray direction d (0 from behind a one-sided one)."""
     r = I[li, I_TRI_OFF] + tri * TRI_STRIDE
     c = -dot(d, aux3(aux, r + T_N))
-    front = abs(c) > 0.0 if I[li, I_TWO_SIDED] != 0 else c > 0.0
+    front = abs(c) > 0.0 if aux[r + T_TWO_SIDED] != 0.0 else c > 0.0
     return aux3(aux, r + T_RAD) if front else ZERO3

@@ -14,8 +14,11 @@ def preview(tmp, timeout=60.0):
     mat = build.diffuse_material("Preview", (0.8, 0.2, 0.1))
     mat.preview_render_type = "SPHERE"
     t0 = time.perf_counter()
-    with bpy.context.temp_override(id=mat):
-        bpy.ops.ed.lib_id_generate_preview()
+    try:
+        with bpy.context.temp_override(id=mat):
+            bpy.ops.ed.lib_id_generate_preview()
+    except RuntimeError:            # bpy 5.3: the operator's poll needs a UI context; same job
+        mat.asset_generate_preview()
     # The preview buffer exists as soon as the job starts; wait until pixels arrive.
     px = None
     while time.perf_counter() - t0 < timeout:

@@ -1,0 +1,171 @@
+"""Cycles parity cases (run inside Blender by tests/blender/test_principled_parity.py).
+
+The same scene is rendered by Cycles and by Lamina: Principled BSDF spheres in a row (one per
+combination), other node materials, emission and light linking scenes. Both renderers use
+every limit matched (no clamping, no filter-glossy, no denoising, no adaptive sampling, the same
+bounce limit for every kind of bounce).
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import bpy
+
+from . import build
+
+# name → Principled inputs (Blender socket names)
+PRINCIPLED = {
+    "default grey": {},
+    "red, rough": {"Base Color": (0.8, 0.1, 0.05, 1), "Roughness": 0.8},
+    "blue, smooth, IOR 2": {"Base Color": (0.1, 0.3, 0.9, 1), "Roughness": 0.15, "IOR": 2.0},
+    "coat": {"Base Color": (0.2, 0.6, 0.2, 1), "Coat Weight": 1.0, "Coat Roughness": 0.1},
+    "metallic 0.3": {"Base Color": (0.9, 0.6, 0.2, 1), "Metallic": 0.3, "Roughness": 0.4},
+    "transmission 0.5": {"Base Color": (0.8, 0.8, 0.8, 1), "Transmission Weight": 0.5, "Roughness": 0.2},
+    "gold": {"Base Color": (1.0, 0.77, 0.34, 1), "Metallic": 1.0, "Roughness": 0.3},
+    "IOR level, tint": {"Base Color": (0.5, 0.5, 0.5, 1), "Specular IOR Level": 0.8,
+                        "Specular Tint": (1.0, 0.6, 0.3, 1), "Roughness": 0.35},
+}
+CELL = 24          # pixels per sphere
+FLOOR_TURN = 0.0
+SPACING = 2.4      # metres between sphere centres
+
+
+def _principled(name, inputs):
+    mat = bpy.data.materials.new(name)
+    node = mat.node_tree.nodes["Principled BSDF"]
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    return mat
+
+
+def _match_cycles(sc, spp, bounces, threads=2):
+    sc.render.engine = "CYCLES"
+    cy = sc.cycles
+    cy.device = "CPU"
+    cy.samples = spp
+    cy.use_adaptive_sampling = False
+    cy.use_denoising = False
+    cy.sample_clamp_direct = 0.0
+    cy.sample_clamp_indirect = 0.0
+    cy.light_sampling_threshold = 0.0
+    cy.blur_glossy = 0.0
+    cy.max_bounces = cy.diffuse_bounces = cy.glossy_bounces = cy.transmission_bounces = bounces
+    cy.transparent_max_bounces = bounces
+    cy.seed = 1
+    cy.filter_width = 1.5
+    sc.render.threads_mode = "FIXED"
+    sc.render.threads = threads
+
+
+def _render_both(sc, tmp, name, spp, bounces, lamina_spp=None):
+    from .engine_cases import _render_to
+    out = {}
+    _match_cycles(sc, spp, bounces)
+    path = Path(tmp) / f"{name}_cycles.exr"
+    out["cycles_error"], out["cycles_seconds"] = _render_to(sc, path, multilayer=False)
+    out["cycles"] = str(path)
+    sc.render.engine = "LAMINA"
+    sc.lamina.samples = lamina_spp or spp
+    sc.lamina.max_bounces = bounces
+    sc.lamina.rr_depth = 64
+    sc.lamina.workers = 2
+    path = Path(tmp) / f"{name}_lamina.exr"
+    t0 = time.perf_counter()
+    out["lamina_error"], out["lamina_seconds"] = _render_to(sc, path, multilayer=False)
+    out["lamina"] = str(path)
+    return out
+
+
+def principled_spheres(tmp, spp=256, bounces=6):
+    """One sphere per Principled combination, in a row, under a grey-blue world, a sun and an
+    area light; no floor (each sphere's region holds only that sphere and the background)."""
+    sc = build.scene()
+    n = len(PRINCIPLED)
+    sc.render.resolution_x, sc.render.resolution_y = CELL * n, CELL
+    cam = bpy.data.cameras.new("cam")
+    cam.type = "ORTHO"
+    cam.ortho_scale = SPACING * n
+    co = build.link(bpy.data.objects.new("cam", cam))
+    co.location = (SPACING * (n - 1) / 2, -10.0, 0.0)
+    co.rotation_euler = (1.5707963, 0.0, 0.0)
+    sc.camera = co
+    for i, (name, inputs) in enumerate(PRINCIPLED.items()):
+        build.uv_sphere(name=f"S{i}", material=_principled(name, inputs), segments=64, rings=32,
+                        location=(SPACING * i, 0.0, 0.0))
+    build.light("Sun", "SUN", (0, 0, 5), (0.9, 0.0, 0.5), energy=2.0, angle=0.05)
+    build.light("Panel", "AREA", (SPACING * n / 2, -4.0, 4.0), (0.8, 0.0, 0.0), energy=1500.0,
+                shape="RECTANGLE", size=6.0, size_y=2.0)
+    build.world_colour((0.3, 0.35, 0.45), 1.0)
+    out = _render_both(sc, tmp, "principled", spp, bounces)
+    out["names"] = list(PRINCIPLED)
+    out["cell"] = CELL
+    return out
+
+
+def _emission_material(name, strength, one_sided_cycles=False):
+    """An Emission shader; for Cycles' one-sided emitter a Mix Shader picks a black emission on
+    back faces (Geometry > Backfacing), Cycles having no one-sided option of its own."""
+    mat = bpy.data.materials.new(name)
+    tree = mat.node_tree
+    tree.nodes.clear()
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    emit = tree.nodes.new("ShaderNodeEmission")
+    emit.inputs["Strength"].default_value = strength
+    emit.inputs["Color"].default_value = (1.0, 0.9, 0.7, 1.0)
+    if not one_sided_cycles:
+        tree.links.new(emit.outputs[0], out.inputs["Surface"])
+        return mat
+    black = tree.nodes.new("ShaderNodeEmission")
+    black.inputs["Strength"].default_value = 0.0
+    geometry = tree.nodes.new("ShaderNodeNewGeometry")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    tree.links.new(geometry.outputs["Backfacing"], mix.inputs["Fac"])
+    tree.links.new(emit.outputs[0], mix.inputs[1])
+    tree.links.new(black.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+def emission_sides(tmp, spp=256, bounces=3, all_two=False):
+    """Two emissive panels above a grey floor, one two-sided and one front-only, each tilted so
+    the camera sees its back while its front lights the floor; a third, front-only, faces the
+    camera. Cycles' one-sided emitters are Mix Shader + Backfacing; Lamina's the material's
+    Emit From = Front Side."""
+    import math
+    sc = build.scene()
+    sc.render.resolution_x, sc.render.resolution_y = 72, 36
+    build.camera(location=(0.0, -7.0, 4.0), target=(0.0, 0.0, 0.5), lens=35)
+    floor = build.plane(size=10, material=build.diffuse_material("Floor", (0.6, 0.6, 0.6)))
+    floor.rotation_euler = (0.0, 0.0, FLOOR_TURN)
+    build.world_colour((0.02, 0.02, 0.02), 1.0)
+    panels = []
+    for i, (name, one_sided, tilt) in enumerate((("Two", False, 2.4), ("Front", True, -2.4),
+                                                 ("Facing", True, 0.9))):
+        obj = build.plane(f"Panel{name}", size=1.2)
+        obj.location = (-2.5 + 2.5 * i, 0.0, 1.2)
+        obj.rotation_euler = (tilt, 0.0, 0.0)
+        one_sided = one_sided and not all_two
+        cyc = _emission_material(f"{name}Cycles", 6.0, one_sided_cycles=one_sided)
+        lam = _emission_material(f"{name}Lamina", 6.0)
+        if one_sided:
+            lam.lamina.emission_sides = "FRONT"
+        obj.data.materials.append(cyc)
+        panels.append((obj, cyc, lam))
+    from .engine_cases import _render_to
+    out = {}
+    _match_cycles(sc, spp, bounces)
+    path = Path(tmp) / "emission_cycles.exr"
+    out["cycles_error"], out["cycles_seconds"] = _render_to(sc, path, multilayer=False)
+    out["cycles"] = str(path)
+    for obj, _, lam in panels:
+        obj.data.materials[0] = lam
+    sc.render.engine = "LAMINA"
+    sc.lamina.samples = spp
+    sc.lamina.max_bounces = bounces
+    sc.lamina.rr_depth = 64
+    sc.lamina.workers = 2
+    path = Path(tmp) / "emission_lamina.exr"
+    out["lamina_error"], out["lamina_seconds"] = _render_to(sc, path, multilayer=False)
+    out["lamina"] = str(path)
+    return out
