@@ -179,6 +179,9 @@ def cmd_render(args) -> int:
                           f"as 0 (NaN) or clamped. The scene holds values too large to render "
                           f"(light powers, emission, colours or textures)"})
         if result.error:
+            if args.partial:               # the add-on shows the last partial result it was told of
+                printer.emit({"event": "partial", "path": str(Path(args.partial).resolve()),
+                              "spp": result.spp_done})
             raise LaminaError(f"{result.error}; {output} holds the samples done before that")
         summary = summarise(result)
         printer.emit({"event": "done", "path": str(output.resolve()), **summary})

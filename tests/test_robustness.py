@@ -482,9 +482,13 @@ def test_an_exception_in_a_worker_thread_stops_with_an_error_and_the_partial_ima
     path = tmp_path / "scene.json"
     path.write_text(json.dumps(data))
     out = tmp_path / "t.exr"
-    proc, events, left = render_with_faults(path, out, ["raise-1"], workers=workers)
+    partial = tmp_path / "p.npy"
+    proc, events, left = render_with_faults(path, out, ["raise-1"], workers=workers,
+                                            extra=("--partial", str(partial)))
     assert proc.returncode == 2 and left == [] and "Traceback" not in proc.stderr
     assert events[0]["parallel"] == "threads"
+    # the add-on is told where the final (partial) result is, then gets the error
+    assert [e["event"] for e in events[-2:]] == ["partial", "error"] and np.load(partial).shape == (48, 48, 4)
     message = events[-1]["message"]
     assert message.startswith("a render worker failed (RuntimeError: injected fault (raise-1) at render.py:")
     assert message.endswith(f"{out} holds the samples done before that")
