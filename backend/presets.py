@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import LaminaError, SceneError
+from .limits import short as _short
 
 SHIPPED = Path(__file__).resolve().parent.parent / "presets"
 FORMAT = "lamina-preset"
@@ -242,16 +243,16 @@ def check_document(doc: dict, path: Path) -> None:
     if unknown:
         raise SceneError(where, unknown[0], f"unknown field (allowed: {', '.join(TOP_LEVEL)})")
     if doc.get("format") != FORMAT:
-        raise SceneError(where, "format", f"expected {FORMAT!r}, got {doc.get('format')!r}")
+        raise SceneError(where, "format", f"expected {FORMAT!r}, got {_short(str(doc.get('format')))!r}")
     if doc.get("version") != VERSION:
-        raise SceneError(where, "version", f"unsupported preset version {doc.get('version')!r} "
+        raise SceneError(where, "version", f"unsupported preset version {_short(str(doc.get('version')))} "
                                            f"(this Lamina reads version {VERSION})")
     name = doc.get("name")
     if not isinstance(name, str) or not NAME_RE.match(name):
         raise SceneError(where, "name", "expected a name of lower-case letters, digits, '-' and '_' "
-                                        f"(at most 64), got {name!r}")
+                                        f"(at most 64), got {_short(str(name))!r}")
     if name != path.stem:
-        raise SceneError(where, "name", f"must equal the file name without .json ({path.stem!r}), got {name!r}")
+        raise SceneError(where, "name", f"must equal the file name without .json ({path.stem!r}), got {_short(str(name))!r}")
     for key in ("category", "description"):
         if not isinstance(doc.get(key), str) or not doc[key].strip():
             raise SceneError(where, key, "expected a non-empty string")

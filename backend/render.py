@@ -432,7 +432,7 @@ def _describe_exit(code) -> str:
             name = signal.Signals(-code).name
         except ValueError:
             name = f"signal {-code}"
-        hint = ", e.g. by the out-of-memory killer" if -code == signal.SIGKILL else ""
+        hint = ", e.g. by the out-of-memory killer" if -code == getattr(signal, "SIGKILL", None) else ""
         return f"killed by {name}{hint}"
     if code:
         return f"exited with status {code}"

@@ -183,7 +183,7 @@ class _Tokens:
             raise self.error(self.last_line, f"unexpected end of file: expected {what}")
         tok, line = self.items[self.pos]
         if not _NUMBER.match(tok):
-            raise self.error(line, f"expected {what}: a number, got {tok!r}")
+            raise self.error(line, f"expected {what}: a number, got {_quote(tok)}")
         value = float(tok)
         if not math.isfinite(value) or abs(value) > MAX_VALUE:
             raise self.error(line, f"expected {what}: a finite number of magnitude at most "
@@ -196,14 +196,14 @@ class _Tokens:
         value = self.number(what)
         if not value.is_integer() or (lo is not None and value < lo) or (hi is not None and value > hi):
             rng = f" in {lo}..{hi}" if lo is not None and hi is not None else (f" >= {lo}" if lo is not None else "")
-            raise self.error(line, f"expected {what} (an integer{rng}), got {self.items[self.pos - 1][0]!r}")
+            raise self.error(line, f"expected {what} (an integer{rng}), got {_quote(self.items[self.pos - 1][0])}")
         return int(value)
 
     def positive(self, what: str) -> float:
         line = self.line()
         value = self.number(what)
         if not value > 0:
-            raise self.error(line, f"expected {what} > 0, got {self.items[self.pos - 1][0]!r}")
+            raise self.error(line, f"expected {what} > 0, got {_quote(self.items[self.pos - 1][0])}")
         return value
 
     def array(self, count: int, what: str, item: str, detail: str = "") -> tuple[np.ndarray, list[int]]:
@@ -365,7 +365,7 @@ def parse_lm63(data: bytes | str, name: str = "<IES data>") -> LM63File:
     # declared counts do not match the data.
     for tok, ln in tokens.rest():
         if _NUMBER.match(tok):
-            raise LM63Error(name, ln, f"unexpected number {tok!r} after the candela table: the file "
+            raise LM63Error(name, ln, f"unexpected number {_quote(tok)} after the candela table: the file "
                                       f"declares {nv} vertical × {nh} horizontal angles = {nv * nh} "
                                       f"candela values, but more numbers follow (wrong angle counts?)")
 

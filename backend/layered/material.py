@@ -22,7 +22,7 @@ import numpy as np
 
 from ..materials import REGISTRY, register
 from ..materials.base import Material, ShadingContext
-from ..scene.reader import Node
+from ..scene.reader import Node, _describe
 from .bsdf import LayeredBSDF, Options, new_stats
 from .medium import parse_medium
 from .stack import EMPTY, BoundStack, NullBSDF
@@ -162,7 +162,7 @@ def parse_interface(inode: Node, eta_above: float):
     inode.require_object()
     kind = inode.value.get("type")
     if kind not in INTERFACE_TYPES:
-        raise inode.fail(f"expected one of {', '.join(map(repr, INTERFACE_TYPES))}, got {kind!r}", "type")
+        raise inode.fail(f"expected one of {', '.join(map(repr, INTERFACE_TYPES))}, got {_describe(kind)}", "type")
     if kind == "null":
         inode.string("type")
         normal = parse_normal(inode)

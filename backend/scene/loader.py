@@ -130,7 +130,7 @@ def load_scene_data(data, where: str = "<scene>", base_dir: Path | None = None) 
     root.require_object()
     fmt = root.string("format")
     if fmt != FORMAT:
-        raise root.fail(f"expected {FORMAT!r}, got {fmt!r}", "format")
+        raise root.fail(f"expected {FORMAT!r}, got {short(fmt)!r}", "format")
     version = root.integer("version")
     if version != VERSION:
         raise root.fail(f"unsupported scene version {version} (this Lamina reads version {VERSION})", "version")

@@ -296,7 +296,7 @@ class Node:
             else:
                 raise self.fail(f"expected an integer{' ' + _range_text(lo, hi, False, False) if lo is not None or hi is not None else ''}, got {_describe(value)}", key)
         if (lo is not None and value < lo) or (hi is not None and value > hi):
-            raise self.fail(f"expected an integer {_range_text(lo, hi, False, False)}, got {value}", key)
+            raise self.fail(f"expected an integer {_range_text(lo, hi, False, False)}, got {_describe(value)}", key)
         return value
 
     def vector(self, key: str, size: int, default: Any = _MISSING, lo: float | None = None,
@@ -355,7 +355,7 @@ def dispatch(node: Node, parsers: dict[str, Callable]):
     node.require_object()
     kind = node.string("type")
     if kind not in parsers:
-        raise node.fail(f"unknown type {kind!r} (known: {', '.join(sorted(parsers))})", "type")
+        raise node.fail(f"unknown type {short(kind)!r} (known: {', '.join(sorted(parsers))})", "type")
     result = parsers[kind](node)
     node.finish()
     return result
