@@ -58,6 +58,12 @@ MAX_WORKER_LOSSES = 3
 FILM_BYTES_PER_PIXEL = 500
 
 
+#: Peak bytes per (instanced) triangle of loading and rendering a scene: per-corner positions,
+#: normals and UVs, their float64 temporaries while flattening, embree's BVH. Measured
+#: (benchmarks/worker_memory.py): 3.37 M triangles peak at 2.64 GiB, 841 B per triangle.
+SCENE_BYTES_PER_TRIANGLE = 900
+
+
 def available_memory() -> int | None:
     """Bytes of memory available to a new allocation without swapping (Linux: MemAvailable), or
     the physical memory elsewhere; None when unknown."""
@@ -87,6 +93,16 @@ def film_memory_problem(width: int, height: int) -> str | None:
     side = int((have / FILM_BYTES_PER_PIXEL) ** 0.5)
     return (f"a {width} × {height} film needs about {_gib(need)} of memory to render, "
             f"this machine has {_gib(have)} available (about {side} × {side} pixels would fit)")
+
+
+def geometry_memory_problem(triangles: int) -> str | None:
+    """Why a scene of ``triangles`` (instances counted) cannot be loaded here, or None."""
+    need = int(triangles) * SCENE_BYTES_PER_TRIANGLE
+    have = available_memory()
+    if have is None or need <= have:
+        return None
+    return (f"the objects hold {triangles} triangles (instances counted), which need about "
+            f"{_gib(need)} of memory, this machine has {_gib(have)} available")
 
 
 def _gib(n: float) -> str:

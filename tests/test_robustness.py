@@ -501,3 +501,20 @@ def test_more_workers_than_cores_warns(run):
     n = limits.cpu_count() + 1
     code, lines, _ = run(BASE, "--workers", str(n))
     assert code == 0 and any(f"--workers {n} is more than the {n - 1} core(s)" in ln for ln in lines)
+
+
+def test_geometry_that_does_not_fit_in_memory_is_refused_before_flattening(monkeypatch):
+    """On a 2 GiB machine, 1000 instances of a 3968-triangle sphere (4 M triangles, ~3.3 GiB
+    to flatten and trace) are refused from the counts, naming `objects`, before anything that
+    size is allocated; so are meshes whose triangles alone exceed the memory."""
+    monkeypatch.setattr(limits, "available_memory", lambda: 2 << 30)     # a 2 GiB machine
+    many = edited(lambda d: d["meshes"].update(s={"shape": "sphere", "segments": 64}) or
+                  d["objects"].extend([{"mesh": "s", "materials": ["grey"]}] * 1000))
+    with pytest.raises(SceneError) as info:
+        load_scene_data(many, "s.json")
+    assert str(info.value).startswith("s.json: objects: the objects hold 3968001 triangles (instances "
+                                      "counted), which need about 3.3 GiB of memory, this machine has 2.0 GiB")
+    big = edited(lambda d: d["meshes"].update({f"s{i}": {"shape": "sphere", "segments": 1024} for i in range(3)}))
+    with pytest.raises(SceneError) as info:
+        load_scene_data(big, "s.json")
+    assert "meshes.s2: the meshes so far hold" in str(info.value)

@@ -144,8 +144,15 @@ def load_scene_data(data, where: str = "<scene>", base_dir: Path | None = None) 
     meshes = {}
     meshes_node = root.optional_child("meshes")
     if meshes_node is not None:
+        from ..limits import geometry_memory_problem
+        held = 0
         for name, mnode in meshes_node.entries():
             meshes[name] = parse_mesh(mnode)
+            held += meshes[name].triangle_count
+            problem = geometry_memory_problem(held)
+            if problem:
+                raise mnode.fail(problem.replace("the objects hold", "the meshes so far hold")
+                                 .replace(" (instances counted)", ""))
     soup = flatten_objects(root.optional_child("objects"), meshes, materials, names, ctx)
 
     from ..lights import load_all as load_lights
@@ -275,6 +282,12 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
     any_normals = any_uvs = False
     default_index = None
     items = node.items() if node is not None else []
+    from ..limits import geometry_memory_problem
+    total = sum(meshes[o.value["mesh"]].triangle_count for o in items
+                if isinstance(o.value, dict) and isinstance(o.value.get("mesh"), str) and o.value["mesh"] in meshes)
+    problem = geometry_memory_problem(total)
+    if problem:
+        raise node.fail(problem)             # before flattening allocates it
     for oi, onode in enumerate(items):
         onode.require_object()
         onode.string("name", f"object {oi}")
