@@ -37,10 +37,16 @@ def resolve_material(name_or_path: str, name: str | None = None, defaults: dict 
                 raise LaminaError(f"{name_or_path}: no such material file")
             raise LaminaError(f"{name_or_path}: no such material file, and {unknown_preset_message(name_or_path)}")
         path = found
+    from .scene.reader import read_json
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
         raise LaminaError(f"{path}: cannot read material: {exc}") from None
+    from .errors import SceneError
+    try:
+        data = read_json(text, str(path))
+    except SceneError as exc:
+        raise LaminaError(f"{path}: cannot read material: {exc.message}") from None
     ctx = LoadContext(str(path), path.parent)
     node_path = ""
     if isinstance(data, dict) and "type" in data:

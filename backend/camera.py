@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .limits import MAX_COORDINATE
 from .scene.reader import Node
 
 
@@ -71,11 +72,16 @@ def parse_camera(node: Node) -> Camera:
     ratio = 1.0
     dof = node.optional_child("dof")
     if dof is not None:
-        focus = dof.number("focus_distance", lo=0, lo_open=True)
-        aperture = dof.number("aperture_radius", lo=0)
+        focus = dof.number("focus_distance", lo=0, lo_open=True, hi=MAX_COORDINATE)
+        aperture = dof.number("aperture_radius", lo=0, hi=MAX_COORDINATE)
         blades = dof.integer("blades", 0, lo=0, hi=64)
+        if blades in (1, 2):
+            # Blender accepts them and Cycles draws a round aperture: so does Lamina, but a
+            # hand-written 1 or 2 is more likely a mistake than a wish for a circle.
+            node.ctx.warn(dof.sub("blades"), f"{blades} blade(s) make a round aperture, as 0 does "
+                                             f"(a polygonal aperture needs at least 3)")
         rotation = dof.number("rotation", 0.0)
-        ratio = dof.number("ratio", 1.0, lo=0, lo_open=True)
+        ratio = dof.number("ratio", 1.0, lo=0, lo_open=True, hi=1000.0)
         dof.finish()
     node.finish()
     return Camera(kind, to_world, frame, clip_start, clip_end, focus, aperture, blades, rotation, ratio)
@@ -83,4 +89,4 @@ def parse_camera(node: Node) -> Camera:
 
 def _corner(node: Node) -> np.ndarray:
     from .scene.reader import check_vector
-    return check_vector(node.value, 3, node.path, node.ctx)
+    return check_vector(node.value, 3, node.path, node.ctx, -MAX_COORDINATE, MAX_COORDINATE)

@@ -51,3 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except MemoryError:
+        print("error: not enough memory for this scene or image (try a smaller film, "
+              "fewer --workers, or a machine with more memory)", file=sys.stderr)
+        return 2

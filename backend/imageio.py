@@ -2,11 +2,20 @@
 
 Every writer goes to a temporary file in the target folder and renames it into place
 (``os.replace`` is atomic on POSIX and Windows), so an interrupted render never leaves a corrupt
-or half-written output.
+or half-written output. Temporary files are hidden and named
+``.<name>.lamina-tmp-<host>-<pid>-<random><ext>``; one left behind by a process that was killed
+mid-write (SIGKILL, power loss) is removed by the next write to that folder from the same host
+once its process is gone (``remove_stale_temp_files``).
+
+Pixel values are written finite: NaN becomes 0 and values beyond the format's range (float32:
+±3.4e38; half: ±65504) are clamped to it. The writers return how many values they changed, so
+the caller can say so.
 """
 from __future__ import annotations
 
 import os
+import re
+import socket
 import tempfile
 from pathlib import Path
 
@@ -15,11 +24,72 @@ import numpy as np
 from .errors import LaminaError
 from .textures import linear_to_srgb
 
+TEMP_TAG = ".lamina-tmp-"
+HALF_MAX = 65504.0
+FLOAT_MAX = float(np.finfo(np.float32).max)
+
 
 def _default_mode() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return 0o666 & ~mask
+
+
+def _host() -> str:
+    return re.sub(r"[^A-Za-z0-9]+", "_", socket.gethostname() or "host")[:40] or "host"
+
+
+def _temp_prefix(path: Path) -> str:
+    return f".{path.stem[:100]}{TEMP_TAG}{_host()}-{os.getpid()}-"
+
+
+_TEMP_RE = re.compile(r"^\..*" + re.escape(TEMP_TAG) + r"(?P<host>[A-Za-z0-9_]+)-(?P<pid>\d+)-[^/]*$")
+
+
+def _process_alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    if os.name == "nt":  # os.kill(pid, 0) would *terminate* the process on Windows
+        import ctypes
+        kernel32 = ctypes.windll.kernel32
+        handle = kernel32.OpenProcess(0x1000, False, pid)   # PROCESS_QUERY_LIMITED_INFORMATION
+        if not handle:
+            return kernel32.GetLastError() == 5             # access denied: it exists
+        code = ctypes.c_ulong()
+        ok = kernel32.GetExitCodeProcess(handle, ctypes.byref(code))
+        kernel32.CloseHandle(handle)
+        return bool(ok) and code.value == 259               # STILL_ACTIVE
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True
+    return True
+
+
+def remove_stale_temp_files(folder: Path) -> list[Path]:
+    """Remove this host's temporary files in ``folder`` whose writing process no longer runs
+    (a write interrupted by SIGKILL or a crash). Files of other hosts (a shared network folder)
+    and of running processes are left alone. Returns the removed paths; never raises."""
+    removed = []
+    host = _host()
+    try:
+        entries = list(Path(folder).iterdir())
+    except OSError:
+        return removed
+    for entry in entries:
+        m = _TEMP_RE.match(entry.name)
+        if not m or m.group("host") != host:
+            continue
+        try:
+            if _process_alive(int(m.group("pid"))):
+                continue
+            entry.unlink()
+            removed.append(entry)
+        except (OSError, ValueError, OverflowError):
+            continue
+    return removed
 
 
 def _atomic_target(path: Path, suffix: str):
@@ -28,8 +98,9 @@ def _atomic_target(path: Path, suffix: str):
     except OSError as exc:
         raise LaminaError(f"cannot write {path}: cannot create the folder {path.parent} "
                           f"({exc.strerror or exc})") from exc
+    remove_stale_temp_files(path.parent)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix, dir=path.parent)
+        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=suffix, dir=path.parent)
     except OSError as exc:
         raise LaminaError(f"cannot write {path}: {exc.strerror or exc}") from exc
     os.close(fd)
@@ -38,13 +109,26 @@ def _atomic_target(path: Path, suffix: str):
     return Path(tmp)
 
 
+def finite_values(data: np.ndarray, limit: float) -> tuple[np.ndarray, int]:
+    """``data`` with NaN → 0 and everything clamped to ±``limit``; and how many values changed."""
+    bad = ~(np.abs(data) <= limit)            # NaN, ±Inf and out-of-range values
+    count = int(np.count_nonzero(bad))
+    if count:
+        data = np.where(np.isnan(data), 0.0, np.clip(data, -limit, limit)).astype(data.dtype)
+    return data, count
+
+
 def check_writable(path: str | Path, what: str = "output") -> None:
     """Fail now, not after a long render, if ``path`` cannot be written: its folder is created
     (as the writers would) and a scratch file is made and removed there; its extension must name
     a format OpenImageIO writes (.npy is written by NumPy). Raises LaminaError."""
     path = Path(path)
-    if path.is_dir():
-        raise LaminaError(f"the {what} {path} is a folder; give a file name")
+    try:
+        if path.is_dir():
+            raise LaminaError(f"the {what} {path} is a folder; give a file name")
+    except (OSError, ValueError) as exc:
+        raise LaminaError(f"cannot write the {what} {str(path)[:200]}: "
+                          f"{getattr(exc, 'strerror', None) or exc}") from None
     tmp = _atomic_target(path, path.suffix or ".tmp")
     tmp.unlink()
     if path.suffix.lower() != ".npy":
@@ -54,18 +138,20 @@ def check_writable(path: str | Path, what: str = "output") -> None:
             raise LaminaError(f"the {what} {path}: OpenImageIO cannot write '{path.suffix}' files")
 
 
-def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = False) -> None:
+def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = False) -> int:
     """layers: channel-group name → (H, W, C) float array, in order. '' = the main RGBA group.
 
     Channel names: the main group gets R, G, B, A; others '<name>.<X>' with X from the name's
-    convention (RGB for colours, XYZ for 'normal', Y for single channels).
+    convention (RGB for colours, XYZ for 'normal', Y for single channels). Returns the number of
+    values that were not finite or beyond the format's range (written as 0 / clamped).
     """
     import OpenImageIO as oiio
 
     path = Path(path)
     names, planes = [], []
     for group, image in layers.items():
-        image = np.asarray(image, dtype=np.float32)
+        with np.errstate(over="ignore", invalid="ignore"):   # out-of-range values: see below
+            image = np.asarray(image, dtype=np.float32)
         if image.ndim == 2:
             image = image[:, :, None]
         c = image.shape[2]
@@ -80,6 +166,7 @@ def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = Fals
         names += [f"{group}.{ch}" if group else ch for ch in letters]
         planes.append(image)
     data = np.ascontiguousarray(np.concatenate(planes, axis=2))
+    data, changed = finite_values(data, HALF_MAX if half else FLOAT_MAX)
     h, w, c = data.shape
     spec = oiio.ImageSpec(w, h, c, oiio.HALF if half else oiio.FLOAT)
     spec.channelnames = tuple(names)
@@ -100,6 +187,7 @@ def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = Fals
     finally:
         if tmp.exists():
             tmp.unlink()
+    return changed
 
 
 def write_preview(path: str | Path, rgb: np.ndarray, exposure: float = 0.0) -> None:
@@ -127,16 +215,19 @@ def write_preview(path: str | Path, rgb: np.ndarray, exposure: float = 0.0) -> N
             tmp.unlink()
 
 
-def write_npy(path: str | Path, array: np.ndarray) -> None:
+def write_npy(path: str | Path, array: np.ndarray) -> int:
+    """float32 .npy, written finite (as write_exr); returns the number of values changed."""
     path = Path(path)
+    data, changed = finite_values(np.asarray(array, dtype=np.float64), FLOAT_MAX)
     tmp = _atomic_target(path, ".npy")
     try:
         with open(tmp, "wb") as f:
-            np.save(f, np.ascontiguousarray(array, dtype=np.float32))
+            np.save(f, np.ascontiguousarray(data, dtype=np.float32))
         os.replace(tmp, path)
     finally:
         if tmp.exists():
             tmp.unlink()
+    return changed
 
 
 def read_exr(path: str | Path) -> tuple[np.ndarray, list[str]]:

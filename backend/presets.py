@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import LaminaError, SceneError
+from .limits import short as _short
 
 SHIPPED = Path(__file__).resolve().parent.parent / "presets"
 FORMAT = "lamina-preset"
@@ -65,10 +66,15 @@ def find_preset(name: str, dirs=None) -> Path | None:
     """The file of preset ``name`` in ``dirs`` (default: ``preset_dirs()``), first match wins."""
     if not name or "/" in name or "\\" in name or name.startswith("."):
         return None            # a name, never a path (no escaping the preset folders)
+    if len(name) > 200 or "\x00" in name:
+        return None            # no file system has such a name
     for folder in (preset_dirs() if dirs is None else [Path(d) for d in dirs]):
         direct = folder / f"{name}.json"
-        if direct.is_file():
-            return direct
+        try:
+            if direct.is_file():
+                return direct
+        except OSError:
+            return None
         for candidate in _preset_files(folder):
             if candidate.stem == name:
                 return candidate
@@ -92,12 +98,12 @@ def list_presets(dirs=None) -> list[Path]:
 
 def load_preset_document(path: Path) -> dict:
     path = Path(path)
+    from .scene.reader import read_json
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise LaminaError(f"{path}: not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}") from None
-    except (OSError, UnicodeDecodeError) as exc:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise LaminaError(f"{path}: cannot read preset: {exc}") from None
+    data = read_json(text, str(path))
     if not isinstance(data, dict) or not isinstance(data.get("material"), dict):
         raise LaminaError(f"{path}: a preset file needs a \"material\" object")
     return data
@@ -237,16 +243,16 @@ def check_document(doc: dict, path: Path) -> None:
     if unknown:
         raise SceneError(where, unknown[0], f"unknown field (allowed: {', '.join(TOP_LEVEL)})")
     if doc.get("format") != FORMAT:
-        raise SceneError(where, "format", f"expected {FORMAT!r}, got {doc.get('format')!r}")
+        raise SceneError(where, "format", f"expected {FORMAT!r}, got {_short(str(doc.get('format')))!r}")
     if doc.get("version") != VERSION:
-        raise SceneError(where, "version", f"unsupported preset version {doc.get('version')!r} "
+        raise SceneError(where, "version", f"unsupported preset version {_short(str(doc.get('version')))} "
                                            f"(this Lamina reads version {VERSION})")
     name = doc.get("name")
     if not isinstance(name, str) or not NAME_RE.match(name):
         raise SceneError(where, "name", "expected a name of lower-case letters, digits, '-' and '_' "
-                                        f"(at most 64), got {name!r}")
+                                        f"(at most 64), got {_short(str(name))!r}")
     if name != path.stem:
-        raise SceneError(where, "name", f"must equal the file name without .json ({path.stem!r}), got {name!r}")
+        raise SceneError(where, "name", f"must equal the file name without .json ({path.stem!r}), got {_short(str(name))!r}")
     for key in ("category", "description"):
         if not isinstance(doc.get(key), str) or not doc[key].strip():
             raise SceneError(where, key, "expected a non-empty string")
@@ -298,11 +304,12 @@ def close_preset_names(name: str, names: list[str], most: int = 5) -> list[str]:
 
 def unknown_preset_message(name: str) -> str:
     names = [p.stem for p in list_presets()]
-    close = close_preset_names(name, names)
+    close = close_preset_names(name, names) if len(name) <= 100 else []
     hint = f" (did you mean: {', '.join(close)}?)" if close else (
         f" (known: {', '.join(names[:12])}{', ...' if len(names) > 12 else ''}; "
         "`python -m backend presets list`)" if names else "")
-    return f"unknown material preset {name!r}{hint}"
+    from .limits import short
+    return f"unknown material preset {short(name)!r}{hint}"
 
 
 def resolve_preset(name: str, node):
@@ -325,14 +332,18 @@ def material_source(name_or_path: str) -> tuple[dict, str, Path, str]:
     text = str(name_or_path)
     p = Path(text)
     if p.suffix.lower() == ".json" or "/" in text or os.sep in text:
-        if not p.is_file():
-            raise LaminaError(f"{text}: material file not found")
+        from .scene.reader import path_problem, read_json
+        problem = path_problem(text)
+        if problem:
+            raise LaminaError(f"{text[:60]}: {problem}")
         try:
-            data = json.loads(p.read_text(encoding="utf-8"))
-        except json.JSONDecodeError as exc:
-            raise LaminaError(f"{p}: not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}") from None
-        except (OSError, UnicodeDecodeError) as exc:
+            found = p.is_file()
+            text_data = p.read_text(encoding="utf-8") if found else None
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
             raise LaminaError(f"{p}: cannot read: {exc}") from None
+        if not found:
+            raise LaminaError(f"{text}: material file not found")
+        data = read_json(text_data, str(p))
         if not isinstance(data, dict):
             raise LaminaError(f"{p}: expected a material object")
         if isinstance(data.get("material"), dict) and "type" not in data:

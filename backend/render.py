@@ -14,11 +14,26 @@ Parallelism (``RenderOptions.parallel``):
 * ``"threads"`` (default): worker threads of this process share one scene, one embree BVH and
   one set of compiled kernels. embree's ``run()`` and the compiled kernels (``nogil``) release
   the GIL, so analytic scenes scale with cores without loading anything twice.
-* ``"processes"``: worker processes (``spawn``), each loading the scene and building its own
-  embree scene (an option; since the layered BSDF runs compiled (``nogil``) every scene uses
-  threads by default: demo scene at half size, 16 spp, 2 workers, 2.0–2.4 s wall with threads
-  against 6.3–8.1 s with processes, which each load the scene and the kernels).
+* ``"processes"``: worker processes (an option; since the layered BSDF runs compiled (``nogil``)
+  every scene uses threads by default: demo scene at half size, 16 spp, 2 workers, 2.0–2.4 s wall
+  with threads against 6.3–8.1 s with processes). On Linux they are forked once this process holds
+  the scene and its BVH, and share both; elsewhere they are spawned and each loads the scene
+  (``_ProcessItems``).
 Kernels are compiled (or loaded from the cache) once, before any worker starts.
+
+Failures (docs/cli.md, "When a worker fails"):
+* A worker *process* that dies (SIGKILL, the out-of-memory killer, a crash) is replaced by a new
+  one and the item it was on goes back to the queue. Every item is a pure function of its key and
+  results are merged in item order, so the image is bit-identical to an undisturbed render. Each
+  loss is one warning; after ``MAX_WORKER_LOSSES`` losses the render stops with an error and the
+  samples merged so far are kept (``RenderResult.error``). The workers are plain processes with
+  one pipe each (``_ProcessItems``), not a ``ProcessPoolExecutor``: its manager thread blocks
+  for ever on a result that a killed worker left half-written, and a broken pool can only be
+  replaced whole.
+* When the stop request came with the loss (SIGTERM to the whole process group, as a farm manager
+  or ``timeout`` sends it, kills the workers too), the render stops as interrupted instead.
+* An exception inside an item (a worker thread, a worker process, or the serial loop) stops the
+  render the same way, with an error naming it: nothing is lost silently.
 """
 from __future__ import annotations
 
@@ -26,14 +41,17 @@ import math
 import os
 import signal
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from . import stats
+from .errors import LaminaError
 from .film import FilmAccumulator
+from .limits import MAX_WORKER_LOSSES, MAX_WORKERS
 from .mathutil import LUMINANCE
 
 LANES_PER_ITEM = 1 << 16   # paths per work item: large enough to amortise NumPy call overhead
@@ -78,6 +96,7 @@ class RenderResult:
     interrupted: bool
     stats: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    error: str | None = None       # why the render stopped early (the film holds what was merged)
 
 
 # --------------------------------------------------------------------------- worker side
@@ -91,12 +110,6 @@ def _scene_from_source(source):
         return load_scene(source)
     data, where, base = source
     return load_scene_data(data, where, Path(base) if base else None)
-
-
-def _init_worker(source, options: RenderOptions):
-    # Ctrl-C goes to the whole process group; the master decides how to stop.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _setup_local(source, options)
 
 
 def _setup_local(source, options: RenderOptions, scene=None):
@@ -113,6 +126,8 @@ def _setup_local(source, options: RenderOptions, scene=None):
 
 def _render_item(item) -> tuple:
     key, pixels, spp, seed, sample0 = item
+    if os.environ.get("LAMINA_TEST_FAULT_DIR"):
+        _injected_fault(os.environ["LAMINA_TEST_FAULT_DIR"])
     tracer = _WORKER["tracer"]
     accel = _WORKER["accel"]
     # Not used by the renderer (every random number is counter-based, keyed by (seed, pixel,
@@ -127,6 +142,303 @@ def _render_item(item) -> tuple:
     info["cpu_time"] = time.thread_time() - t0
     info["paths"] = int(pixels.size) * spp
     return key, result, info
+
+
+def _injected_fault(folder: str) -> None:
+    """Tests only (``LAMINA_TEST_FAULT_DIR``): each file in the folder is one fault, taken by the
+    first item that removes it: ``kill*`` SIGKILLs this process, ``segv*`` sends it SIGSEGV,
+    ``raise*`` raises an exception. Bounded and deterministic in count."""
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError:
+        return
+    for name in names:
+        try:
+            os.unlink(os.path.join(folder, name))
+        except OSError:
+            continue                       # another worker took it
+        if name.startswith("kill"):
+            os.kill(os.getpid(), signal.SIGKILL)
+        elif name.startswith("segv"):
+            os.kill(os.getpid(), signal.SIGSEGV)
+        elif name.startswith("raise"):
+            raise RuntimeError(f"injected fault ({name})")
+        return
+
+
+# --------------------------------------------------------------------------- running items
+
+class _Stopped(Exception):
+    """A stop request (signal, cancel) arrived while items were outstanding."""
+
+
+class _Failed(Exception):
+    """The render cannot go on; the message says why (it becomes ``RenderResult.error``)."""
+
+
+def _failure_text(exc: BaseException) -> str:
+    """One line naming an exception raised inside an item and where (no traceback)."""
+    if isinstance(exc, LaminaError):
+        return str(exc)
+    where = ""
+    remote = getattr(exc, "__cause__", None)
+    text = str(remote) if remote is not None and type(remote).__name__ == "_RemoteTraceback" else ""
+    if text:
+        import re
+        found = re.findall(r'File "([^"]+)", line (\d+)', text)
+        if found:
+            where = f" at {Path(found[-1][0]).name}:{found[-1][1]}"
+    elif exc.__traceback__ is not None:
+        import traceback
+        frames = traceback.extract_tb(exc.__traceback__)
+        if frames:
+            where = f" at {Path(frames[-1].filename).name}:{frames[-1].lineno}"
+    message = str(exc).strip().splitlines()[0][:200] if str(exc).strip() else ""
+    return (f"a render worker failed ({type(exc).__name__}{': ' + message if message else ''}{where}); "
+            f"this is a bug in Lamina, please report it with the scene")
+
+
+def _wait(future, should_stop):
+    """The future's result, checking for a stop request every 0.2 s."""
+    while True:
+        if should_stop():
+            raise _Stopped
+        try:
+            return future.result(timeout=0.2)
+        except FutureTimeout:
+            continue
+
+
+class _SerialItems:
+    """Items rendered one after the other in this thread."""
+
+    def run(self, items, should_stop):
+        for item in items:
+            try:
+                result = _render_item(item)
+            except Exception as exc:  # noqa: BLE001 - any failure stops the render, named
+                raise _Failed(_failure_text(exc)) from exc
+            yield result
+
+    def close(self, stopped: bool) -> None:
+        pass
+
+
+class _ThreadItems:
+    """Worker threads sharing this process's scene (threads cannot die alone: an exception in
+    one is a failure of the render)."""
+
+    def __init__(self, workers: int):
+        self.pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="lamina-render")
+
+    def run(self, items, should_stop):
+        futures = [self.pool.submit(_render_item, item) for item in items]
+        try:
+            for f in futures:
+                try:
+                    result = _wait(f, should_stop)
+                except (_Stopped, FutureTimeout):
+                    raise
+                except Exception as exc:  # noqa: BLE001
+                    raise _Failed(_failure_text(exc)) from exc
+                yield result
+        finally:
+            for f in futures:
+                f.cancel()
+
+    def close(self, stopped: bool) -> None:
+        # Threads cannot be killed: wait for the items they are on (each is short).
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+class _Worker:
+    """One worker process and the pipe to it; ``item`` is the index it is rendering."""
+
+    def __init__(self, ctx, source, options, prepared: bool):
+        self.conn, child = ctx.Pipe(duplex=True)
+        self.proc = ctx.Process(target=_worker_main, args=(child, source, options, prepared),
+                                daemon=True, name="lamina-worker")
+        if prepared:                # forked: buffered output would be written twice
+            import sys
+            for stream in (sys.stdout, sys.stderr):
+                try:
+                    stream.flush()
+                except (OSError, ValueError, AttributeError):
+                    pass
+        self.proc.start()
+        child.close()           # so that the worker's death reads as end-of-file here
+        self.item = None
+
+    def stop(self, kill: bool) -> None:
+        try:
+            if kill:
+                self.proc.kill()
+            else:
+                self.conn.send(None)
+        except (OSError, ValueError):
+            pass
+        self.proc.join(timeout=None if kill else 10)
+        if self.proc.is_alive():
+            self.proc.kill()
+            self.proc.join(timeout=5)
+        self.conn.close()
+
+
+def _worker_main(conn, source, options, prepared: bool = False) -> None:
+    """A worker process: load the scene (unless ``prepared``: forked from a master that holds
+    it), then render the items it is sent until told to stop (None) or the master is gone (end
+    of file)."""
+    # Ctrl-C goes to the whole process group; the master decides how to stop. SIGTERM ends a
+    # worker (a forked one would otherwise inherit the master's handler and ignore it).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    setup_error = None
+    if not prepared:
+        try:
+            _setup_local(source, options)
+        except Exception as exc:  # noqa: BLE001 - reported with the first item
+            setup_error = _failure_text(exc)
+    while True:
+        try:
+            message = conn.recv()
+        except (EOFError, OSError):
+            return
+        if message is None:
+            return
+        index, item = message
+        if setup_error is not None:
+            reply = ("error", index, setup_error)
+        else:
+            try:
+                reply = ("ok", index, _render_item(item))
+            except Exception as exc:  # noqa: BLE001 - any failure stops the render, named
+                reply = ("error", index, _failure_text(exc))
+        try:
+            conn.send(reply)
+        except (OSError, ValueError):
+            return
+
+
+class _ProcessItems:
+    """Worker processes, one item at a time each, over one pipe per worker. A worker that dies
+    (its pipe ends, its process sentinel fires) is replaced by a new one and its item goes back
+    to the queue, to whichever worker is free first (module docstring). No pool manager thread:
+    nothing can hang on a half-written result.
+
+    On Linux the workers are *forked* from this process after it has loaded the scene and built
+    the BVH, so they share both (copy-on-write pages that nobody writes: scene arrays, textures,
+    embree's BVH): a render's peak memory grows by a worker's working set, not by a scene copy,
+    per extra worker (benchmarks/worker_memory.py), and a lost worker is replaced in
+    milliseconds. The child never builds a BVH or calls into embree's task system, which is what
+    makes forking a process with embree's threads safe; it only traces. Elsewhere (no fork on
+    Windows, an unsafe one on macOS), or with ``LAMINA_WORKER_START=spawn``, workers are spawned
+    and each loads the scene itself."""
+
+    def __init__(self, workers: int, source, options, warn, scene=None):
+        self.fork = scene is not None and _fork_workers()
+        if self.fork:
+            import multiprocessing
+            self.ctx = multiprocessing.get_context("fork")
+            _setup_local(source, options, scene)
+            # embree builds the BVH on the first query: build it here, once, before forking.
+            accel = _WORKER["accel"]
+            if not getattr(accel._scene, "is_committed", 1):
+                accel.intersect(np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]))
+        else:
+            self.ctx = _spawn_context()
+        self.source, self.options, self.warn = source, options, warn
+        self.losses = 0
+        self.workers = [self._new() for _ in range(workers)]
+
+    def _new(self) -> _Worker:
+        return _Worker(self.ctx, self.source, self.options, self.fork)
+
+    def run(self, items, should_stop):
+        from collections import deque
+        from multiprocessing.connection import wait
+        queue = deque(range(len(items)))
+        results: dict = {}
+        next_out = 0
+        while next_out < len(items):
+            if next_out in results:
+                yield results.pop(next_out)
+                next_out += 1
+                continue
+            if should_stop():
+                raise _Stopped
+            for w in self.workers:
+                if w.item is None and queue:
+                    w.item = queue.popleft()
+                    try:
+                        w.conn.send((w.item, items[w.item]))
+                    except (OSError, ValueError):
+                        pass                       # dead: its sentinel says so below
+            busy = [w for w in self.workers if w.item is not None]
+            ready = set(wait([w.conn for w in busy] + [w.proc.sentinel for w in busy], timeout=0.2))
+            for k, w in enumerate(self.workers):
+                if w.item is None or not ({w.conn, w.proc.sentinel} & ready):
+                    continue
+                reply = None
+                if w.conn in ready or w.conn.poll():
+                    try:
+                        reply = w.conn.recv()
+                    except (EOFError, OSError):
+                        reply = None               # died, possibly halfway through a reply
+                if reply is None:
+                    queue.appendleft(w.item)
+                    self.workers[k] = self._replace(w, should_stop)
+                    continue
+                kind, index, payload = reply
+                w.item = None
+                if kind != "ok":
+                    raise _Failed(payload)
+                results[index] = payload
+
+    def _replace(self, w: _Worker, should_stop) -> _Worker:
+        """A new worker for one that died (its item is already back in the queue)."""
+        w.proc.join(timeout=2)
+        code = w.proc.exitcode
+        w.stop(kill=True)
+        # SIGTERM to the whole process group reaches this process too: give its handler a
+        # moment; a stop request wins over redoing the work.
+        for _ in range(5):
+            if should_stop():
+                raise _Stopped
+            time.sleep(0.05)
+        self.losses += 1
+        how = _describe_exit(code)
+        if self.losses > MAX_WORKER_LOSSES:
+            raise _Failed(f"worker processes were lost {self.losses} times (last: {how}); the render "
+                          f"stopped after {MAX_WORKER_LOSSES} recoveries. Too little memory? Try "
+                          f"fewer --workers")
+        self.warn(f"a worker process was lost ({how}); its work item is redone by a new worker: "
+                  f"the image is unaffected (loss {self.losses} of at most {MAX_WORKER_LOSSES})")
+        return self._new()
+
+    def close(self, stopped: bool) -> None:
+        for w in self.workers:
+            w.stop(kill=stopped)
+
+
+def _fork_workers() -> bool:
+    import multiprocessing
+    import sys
+    return (sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
+            and os.environ.get("LAMINA_WORKER_START", "fork") != "spawn")
+
+
+def _describe_exit(code) -> str:
+    """How a worker process ended, from its exit code."""
+    if code is not None and code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = f"signal {-code}"
+        hint = ", e.g. by the out-of-memory killer" if -code == getattr(signal, "SIGKILL", None) else ""
+        return f"killed by {name}{hint}"
+    if code:
+        return f"exited with status {code}"
+    return "its connection closed"
 
 
 # --------------------------------------------------------------------------- master side
@@ -168,6 +480,7 @@ class Renderer:
         self.partial_callback = partial_callback
         self.partial_interval = partial_interval
         self._stop = False
+        self._warnings: list[str] = []
 
     def request_stop(self, *_):
         self._stop = True
@@ -185,7 +498,7 @@ class Renderer:
         block = choose_spp_block(all_pixels.size, spp)
         rounds = math.ceil(spp / block)
         workers = self.options.workers or os.cpu_count() or 1
-        workers = max(1, min(workers, 64))
+        workers = max(1, min(workers, MAX_WORKERS))
         totals: dict = {}
         t_start = time.perf_counter()
         cpu_start = time.process_time()
@@ -201,18 +514,12 @@ class Renderer:
         self.on_progress({"event": "start", "width": W, "height": H, "spp": spp, "workers": workers,
                           "parallel": parallel})
 
-        executor = None
+        error = None
         if workers > 1 and parallel == "processes":
-            executor = ProcessPoolExecutor(max_workers=workers, mp_context=_spawn_context(),
-                                           initializer=_init_worker, initargs=(self.source, self.options))
-            mapper = executor.map
+            runner = _ProcessItems(workers, self.source, self.options, self._warn, scene)
         else:
             _setup_local(self.source, self.options, scene)
-            mapper = map
-            if workers > 1:
-                from concurrent.futures import ThreadPoolExecutor
-                executor = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="lamina-render")
-                mapper = executor.map
+            runner = _ThreadItems(workers) if workers > 1 else _SerialItems()
         try:
             for r in range(rounds):
                 if self._stop:                     # a stop request between two passes
@@ -226,7 +533,7 @@ class Renderer:
                 items = plan_round(active, this_block, r, s.seed, r * block)
                 round_pixels = sum(item[1].size for item in items)
                 round_done = 0
-                for key, result, info in mapper(_render_item, items):
+                for key, result, info in runner.run(items, lambda: self._stop):
                     band = items[key[1]][1]
                     dropped = film.add(band, result)
                     if dropped:
@@ -274,19 +581,20 @@ class Renderer:
                             active = active[~converged]
                     continue
                 break
-        except KeyboardInterrupt:
+        except (_Stopped, KeyboardInterrupt):
             interrupted = True
+        except _Failed as exc:
+            error = str(exc)
         finally:
-            if executor is not None:
-                threads = parallel != "processes"
-                # Threads cannot be killed: wait for the items they are on (each is short).
-                executor.shutdown(wait=threads or not (self._stop or interrupted), cancel_futures=True)
-                if (self._stop or interrupted) and not threads:
-                    _terminate_pool(executor)
+            runner.close(stopped=self._stop or interrupted or error is not None)
         elapsed = time.perf_counter() - t_start
         totals["master_cpu_time"] = time.process_time() - cpu_start
         return RenderResult(film, spp_done, elapsed, totals.get("cpu_time", 0.0), interrupted, totals,
-                            list(scene.warnings))
+                            list(scene.warnings) + self._warnings, error)
+
+    def _warn(self, message: str) -> None:
+        self._warnings.append(message)
+        self.on_progress({"event": "warning", "message": message})
 
 
 def default_parallel(scene) -> str:
@@ -299,20 +607,6 @@ def default_parallel(scene) -> str:
 def _spawn_context():
     import multiprocessing
     return multiprocessing.get_context("spawn")
-
-
-def _terminate_pool(executor) -> None:
-    procs = getattr(executor, "_processes", None) or {}
-    for p in list(procs.values()):
-        try:
-            p.terminate()
-        except Exception:  # noqa: BLE001 - best effort on shutdown
-            pass
-    for p in list(procs.values()):
-        try:
-            p.join(timeout=2)
-        except Exception:  # noqa: BLE001
-            pass
 
 
 def install_signal_handlers(renderer: Renderer) -> None:

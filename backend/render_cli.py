@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import LaminaError
+from .limits import MAX_BOUNCES, MAX_FILM_SIDE, MAX_SEED, MAX_SPP, MAX_WORKERS
 
 
 def register(sub) -> None:
@@ -18,15 +19,15 @@ def register(sub) -> None:
     p.add_argument("scene", help="scene description (.json), see docs/scene-format.md")
     p.add_argument("-o", "--output", required=True, help="output EXR path")
     p.add_argument("--png", help="also write a display preview (PNG/JPEG, sRGB)")
-    p.add_argument("--spp", type=_positive_int, help="samples per pixel (overrides the scene)")
-    p.add_argument("--seed", type=_non_negative_int, help="random seed (overrides the scene)")
+    p.add_argument("--spp", type=_int_in(1, MAX_SPP), help="samples per pixel (overrides the scene)")
+    p.add_argument("--seed", type=_int_in(0, MAX_SEED), help="random seed (overrides the scene)")
     p.add_argument("--sampler", choices=("sobol", "independent"),
                    help="path sampler (overrides the scene; default sobol: scrambled Sobol points)")
-    p.add_argument("--workers", type=_positive_int, help="worker processes (default: all cores)")
-    p.add_argument("--max-bounces", type=_non_negative_int, help="Cycles-style max bounces")
+    p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), help="parallel workers (default: all cores)")
+    p.add_argument("--max-bounces", type=_int_in(0, MAX_BOUNCES), help="Cycles-style max bounces")
     p.add_argument("--time-limit", type=_number(0.0), help="seconds (0 = none); stop after this time, never before the first full pass")
     p.add_argument("--noise-target", type=_number(0.0, 1.0), help="adaptive sampling: relative error target (0 = off)")
-    p.add_argument("--min-spp", type=_positive_int, help="adaptive sampling: samples before a pixel may stop")
+    p.add_argument("--min-spp", type=_int_in(1, MAX_SPP), help="adaptive sampling: samples before a pixel may stop")
     p.add_argument("--resolution", type=_resolution, help="WxH, overrides the film size")
     p.add_argument("--progress", choices=("bar", "json", "none"), default=None,
                    help="progress display (default: bar on a terminal, none otherwise)")
@@ -41,26 +42,20 @@ def register(sub) -> None:
     v.set_defaults(func=cmd_validate)
 
 
-def _positive_int(text: str) -> int:
+def _int_in(lo: int, hi: int):
+    """An argparse type: an integer in [lo, hi] (the scene format's range for the same field)."""
     import argparse
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
 
-
-def _non_negative_int(text: str) -> int:
-    import argparse
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return value
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or not lo <= value <= hi:
+            shown = text if len(text) <= 30 else f"{text[:27]}... ({len(text)} characters)"
+            raise argparse.ArgumentTypeError(f"expected an integer in [{lo}, {hi}], got {shown!r}")
+        return value
+    return parse
 
 
 def _number(lo: float, hi: float | None = None):
@@ -81,7 +76,7 @@ def _number(lo: float, hi: float | None = None):
     return parse
 
 
-MAX_FILM = 65536   # pixels per side, as film.width/height in the scene format
+MAX_FILM = MAX_FILM_SIDE   # pixels per side, as film.width/height in the scene format
 
 
 def _resolution(text: str) -> tuple[int, int]:
@@ -151,8 +146,19 @@ def cmd_render(args) -> int:
                                 min_spp=args.min_spp, max_bounces=args.max_bounces, sampler=args.sampler,
                                 resolution=args.resolution)
         options.apply(scene)
+        if args.resolution is not None:
+            from .limits import film_memory_problem
+            problem = film_memory_problem(scene.width, scene.height)
+            if problem:
+                raise LaminaError(f"--resolution {args.resolution[0]}x{args.resolution[1]}: {problem}")
         for w in scene.warnings:
             printer.emit({"event": "warning", "message": w})
+        from .limits import cpu_count
+        if args.workers is not None and args.workers > cpu_count():
+            printer.emit({"event": "warning", "message":
+                          f"--workers {args.workers} is more than the {cpu_count()} core(s) this "
+                          f"process may use: the extra workers only compete for them (and, for "
+                          f"scenes rendered with worker processes, each holds its own copy of the scene)"})
         source = str(Path(args.scene).resolve())
 
         def write_partial(film, spp_done):
@@ -163,9 +169,20 @@ def cmd_render(args) -> int:
                             args.partial_interval)
         install_signal_handlers(renderer)
         result = renderer.run()
-        write_outputs_or_rescue(result, output, args.png, args.half)
+        changed = write_outputs_or_rescue(result, output, args.png, args.half)
         if args.partial:
             _write_partial(Path(args.partial), result.film, aovs=True)
+        if changed:
+            limit = "65504 (half float; write float without --half)" if args.half else "3.4e38 (float32)"
+            printer.emit({"event": "warning", "message":
+                          f"{changed} value(s) in {output} were not finite or beyond ±{limit}: written "
+                          f"as 0 (NaN) or clamped. The scene holds values too large to render "
+                          f"(light powers, emission, colours or textures)"})
+        if result.error:
+            if args.partial:               # the add-on shows the last partial result it was told of
+                printer.emit({"event": "partial", "path": str(Path(args.partial).resolve()),
+                              "spp": result.spp_done})
+            raise LaminaError(f"{result.error}; {output} holds the samples done before that")
         summary = summarise(result)
         printer.emit({"event": "done", "path": str(output.resolve()), **summary})
         if mode != "json":
@@ -177,26 +194,32 @@ def cmd_render(args) -> int:
         raise
 
 
-def write_outputs(result, output: Path, png: str | None, half: bool = False) -> None:
+def write_outputs(result, output: Path, png: str | None, half: bool = False) -> int:
+    """The EXR (and preview); returns how many values were not finite or out of the EXR's range
+    (imageio.write_exr writes them as 0 or clamped)."""
     from .imageio import write_exr, write_preview
     film = result.film
-    rgb = film.combined()
-    alpha = _alpha(film)
-    layers = {"": np.concatenate([rgb, alpha], axis=2), "albedo": film.albedo_image(),
-              "normal": film.normal_image(), "variance": film.variance_of_mean(),
-              "samples": film.counts()[:, :, None].astype(np.float32)}
-    write_exr(output, layers, half=half)
-    if png:
-        write_preview(png, rgb)
+    # Sums that overflowed (absurd but legal scene values) give Inf/NaN here: no warnings from
+    # NumPy, the writer makes them finite and the caller says how many there were.
+    with np.errstate(all="ignore"):
+        rgb = film.combined()
+        alpha = _alpha(film)
+        layers = {"": np.concatenate([rgb, alpha], axis=2), "albedo": film.albedo_image(),
+                  "normal": film.normal_image(), "variance": film.variance_of_mean(),
+                  "samples": film.counts()[:, :, None].astype(np.float32)}
+        changed = write_exr(output, layers, half=half)
+        if png:
+            write_preview(png, rgb)
+    return changed
 
 
 def write_outputs_or_rescue(result, output: Path, png: str | None, half: bool = False) -> None:
     """write_outputs; if that fails after all (disk full, folder removed during the render), the
     image is written to the temporary folder instead and the error names where it went."""
     try:
-        write_outputs(result, output, png, half)
+        return write_outputs(result, output, png, half)
     except (LaminaError, OSError) as exc:
-        rescue = Path(tempfile.gettempdir()) / f"lamina-rescued-{output.stem}-{os.getpid()}.exr"
+        rescue = Path(tempfile.gettempdir()) / f"lamina-rescued-{output.stem[:100]}-{os.getpid()}.exr"
         try:
             write_outputs(result, rescue, None, half)
         except (LaminaError, OSError) as exc2:
@@ -213,11 +236,12 @@ def _alpha(film) -> np.ndarray:
 
 def _write_partial(path: Path, film, aovs: bool = False) -> None:
     from .imageio import write_npy
-    rgb = film.combined()
-    alpha = _alpha(film)
-    write_npy(path, np.concatenate([rgb, alpha], axis=2))
-    if aovs:
-        write_npy(path.with_suffix(".aovs.npy"), np.concatenate([film.albedo_image(), film.normal_image()], axis=2))
+    with np.errstate(all="ignore"):
+        rgb = film.combined()
+        alpha = _alpha(film)
+        write_npy(path, np.concatenate([rgb, alpha], axis=2))
+        if aovs:
+            write_npy(path.with_suffix(".aovs.npy"), np.concatenate([film.albedo_image(), film.normal_image()], axis=2))
 
 
 def summarise(result) -> dict:

@@ -32,21 +32,44 @@ def linear_to_srgb(c: np.ndarray) -> np.ndarray:
 
 
 def read_image(path: Path, where: str = "", field: str = "") -> tuple[np.ndarray, bool]:
-    """Read an image as float32 (H, W, C). Returns (pixels, is_float_format). Raises SceneError."""
+    """Read an image as float32 (H, W, C). Returns (pixels, is_float_format). Raises SceneError
+    (never an OSError or an OpenImageIO exception): a missing, unreadable, truncated or
+    too-large image is an error naming ``field``."""
+    from .limits import available_memory, short
     try:
         import OpenImageIO as oiio
     except ImportError as exc:  # pragma: no cover - dependency is pinned
         raise SceneError(where, field, f"OpenImageIO is not installed ({exc})") from exc
-    if not Path(path).is_file():
-        raise SceneError(where, field, f"texture file not found: {path}")
-    inp = oiio.ImageInput.open(str(path))
+    try:
+        exists = Path(path).is_file()
+    except (OSError, ValueError) as exc:
+        raise SceneError(where, field, f"cannot use image {short(path, 200)}: "
+                                       f"{getattr(exc, 'strerror', None) or exc}") from None
+    if not exists:
+        raise SceneError(where, field, f"texture file not found: {short(path, 200)}")
+    try:
+        inp = oiio.ImageInput.open(str(path))
+    except Exception as exc:  # noqa: BLE001 - OpenImageIO raises various types
+        raise SceneError(where, field, f"cannot read image {short(path, 200)}: {short(exc, 200)}") from None
     if inp is None:
-        raise SceneError(where, field, f"cannot read image {path}: {oiio.geterror()}")
+        raise SceneError(where, field, f"cannot read image {short(path, 200)}: {short(oiio.geterror(), 200)}")
     try:
         spec = inp.spec()
-        pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
+        need = int(spec.width) * int(spec.height) * max(int(spec.nchannels), 1) * 4
+        have = available_memory()
+        if spec.width <= 0 or spec.height <= 0 or spec.nchannels <= 0:
+            raise SceneError(where, field, f"cannot read image {short(path, 200)}: it has no pixels "
+                                           f"({spec.width} × {spec.height}, {spec.nchannels} channels)")
+        if have is not None and need > have // 2:
+            raise SceneError(where, field, f"image {short(path, 200)} is too large: {spec.width} × "
+                                           f"{spec.height} × {spec.nchannels} channels need "
+                                           f"{need / 2 ** 30:.1f} GiB, {have / 2 ** 30:.1f} GiB available")
+        try:
+            pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
+        except Exception as exc:  # noqa: BLE001
+            raise SceneError(where, field, f"cannot decode image {short(path, 200)}: {short(exc, 200)}") from None
         if pixels is None:
-            raise SceneError(where, field, f"cannot decode image {path}: {inp.geterror()}")
+            raise SceneError(where, field, f"cannot decode image {short(path, 200)}: {short(inp.geterror(), 200)}")
         fmt = str(spec.format)
         is_float = fmt in ("float", "half", "double")
         colorspace = spec.get_string_attribute("oiio:ColorSpace", "")
@@ -134,7 +157,7 @@ def image_param(ctx, file: str, path: str, channels: int, channel: int, colorspa
 
 def load_texels(ctx, file: str, path: str, channels: int, channel: int, colorspace: str,
                 color: bool) -> np.ndarray:
-    resolved = ctx.resolve(file)
+    resolved = ctx.resolve(file, path)
     key = ("image", str(resolved))
     if key not in ctx.cache:
         ctx.cache[key] = read_image(resolved, ctx.where, path)
@@ -168,18 +191,31 @@ def sanitise_texels(texels: np.ndarray, ctx, path: str, lo, hi, scale) -> np.nda
     if bad.any():
         ctx.warn(path, f"{int(bad.sum())} NaN/Inf texel value(s) replaced by 0")
         texels = np.where(bad, 0.0, texels).astype(np.float32)
-    # Range applies to the scaled value; scale is positive in sane use, so clamp texels.
-    s = np.asarray(scale, dtype=np.float64)
-    s_min = float(np.min(s)) if s.size else 1.0
-    if s_min > 0:
-        lo_t = None if lo is None else lo / s_min
-        hi_t = None if hi is None else hi / float(np.max(s))
-        out = texels
-        if lo_t is not None and (out < lo_t).any():
-            ctx.warn(path, f"{int((out < lo_t).sum())} texel value(s) below {lo:g} clamped")
-            out = np.maximum(out, lo_t)
-        if hi_t is not None and (out > hi_t).any():
-            ctx.warn(path, f"{int((out > hi_t).sum())} texel value(s) above {hi:g} clamped")
-            out = np.minimum(out, hi_t)
+    # Range applies to the scaled value; scale is positive in sane use, so clamp texels. An open
+    # upper bound is MAX_NUMBER, as for constants (backend/limits.py).
+    if hi is None:
+        from .limits import MAX_NUMBER
+        hi = MAX_NUMBER
+    # Per channel: a texel t gives t × scale_c, which must lie in [lo, hi] (scale_c >= 0 where
+    # lo >= 0, parse_param; a zero scale makes every texel valid).
+    s = np.broadcast_to(np.asarray(scale, dtype=np.float64).reshape(-1), (texels.shape[2],))
+    out = texels.astype(np.float64)
+    below = above = 0
+    for c in range(texels.shape[2]):
+        if s[c] <= 0:
+            continue
+        ch = out[:, :, c]
+        if lo is not None:
+            m = ch < lo / s[c]
+            below += int(m.sum())
+            ch[m] = lo / s[c]
+        m = ch > hi / s[c]
+        above += int(m.sum())
+        ch[m] = hi / s[c]
+    if below:
+        ctx.warn(path, f"{below} texel value(s) below {lo:g} clamped")
+    if above:
+        ctx.warn(path, f"{above} texel value(s) above {hi:g} clamped")
+    if below or above:
         texels = out.astype(np.float32)
     return texels

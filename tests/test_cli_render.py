@@ -162,8 +162,13 @@ def test_out_of_range_options_are_refused_with_the_allowed_range(tmp_path, capsy
                                    ("--noise-target", "1.5", "expected a number in [0, 1]"),
                                    ("--partial-interval", "-5", "expected a number >= 0"),
                                    ("--resolution", "70000x10", "(1 to 65536 each)"),
-                                   ("--spp", "0", "expected a positive integer"),
-                                   ("--seed", "-1", "expected an integer >= 0")]:
+                                   ("--spp", "0", "expected an integer in [1, 16777216]"),
+                                   ("--spp", str(10 ** 15), "expected an integer in [1, 16777216]"),
+                                   ("--spp", "9" * 5000, "expected an integer in [1, 16777216]"),
+                                   ("--min-spp", str(1 << 25), "expected an integer in [1, 16777216]"),
+                                   ("--max-bounces", "1025", "expected an integer in [0, 1024]"),
+                                   ("--workers", "65", "expected an integer in [1, 64]"),
+                                   ("--seed", "-1", "expected an integer in [0, 9223372036854775807]")]:
         with pytest.raises(SystemExit) as info:
             cli.main(["render", str(path), "-o", str(tmp_path / "o.exr"), option, value])
         err = capsys.readouterr().err

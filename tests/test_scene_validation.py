@@ -57,7 +57,8 @@ def test_base_scene_loads():
     (lambda d: d["materials"]["grey"].update(type="velvet"), "scene.json: materials.grey.type: unknown type 'velvet'"),
     (lambda d: d["meshes"]["tri"].update(indices=[[0, 1, 3]]), "scene.json: meshes.tri.indices: indices[0] = [0, 1, 3] out of bounds for 3 vertices"),
     (lambda d: d["meshes"]["tri"].update(indices=[]), "scene.json: meshes.tri.indices: indices: expected integer shape (T, 3)"),
-    (lambda d: d["meshes"]["tri"].update(positions=[[0, 0, 0], [1, 0, 0], [0, "a", 0]]), "scene.json: meshes.tri.positions: expected a rectangular list of numbers"),
+    (lambda d: d["meshes"]["tri"].update(positions=[[0, 0, 0], [1, 0, 0], [0, "a", 0]]), "scene.json: meshes.tri.positions: positions[2][1]: expected a finite number, got 'a'"),
+    (lambda d: d["meshes"]["tri"].update(positions=[[0, 0, 0], [1, 0, 0], [0, 1]]), "scene.json: meshes.tri.positions: expected a rectangular list of numbers"),
     (lambda d: d["objects"][0].update(mesh="box"), "scene.json: objects[0].mesh: unknown mesh 'box'"),
     (lambda d: d["objects"][0].update(materials=["gold"]), "scene.json: objects[0].materials[0]: unknown material 'gold'"),
     (lambda d: d.update(render={"spp": 0}), "scene.json: render.spp: expected an integer in [1, 16777216], got 0"),
@@ -78,7 +79,7 @@ def test_nan_vertices_in_npz(tmp_path):
 
 def test_nan_normals_inline():
     data = scene_with(lambda d: d["meshes"]["tri"].update(normals=[[0, 0, 1], [0, 0, 1], [0, 0, float("inf")]]))
-    assert "meshes.tri.normals: normals of triangle 0 is not finite" in error_of(data)
+    assert "meshes.tri.normals: normals[2][2]: expected a finite number, got inf" in error_of(data)
 
 
 def test_missing_mesh_file(tmp_path):
@@ -139,13 +140,14 @@ def test_lights_that_all_emit_nothing_are_warned_about():
              "power": 0.0, "color": [1, 1, 1]}
     dark = scene_with(lambda d: d.update(world={"type": "constant", "color": [0, 0, 0], "strength": 1},
                                          lights=[point]))
-    (warning,) = load_scene_data(dark, "scene.json").warnings
+    per_light, warning = load_scene_data(dark, "scene.json").warnings
+    assert per_light == "scene.json: lights[0]: light emits nothing (power 0): it is dark"
     assert "every light in the scene emits nothing" in warning and "2 checked" in warning
     dim_blue = copy.deepcopy(dark)
     dim_blue["lights"][0].update(power=1e-3, color=[0, 0, 1])
     assert load_scene_data(dim_blue, "scene.json").warnings == []
     glowing = copy.deepcopy(dark)
     glowing["materials"]["grey"]["emission"] = [0.0, 0.5, 0.0]
-    assert load_scene_data(glowing, "scene.json").warnings == []
+    assert load_scene_data(glowing, "scene.json").warnings == [per_light]   # that light is still dark
     zero_strength = scene_with(lambda d: d["world"].update(strength=0))
     assert "emits nothing" in load_scene_data(zero_strength, "scene.json").warnings[0]

@@ -75,5 +75,5 @@ def camera_json(camera_object, scene) -> dict:
         out["dof"] = {"focus_distance": max(distance, 1e-6), "aperture_radius": radius,
                       "blades": int(dof.aperture_blades) if dof.aperture_blades >= 3 else 0,
                       "rotation": degrees(dof.aperture_rotation),
-                      "ratio": float(dof.aperture_ratio)}
+                      "ratio": min(float(dof.aperture_ratio), 1000.0)}  # the format's range
     return out

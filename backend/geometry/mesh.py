@@ -9,10 +9,12 @@ renderer recomputes hit points in float64 from the vertices.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import LaminaError, SceneError
 from ..scene.reader import Node
 
 
@@ -46,10 +48,7 @@ def parse_mesh(node: Node) -> Mesh:
         for key in _ARRAYS:
             value = node.child(key, None).value
             if value is not None:
-                try:
-                    arrays[key] = np.asarray(value, dtype=np.float64 if key in ("positions", "normals", "uvs") else np.int64)
-                except (TypeError, ValueError):
-                    raise node.fail("expected a rectangular list of numbers", key) from None
+                arrays[key] = _inline_array(node, key, value)
         if "positions" not in arrays or "indices" not in arrays:
             raise node.fail("a mesh needs `file`, `shape`, or inline `positions` and `indices`")
         mesh = _build(node, arrays)
@@ -57,37 +56,109 @@ def parse_mesh(node: Node) -> Mesh:
     return mesh
 
 
-def _load_npz(node: Node) -> Mesh:
-    file = node.string("file")
-    path = node.ctx.resolve(file)
-    if not path.is_file():
-        raise node.fail(f"mesh file not found: {path}", "file")
+def _inline_array(node: Node, key: str, value) -> np.ndarray:
+    """A JSON list of lists of numbers as an array: integers for ``indices`` and
+    ``material_indices``, finite numbers otherwise. Strings, booleans, nulls and ragged lists are
+    errors naming the first offending element (NumPy would turn "1" into 1 or True into 1)."""
+    integer = key in ("indices", "material_indices")
+    stack = [(value, key)]
+    while stack:
+        v, where = stack.pop()
+        if isinstance(v, list):
+            stack.extend((c, f"{where}[{i}]") for i, c in reversed(list(enumerate(v))))
+            continue
+        bad = (isinstance(v, bool) or not isinstance(v, (int, float)) or
+               (integer and not isinstance(v, int)) or
+               (isinstance(v, float) and not math.isfinite(v)))
+        if bad:
+            from ..scene.reader import _describe
+            kind = "an integer" if integer else "a finite number"
+            raise node.fail(f"{where}: expected {kind}, got {_describe(v)}", key)
     try:
+        a = np.array(value, dtype=np.int64 if integer else np.float64)
+    except OverflowError:
+        raise node.fail(f"{key}: an integer is out of range (at most {2 ** 63 - 1})", key) from None
+    except (TypeError, ValueError):
+        raise node.fail("expected a rectangular list of numbers", key) from None
+    return a
+
+
+def _load_npz(node: Node) -> Mesh:
+    from ..limits import short
+    file = node.string("file")
+    path = node.ctx.existing_file(file, node.sub("file"), "mesh file")
+    try:
+        _check_npz_size(path)
         with np.load(path, allow_pickle=False) as data:
             unknown = [k for k in data.files if k not in _ARRAYS]
             if unknown:
-                raise node.fail(f"unknown array {unknown[0]!r} in {file} (allowed: {', '.join(_ARRAYS)})", "file")
+                raise node.fail(f"unknown array {short(unknown[0])!r} in {short(file)} "
+                                f"(allowed: {', '.join(_ARRAYS)})", "file")
             arrays = {k: data[k] for k in data.files}
-    except (OSError, ValueError, EOFError) as exc:
-        raise node.fail(f"cannot read mesh file {path}: {exc}", "file") from None
-    return _build(node, arrays, prefix=f"{file}: ")
+    except SceneError:
+        raise
+    except LaminaError as exc:
+        raise node.fail(f"cannot read mesh file {short(path, 200)}: {exc}", "file") from None
+    except MemoryError:
+        raise node.fail(f"cannot read mesh file {short(path, 200)}: not enough memory for its arrays",
+                        "file") from None
+    except Exception as exc:  # noqa: BLE001 - a damaged archive raises zipfile/zlib/OS/Value errors
+        raise node.fail(f"cannot read mesh file {short(path, 200)} (a NumPy .npz archive): "
+                        f"{type(exc).__name__}: {short(exc, 200)}", "file") from None
+    return _build(node, arrays, prefix=f"{short(file)}: ")
+
+
+def _check_npz_size(path) -> None:
+    """Refuse an archive whose arrays would not fit in memory, from their headers, before any
+    is read (a small compressed file can declare a huge array)."""
+    import zipfile
+
+    from ..limits import available_memory
+    total = 0
+    with zipfile.ZipFile(path) as zf:
+        for info in zf.infolist():
+            if not info.filename.endswith(".npy"):
+                continue
+            with zf.open(info) as f:
+                version = np.lib.format.read_magic(f)
+                if version == (1, 0):
+                    shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+                else:
+                    shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+            total += int(np.prod(shape, dtype=object)) * dtype.itemsize
+    have = available_memory()
+    if have is not None and total > have // 2:
+        raise LaminaError(f"its arrays need {total / 2 ** 30:.1f} GiB, "
+                          f"{have / 2 ** 30:.1f} GiB of memory available")
+
+
+def _real(a: np.ndarray) -> bool:
+    """Integer or floating point, not complex, bool or object."""
+    return a.dtype.kind in "iuf"
 
 
 def _build(node: Node, arrays: dict, prefix: str = "") -> Mesh:
+    from ..limits import MAX_COORDINATE
+
     def fail(name, message):
         return node.fail(prefix + message, name if not prefix else "file")
 
     pos = np.asarray(arrays.get("positions"))
     idx = np.asarray(arrays.get("indices"))
-    if pos.ndim != 2 or pos.shape[1] != 3 or not np.issubdtype(pos.dtype, np.number):
-        raise fail("positions", f"positions: expected shape (V, 3), got {pos.shape}")
-    if idx.ndim != 2 or idx.shape[1] != 3 or not np.issubdtype(idx.dtype, np.integer):
+    if pos.ndim != 2 or pos.shape[1] != 3 or not _real(pos):
+        raise fail("positions", f"positions: expected real numbers of shape (V, 3), got {pos.shape} {pos.dtype}")
+    if idx.ndim != 2 or idx.shape[1] != 3 or idx.dtype.kind not in "iu":
         raise fail("indices", f"indices: expected integer shape (T, 3), got {idx.shape} {idx.dtype}")
     if pos.shape[0] == 0 or idx.shape[0] == 0:
         raise fail("indices", "empty mesh (no vertices or no triangles)")
     if not np.all(np.isfinite(pos)):
         bad = int(np.argwhere(~np.isfinite(pos))[0, 0])
         raise fail("positions", f"positions[{bad}] is not finite (NaN or Inf)")
+    big = np.abs(pos) > MAX_COORDINATE
+    if big.any():
+        bad = int(np.argwhere(big)[0, 0])
+        raise fail("positions", f"positions[{bad}] = {pos[bad].tolist()}: coordinates must lie within "
+                                f"±{MAX_COORDINATE:g}")
     if idx.min() < 0 or idx.max() >= pos.shape[0]:
         t = int(np.argwhere((idx < 0) | (idx >= pos.shape[0]))[0, 0])
         raise fail("indices", f"indices[{t}] = {idx[t].tolist()} out of bounds for {pos.shape[0]} vertices")
@@ -98,11 +169,11 @@ def _build(node: Node, arrays: dict, prefix: str = "") -> Mesh:
     mat = arrays.get("material_indices")
     if mat is not None:
         mat = np.asarray(mat)
-        if mat.shape != (t_count,) or not np.issubdtype(mat.dtype, np.integer):
-            raise fail("material_indices", f"material_indices: expected integer shape ({t_count},), got {mat.shape}")
+        if mat.shape != (t_count,) or mat.dtype.kind not in "iu":
+            raise fail("material_indices", f"material_indices: expected integer shape ({t_count},), got {mat.shape} {mat.dtype}")
         if mat.size and mat.min() < 0:
             raise fail("material_indices", "material_indices: negative slot index")
-        mat = mat.astype(np.int32)
+        mat = np.minimum(mat, np.iinfo(np.int32).max).astype(np.int32)
     mesh = Mesh(pos.astype(np.float32), idx, normals, uvs, mat)
     return drop_degenerate(mesh, node)
 
@@ -110,9 +181,10 @@ def _build(node: Node, arrays: dict, prefix: str = "") -> Mesh:
 def _corner_attribute(value, name, width, idx, vcount, fail):
     if value is None:
         return None
+    from ..limits import MAX_COORDINATE
     a = np.asarray(value)
-    if not np.issubdtype(a.dtype, np.number):
-        raise fail(name, f"{name}: expected numbers")
+    if not _real(a):
+        raise fail(name, f"{name}: expected real numbers, got {a.dtype}")
     if a.shape == (vcount, width):
         a = a[idx]
     elif a.shape != (idx.shape[0], 3, width):
@@ -121,6 +193,9 @@ def _corner_attribute(value, name, width, idx, vcount, fail):
     if not np.all(np.isfinite(a)):
         bad = int(np.argwhere(~np.isfinite(a.reshape(a.shape[0], -1)))[0, 0])
         raise fail(name, f"{name} of triangle {bad} is not finite (NaN or Inf)")
+    if np.any(np.abs(a) > MAX_COORDINATE):
+        bad = int(np.argwhere(np.abs(a.reshape(a.shape[0], -1)) > MAX_COORDINATE)[0, 0])
+        raise fail(name, f"{name} of triangle {bad} lie outside ±{MAX_COORDINATE:g}")
     return a.astype(np.float32)
 
 
@@ -148,6 +223,12 @@ def drop_degenerate(mesh: Mesh, node: Node | None = None) -> Mesh:
 # --------------------------------------------------------------------------- built-in shapes
 
 def _parse_shape(node: Node) -> Mesh:
+    # A size so small that float32 positions collapse gives zero-area triangles: an error (the
+    # built-in shapes are otherwise never degenerate).
+    return drop_degenerate(_shape(node), node)
+
+
+def _shape(node: Node) -> Mesh:
     shape = node.string("shape", choices=("sphere", "rectangle", "cube", "disk"))
     if shape == "sphere":
         return uv_sphere(node.number("radius", 1.0, lo=0, lo_open=True),
@@ -197,7 +278,7 @@ def disk(radius: float, segments: int) -> Mesh:
     pos = np.concatenate([[[0, 0, 0]], ring]).astype(np.float32)
     k = np.arange(segments)
     tris = np.stack([np.zeros_like(k), 1 + k, 1 + (k + 1) % segments], 1).astype(np.int32)
-    uv = (pos[:, :2] / (2 * radius) + 0.5).astype(np.float32)
+    uv = (np.concatenate([[[0.0, 0.0]], ring[:, :2] / (2 * radius)]) + 0.5).astype(np.float32)
     nrm = np.tile(np.array([0, 0, 1], np.float32), (segments, 3, 1))
     return Mesh(pos, tris, nrm, uv[tris], None)
 

@@ -35,11 +35,10 @@ def parse_ies(node) -> IESProfile:
     ctx = node.ctx
     if has_file:
         rel = node.string("file")
-        path = ctx.resolve(rel)
+        path = ctx.resolve(rel, node.sub("file"))
         key = ("ies-file", str(path))
         if key not in ctx.cache:
-            if not path.is_file():
-                raise node.fail(f"IES file not found: {path}", "file")
+            path = ctx.existing_file(rel, node.sub("file"), "IES file")
             try:
                 ctx.cache[key] = IESProfile(read_lm63(path))
             except LM63Error as exc:

@@ -183,10 +183,11 @@ class _Tokens:
             raise self.error(self.last_line, f"unexpected end of file: expected {what}")
         tok, line = self.items[self.pos]
         if not _NUMBER.match(tok):
-            raise self.error(line, f"expected {what}: a number, got {tok!r}")
+            raise self.error(line, f"expected {what}: a number, got {_quote(tok)}")
         value = float(tok)
-        if not math.isfinite(value):
-            raise self.error(line, f"expected {what}: a finite number, got {tok!r}")
+        if not math.isfinite(value) or abs(value) > MAX_VALUE:
+            raise self.error(line, f"expected {what}: a finite number of magnitude at most "
+                                   f"{MAX_VALUE:g}, got {_quote(tok)}")
         self.pos += 1
         return value
 
@@ -195,20 +196,26 @@ class _Tokens:
         value = self.number(what)
         if not value.is_integer() or (lo is not None and value < lo) or (hi is not None and value > hi):
             rng = f" in {lo}..{hi}" if lo is not None and hi is not None else (f" >= {lo}" if lo is not None else "")
-            raise self.error(line, f"expected {what} (an integer{rng}), got {self.items[self.pos - 1][0]!r}")
+            raise self.error(line, f"expected {what} (an integer{rng}), got {_quote(self.items[self.pos - 1][0])}")
         return int(value)
 
     def positive(self, what: str) -> float:
         line = self.line()
         value = self.number(what)
         if not value > 0:
-            raise self.error(line, f"expected {what} > 0, got {self.items[self.pos - 1][0]!r}")
+            raise self.error(line, f"expected {what} > 0, got {_quote(self.items[self.pos - 1][0])}")
         return value
 
     def array(self, count: int, what: str, item: str, detail: str = "") -> tuple[np.ndarray, list[int]]:
         """``count`` numbers (``what`` plural, ``item`` singular); on a premature end, say how many
         were found."""
         start = self.pos
+        if count > len(self.items) - self.pos:
+            # Said before reading (and allocating): the counts may be corrupt and huge.
+            raise self.error(self.last_line,
+                             f"unexpected end of file: expected {count} {what}{detail}, found only "
+                             f"{sum(1 for t, _ in self.items[self.pos:self.pos + count] if _NUMBER.match(t))} "
+                             f"(truncated file, or wrong angle counts?)")
         out = np.empty(count)
         lines = []
         for i in range(count):
@@ -232,6 +239,12 @@ class _Tokens:
 # Parsing
 
 MAX_ANGLES = 100_000  # guards against absurd counts from a corrupt header
+MAX_VALUE = 1e30     # any number in the file (as every number in a scene, backend/limits.py)
+MAX_CANDELA = 1e15   # the largest intensity once the factors are applied: searchlights reach 1e9 cd
+
+
+def _quote(tok: str) -> str:
+    return repr(tok) if len(tok) <= 40 else repr(tok[:37] + "...")
 
 
 def read_lm63(path: str | Path) -> LM63File:
@@ -307,7 +320,7 @@ def parse_lm63(data: bytes | str, name: str = "<IES data>") -> LM63File:
     # ---- photometric header lines
     lamps = tokens.integer("the number of lamps", lo=0)
     lumens = tokens.number("lumens per lamp (-1 for absolute photometry)")
-    line = tokens.line()
+    line = m_line = tokens.line()
     multiplier = tokens.number("the candela multiplier")
     if not multiplier > 0:
         raise tokens.error(line, f"expected the candela multiplier > 0, got {multiplier:g}")
@@ -341,12 +354,18 @@ def parse_lm63(data: bytes | str, name: str = "<IES data>") -> LM63File:
         k = int(np.argmax(table < 0))
         raise LM63Error(name, t_lines[k], f"expected candela values >= 0, got {table[k]:g}")
     candela = table.reshape(nh, nv)
+    peak = float(table.max()) * multiplier * ballast * ballast_lamp
+    if peak > MAX_CANDELA:
+        raise LM63Error(name, m_line, f"the candela multiplier ({multiplier:g}) × ballast factor "
+                                      f"({ballast:g}) × ballast-lamp factor ({ballast_lamp:g}) × the "
+                                      f"largest candela value ({table.max():g}) = {peak:g} cd, above "
+                                      f"{MAX_CANDELA:g} cd (no luminaire is that bright: a corrupt file?)")
 
     # ---- trailing content: words (END, a Ctrl-Z, notes) are tolerated; extra numbers mean the
     # declared counts do not match the data.
     for tok, ln in tokens.rest():
         if _NUMBER.match(tok):
-            raise LM63Error(name, ln, f"unexpected number {tok!r} after the candela table: the file "
+            raise LM63Error(name, ln, f"unexpected number {_quote(tok)} after the candela table: the file "
                                       f"declares {nv} vertical × {nh} horizontal angles = {nv * nh} "
                                       f"candela values, but more numbers follow (wrong angle counts?)")
 

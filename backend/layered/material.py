@@ -22,7 +22,7 @@ import numpy as np
 
 from ..materials import REGISTRY, register
 from ..materials.base import Material, ShadingContext
-from ..scene.reader import Node
+from ..scene.reader import Node, _describe
 from .bsdf import LayeredBSDF, Options, new_stats
 from .medium import parse_medium
 from .stack import NullBSDF
@@ -209,7 +209,7 @@ def parse_interface(inode: Node, eta_above: float):
     inode.require_object()
     kind = inode.value.get("type")
     if kind not in INTERFACE_TYPES:
-        raise inode.fail(f"expected one of {', '.join(map(repr, INTERFACE_TYPES))}, got {kind!r}", "type")
+        raise inode.fail(f"expected one of {', '.join(map(repr, INTERFACE_TYPES))}, got {_describe(kind)}", "type")
     if kind == "null":
         inode.string("type")
         normal = parse_normal(inode)
@@ -243,12 +243,43 @@ def parse_interface(inode: Node, eta_above: float):
 
 
 def parse_layered(node: Node, eta_above: float = 1.0) -> LayeredMaterial:
+    """A layered material; nested stacks count against limits.MAX_LAYER_NESTING (their cost
+    grows with the nesting) and all interfaces against limits.MAX_STACK_INTERFACES."""
+    from ..limits import MAX_LAYER_NESTING, MAX_STACK_INTERFACES
+    cache = node.ctx.cache
+    depth = cache.get("layered_nesting", 0) + 1
+    if depth > MAX_LAYER_NESTING:
+        raise node.fail(f"layered materials nested {depth} deep; at most {MAX_LAYER_NESTING} "
+                        f"levels (a stack inside a stack inside a stack) are supported")
+    cache["layered_nesting"] = depth
+    try:
+        material = _parse_layered(node, eta_above)
+    finally:
+        cache["layered_nesting"] = depth - 1
+    count = _interface_count(material)
+    if count > MAX_STACK_INTERFACES:
+        raise node.fail(f"{count} interfaces (nested stacks included); at most "
+                        f"{MAX_STACK_INTERFACES} are supported", "interfaces")
+    return material
+
+
+def _interface_count(material) -> int:
+    if not isinstance(material, LayeredMaterial):
+        return 1
+    return sum(_interface_count(m) for m in material.interfaces)
+
+
+def _parse_layered(node: Node, eta_above: float) -> LayeredMaterial:
     from ..materials import load_all
     load_all()
     node.require_object()
     inodes = node.child("interfaces").items()
     if not inodes:
         raise node.fail("a layered material needs at least one interface", "interfaces")
+    from ..limits import MAX_STACK_INTERFACES
+    if len(inodes) > MAX_STACK_INTERFACES:
+        raise node.fail(f"{len(inodes)} interfaces; at most {MAX_STACK_INTERFACES} are supported",
+                        "interfaces")
     interfaces, etas, normals = [], [], []
     eta = eta_above
     for i, inode in enumerate(inodes):

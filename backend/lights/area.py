@@ -147,6 +147,12 @@ class CollimatedAreaLight(Light):
 
 # --------------------------------------------------------------------------- scene parser
 
+def _pencil(half_angle_deg: float) -> bool:
+    """A cone so narrow that float64 cannot tell it from a line (cos = 1, below ~1e-6°): it is
+    the collimated limit (a width-0 cone table would divide by zero)."""
+    return float(np.cos(np.radians(half_angle_deg))) >= 1.0
+
+
 @register("area")
 def parse_area(node):
     to_world, color, visible_camera = parse_common(node)
@@ -165,8 +171,10 @@ def parse_area(node):
         beam = node.number("beam_width", cutoff, lo=0.0, hi=90.0)
         if beam > cutoff:
             raise node.fail(f"expected a number <= cutoff_angle ({cutoff:g}), got {beam:g}", "beam_width")
+        if _pencil(cutoff):
+            return CollimatedAreaLight(to_world, shape, size, size_v, power, color, normalize)
         profile = SmoothCone(np.radians(cutoff), np.radians(beam))
-    elif spread <= 0.0:
+    elif spread <= 0.0 or _pencil(0.5 * spread):
         return CollimatedAreaLight(to_world, shape, size, size_v, power, color, normalize)
     elif spread < 180.0:
         profile = CyclesSpread(np.radians(spread))

@@ -127,7 +127,7 @@ def parse_environment(node) -> EnvironmentMap:
         node.ignore("to_world")
     ctx = node.ctx
     field = node.sub("file")
-    pixels, is_float = read_image(ctx.resolve(file), ctx.where, field)
+    pixels, is_float = read_image(ctx.resolve(file, field), ctx.where, field)
     rgb = pixels[:, :, :3] if pixels.shape[2] >= 3 else np.repeat(pixels[:, :, :1], 3, axis=2)
     if colorspace == "sRGB" or (colorspace == "auto" and not is_float):
         rgb = srgb_to_linear(rgb)

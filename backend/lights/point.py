@@ -37,7 +37,8 @@ class PointLight(Light):
         self.position = column(self.to_world, 3)
         self.color = np.asarray(color, dtype=np.float64).reshape(3)
         self.watts = float(power)
-        self.radius = float(radius)
+        # A sphere so small that r² underflows (below ~1e-150 m) is the point light it looks like.
+        self.radius = float(radius) if float(radius) ** 2 > 1e-280 else 0.0
         self.soft_falloff = bool(soft_falloff)
         self.profile = profile
         self._linear = self.to_world[:3, :3]

@@ -34,7 +34,8 @@ class SunLight(Light):
         self.strength = float(strength)
         self.angle = float(angle)
         half = 0.5 * self.angle
-        self.is_delta = half <= 0.0
+        # A disk too small for float64 (sin² a underflows, below ~1e-150 rad) is the delta sun.
+        self.is_delta = half <= 0.0 or np.sin(half) ** 2 < 1e-280
         self.visible_camera = bool(visible_camera)
         self.irradiance = self.color * self.strength
         if not self.is_delta:

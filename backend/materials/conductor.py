@@ -16,6 +16,7 @@ import numpy as np
 
 from ..kernels.bsdf import batch as _batch
 from ..kernels.microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
+from ..limits import short as _short
 from . import register
 from .base import BSDF, BSDFSample, Material, ShadingContext, lanes, rows1, rows3, sample_arrays
 from .common import any_textured, as_param, delta_lanes, parse_microfacet_kind, parse_roughness
@@ -133,7 +134,7 @@ def parse_conductor(node) -> ConductorMaterial:
     else:
         name = node.string("metal", "Cu")
         if name not in METALS:
-            raise node.fail(f"unknown metal {name!r} (known: {', '.join(sorted(METALS))})", "metal")
+            raise node.fail(f"unknown metal {_short(name)!r} (known: {', '.join(sorted(METALS))})", "metal")
         eta, k = metal_ior(name)
         node.ignore("eta", "k")
     ru, rv = parse_roughness(node, 0.1)

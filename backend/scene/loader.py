@@ -6,7 +6,6 @@ in ``Scene.warnings`` for the CLI/add-on to show.
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,7 +14,8 @@ import numpy as np
 from ..errors import SceneError
 from ..geometry.accel import TriangleSoup
 from ..geometry.mesh import Mesh, parse_mesh
-from .reader import LoadContext, Node, dispatch
+from ..limits import MAX_BOUNCES, MAX_COORDINATE, MAX_FILM_SIDE, MAX_SEED, MAX_SPP, film_memory_problem, short
+from .reader import LoadContext, Node, dispatch, path_problem, read_json
 
 FORMAT = "lamina-scene"
 VERSION = 1
@@ -57,19 +57,28 @@ class Scene:
 
 
 def load_scene(path: str | Path) -> Scene:
+    where = short(path, 300)
+    problem = path_problem(str(path))
+    if problem:
+        raise SceneError(where, "", problem)
     path = Path(path)
-    where = str(path)
-    if not path.is_file():
-        raise SceneError(where, "", "scene file not found")
     try:
+        if not path.is_file():
+            raise SceneError(where, "", "scene file not found")
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise SceneError(where, "", f"cannot read file: {exc}") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise SceneError(where, "", f"not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}") from None
+        raise SceneError(where, "", f"cannot read file: {short(exc, 200)}") from None
+    except MemoryError:
+        raise SceneError(where, "", "cannot read file: not enough memory") from None
+    data = read_json(text, where)
     return load_scene_data(data, where, path.parent)
+
+
+def known(names, most: int = 12) -> str:
+    """A list of names for an error message: at most ``most``, each shortened."""
+    names = list(names)
+    text = ", ".join(short(n, 40) for n in names[:most]) or "none"
+    return text + (f", … ({len(names)} in all)" if len(names) > most else "")
 
 
 REBASE_ABOVE = 1000.0   # world units: a camera farther than this from the origin rebases the scene
@@ -121,7 +130,7 @@ def load_scene_data(data, where: str = "<scene>", base_dir: Path | None = None) 
     root.require_object()
     fmt = root.string("format")
     if fmt != FORMAT:
-        raise root.fail(f"expected {FORMAT!r}, got {fmt!r}", "format")
+        raise root.fail(f"expected {FORMAT!r}, got {short(fmt)!r}", "format")
     version = root.integer("version")
     if version != VERSION:
         raise root.fail(f"unsupported scene version {version} (this Lamina reads version {VERSION})", "version")
@@ -135,17 +144,25 @@ def load_scene_data(data, where: str = "<scene>", base_dir: Path | None = None) 
     meshes = {}
     meshes_node = root.optional_child("meshes")
     if meshes_node is not None:
+        from ..limits import geometry_memory_problem
+        held = 0
         for name, mnode in meshes_node.entries():
             meshes[name] = parse_mesh(mnode)
+            held += meshes[name].triangle_count
+            problem = geometry_memory_problem(held)
+            if problem:
+                raise mnode.fail(problem.replace("the objects hold", "the meshes so far hold")
+                                 .replace(" (instances counted)", ""))
     soup = flatten_objects(root.optional_child("objects"), meshes, materials, names, ctx)
 
     from ..lights import load_all as load_lights
     light_parsers, world_parsers = load_lights()
-    lights = []
+    lights, light_nodes = [], []
     lights_node = root.optional_child("lights")
     if lights_node is not None:
         for lnode in lights_node.items():
             lights.append(dispatch(lnode, light_parsers))
+            light_nodes.append(lnode)
     world = None
     world_node = root.optional_child("world")
     if world_node is not None:
@@ -164,13 +181,15 @@ def load_scene_data(data, where: str = "<scene>", base_dir: Path | None = None) 
         light.prepare(center, radius)
     scene = Scene(ctx.where, width, height, pixel_filter, crop, transparent, camera, settings, materials, names,
                   soup, all_lights, world, mesh_light, ctx.warnings, center, radius)
+    warn_dark_lights(lights, light_nodes, ctx)
+    warn_unused_layered_options(root, materials, ctx)
     if not all_lights:
         ctx.warn("", "the scene has no lights and no world: the image will be black")
     elif all(light.power() <= 0.0 for light in all_lights):
         # power(): the luminance flux used for light selection, 0 only for black or zero-strength
         # emitters (luminance weights are positive).
-        ctx.warn("", f"every light in the scene emits nothing (strength 0 or black colour, "
-                     f"{len(all_lights)} checked): the image will be black")
+        ctx.warn("", f"every light in the scene emits nothing ({len(all_lights)} checked): "
+                     f"the image will be black")
     return scene
 
 
@@ -181,26 +200,35 @@ def parse_settings(node: Node | None, ctx: LoadContext) -> RenderSettings:
     if node is None:
         ctx.cache["layered_defaults"] = {}
         return s
-    s.spp = node.integer("spp", s.spp, lo=1, hi=1 << 24)
-    s.max_bounces = node.integer("max_bounces", s.max_bounces, lo=0, hi=1024)
-    s.rr_depth = node.integer("rr_depth", s.rr_depth, lo=0, hi=1024)
-    s.seed = node.integer("seed", s.seed, lo=0, hi=2**63 - 1)
+    s.spp = node.integer("spp", s.spp, lo=1, hi=MAX_SPP)
+    s.max_bounces = node.integer("max_bounces", s.max_bounces, lo=0, hi=MAX_BOUNCES)
+    s.rr_depth = node.integer("rr_depth", s.rr_depth, lo=0, hi=MAX_BOUNCES)
+    s.seed = node.integer("seed", s.seed, lo=0, hi=MAX_SEED)
     s.clamp = node.number("clamp", s.clamp, lo=0)
     s.noise_target = node.number("noise_target", s.noise_target, lo=0, hi=1)
-    s.min_spp = node.integer("min_spp", s.min_spp, lo=1, hi=1 << 24)
+    s.min_spp = node.integer("min_spp", s.min_spp, lo=1, hi=MAX_SPP)
     s.time_limit = node.number("time_limit", s.time_limit, lo=0)
     s.light_selection = node.string("light_selection", s.light_selection, choices=("local", "power"))
     s.sampler = node.string("sampler", s.sampler, choices=("sobol", "independent"))
     layered = node.optional_child("layered")
     ctx.cache["layered_defaults"] = dict(layered.require_object().value) if layered is not None else {}
+    if layered is not None:
+        # Checked here, whether or not a layered material uses them: a typo or a bad value is
+        # an error even in a scene without layered materials (which gets a warning instead).
+        from ..layered.material import parse_options
+        parse_options(Node({}, "render.layered", ctx), layered)
+        layered.finish()
     node.finish()
     return s
 
 
 def parse_film(node: Node):
     from ..film import parse_filter
-    width = node.integer("width", lo=1, hi=65536)
-    height = node.integer("height", lo=1, hi=65536)
+    width = node.integer("width", lo=1, hi=MAX_FILM_SIDE)
+    height = node.integer("height", lo=1, hi=MAX_FILM_SIDE)
+    problem = film_memory_problem(width, height)
+    if problem:
+        raise node.fail(problem)
     pixel_filter = parse_filter(node.optional_child("filter"))
     crop = None
     if node.has("crop"):
@@ -254,12 +282,18 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
     any_normals = any_uvs = False
     default_index = None
     items = node.items() if node is not None else []
+    from ..limits import geometry_memory_problem
+    total = sum(meshes[o.value["mesh"]].triangle_count for o in items
+                if isinstance(o.value, dict) and isinstance(o.value.get("mesh"), str) and o.value["mesh"] in meshes)
+    problem = geometry_memory_problem(total)
+    if problem:
+        raise node.fail(problem)             # before flattening allocates it
     for oi, onode in enumerate(items):
         onode.require_object()
         onode.string("name", f"object {oi}")
         mesh_name = onode.string("mesh")
         if mesh_name not in meshes:
-            raise onode.fail(f"unknown mesh {mesh_name!r} (known: {', '.join(sorted(meshes)) or 'none'})", "mesh")
+            raise onode.fail(f"unknown mesh {short(mesh_name)!r} (known: {known(sorted(meshes))})", "mesh")
         mesh = meshes[mesh_name]
         m = onode.matrix4("to_world", np.eye(4).tolist())
         visible = onode.boolean("visible_camera", True)
@@ -269,7 +303,8 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
         if slots_node is not None:
             for snode in slots_node.items():
                 if not isinstance(snode.value, str):
-                    raise snode.fail(f"expected a material name, got {snode.value!r}")
+                    from .reader import _describe
+                    raise snode.fail(f"expected a material name, got {_describe(snode.value)}")
                 slot_names.append(snode.value)
         onode.finish()
         slot_index = []
@@ -278,7 +313,7 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
                 slot_index.append(names.index(sname))
             else:
                 raise ctx.error(f"objects[{oi}].materials[{si}]",
-                                f"unknown material {sname!r} (known: {', '.join(names) or 'none'})")
+                                f"unknown material {short(sname)!r} (known: {known(names)})")
         tri_slots = mesh.material_indices if mesh.material_indices is not None else np.zeros(mesh.triangle_count, np.int32)
         if len(slot_index) == 0 or (tri_slots.size and tri_slots.max() >= len(slot_index)):
             if default_index is None:
@@ -291,6 +326,11 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
         tri_mat = lut[np.minimum(tri_slots, len(slot_index))]
 
         p = mesh.positions.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+        reach = float(np.max(np.abs(p))) if p.size else 0.0
+        if not reach <= MAX_COORDINATE:
+            raise onode.fail(f"mesh {short(mesh_name)!r} placed by this matrix reaches the coordinate "
+                             f"{reach:.3g}; world coordinates must lie within ±{MAX_COORDINATE:g}",
+                             "to_world")
         v = p[mesh.indices]
         nrm = None
         if mesh.normals is not None:
@@ -326,6 +366,51 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
                                  for u, v in zip(uvs, verts)]).astype(np.float32)
     return TriangleSoup(vertices, normals, uv_all, np.concatenate(mats), np.concatenate(objs), np.concatenate(cam),
                         np.concatenate(hold))
+
+
+def warn_dark_lights(lights: list, nodes: list, ctx: LoadContext) -> None:
+    """One warning per light that is dark for sure, naming it (its ``_name`` from the add-on)
+    and why: zero power or strength, a black colour, zero size, an all-zero IES table."""
+    for light, node in zip(lights, nodes):
+        try:
+            power = float(light.power())
+        except (ValueError, ArithmeticError):
+            power = 0.0
+        if power > 0.0:
+            continue
+        why = dark_reason(light)
+        name = node.value.get("_name") if isinstance(node.value, dict) else None
+        label = f" ({short(name)!r})" if isinstance(name, str) and name else ""
+        ctx.warn(node.path, f"light{label} emits nothing ({why}): it is dark")
+
+
+def dark_reason(light) -> str:
+    color = getattr(light, "color", None)
+    amount = next((getattr(light, a) for a in ("watts", "strength") if hasattr(light, a)), None)
+    if amount is not None and amount <= 0:
+        return "power 0" if hasattr(light, "watts") else "strength 0"
+    if color is not None and float(np.max(color)) <= 0:
+        return "black colour"
+    geo = getattr(light, "geo", None)
+    if geo is not None and geo.area <= 0:
+        return "size 0: zero area"
+    profile = getattr(getattr(light, "profile", None), "profile", None)
+    if profile is not None and getattr(profile, "flux", 1.0) <= 0:
+        return "its IES table is zero everywhere"
+    if profile is not None:
+        return "its IES profile emits nothing inside the spot cone"
+    return "zero emitted power"
+
+
+def warn_unused_layered_options(root: Node, materials: list, ctx: LoadContext) -> None:
+    """``render.layered`` sets options of layered stacks (two or more interfaces); say so when no
+    material has one (the options were checked, but change nothing)."""
+    render = root.value.get("render") if isinstance(root.value, dict) else None
+    if not (isinstance(render, dict) and render.get("layered")):
+        return
+    if not any(getattr(m, "interfaces", None) is not None and len(m.interfaces) > 1 for m in materials):
+        ctx.warn("render.layered", "no layered material with two or more interfaces in the scene "
+                                   "uses these options: they change nothing")
 
 
 def _flat_normals(v: np.ndarray) -> np.ndarray:

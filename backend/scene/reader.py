@@ -10,6 +10,7 @@ Every key of an object must be read by its parser; ``finish()`` reports the ones
 """
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Any, Callable
@@ -17,8 +18,89 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import SceneError
+from ..limits import MAX_COORDINATE, MAX_INT_DIGITS, MAX_JSON_DEPTH, MAX_NUMBER, short
 
 _MISSING = object()
+
+
+# --------------------------------------------------------------------------- JSON documents
+
+class HugeInt(float):
+    """An integer literal with more than MAX_INT_DIGITS digits, kept as ±inf so that every
+    numeric check refuses it, and described by its length in messages (never echoed)."""
+
+    digits: int = 0
+
+    def __new__(cls, text: str):
+        self = super().__new__(cls, "-inf" if text.startswith("-") else "inf")
+        self.digits = len(text.lstrip("-"))
+        return self
+
+
+def _parse_int(text: str):
+    return int(text) if len(text) <= MAX_INT_DIGITS + 1 else HugeInt(text)
+
+
+def read_json(text: str, where: str) -> Any:
+    """Parse a JSON document with the limits of backend/limits.py: nesting depth and integer
+    size. Errors are SceneErrors naming ``where`` (and the line, or the field path)."""
+    try:
+        data = json.loads(text, parse_int=_parse_int)
+    except RecursionError:
+        raise SceneError(where, "", f"arrays/objects nested deeper than {MAX_JSON_DEPTH} levels"
+                                    f"{_deep_line(text)}") from None
+    except json.JSONDecodeError as exc:
+        raise SceneError(where, "", f"not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}") from None
+    except ValueError as exc:                      # e.g. a number the float parser refuses
+        raise SceneError(where, "", f"not valid JSON: {short(exc, 200)}") from None
+    if _depth_exceeds(data, MAX_JSON_DEPTH):
+        raise SceneError(where, _deep_path(data, MAX_JSON_DEPTH),
+                         f"arrays/objects nested deeper than {MAX_JSON_DEPTH} levels")
+    return data
+
+
+def _depth_exceeds(data: Any, limit: int) -> bool:
+    """Is any array/object nested more than ``limit`` levels deep? (iterative: no recursion)"""
+    stack = [(data, 1)] if isinstance(data, (list, dict)) else []
+    while stack:
+        value, depth = stack.pop()
+        if depth > limit:
+            return True
+        children = value.values() if isinstance(value, dict) else value
+        stack.extend((c, depth + 1) for c in children if isinstance(c, (list, dict)))
+    return False
+
+
+def _deep_path(data: Any, limit: int) -> str:
+    """The field path of the first container nested deeper than ``limit``: its first segments,
+    then "…" (the whole path is ``limit`` segments long)."""
+    stack = [(data, [])]
+    while stack:
+        value, segments = stack.pop()
+        if len(segments) >= limit:
+            head = segments[:8]
+            text = "".join(s if s.startswith("[") else ("." + s if i else s) for i, s in enumerate(head))
+            return text + ("…" if len(segments) > len(head) else "")
+        items = value.items() if isinstance(value, dict) else enumerate(value)
+        for k, c in reversed(list(items)):
+            if isinstance(c, (list, dict)):
+                stack.append((c, segments + [f"[{k}]" if isinstance(k, int) else short(k)]))
+    return ""
+
+
+def _deep_line(text: str) -> str:
+    """' (at line N)' where the nesting first passes MAX_JSON_DEPTH (brackets outside strings)."""
+    import re
+    depth = 0
+    for m in re.finditer(r'"(?:[^"\\]|\\.)*"|[\[\]{}]', text):
+        tok = m.group()
+        if tok in "[{":
+            depth += 1
+            if depth > MAX_JSON_DEPTH:
+                return f" (at line {text.count(chr(10), 0, m.start()) + 1})"
+        elif tok in "]}":
+            depth -= 1
+    return ""
 
 
 def _describe(value: Any) -> str:
@@ -26,7 +108,11 @@ def _describe(value: Any) -> str:
         return "true" if value else "false"
     if value is None:
         return "null"
+    if isinstance(value, HugeInt):
+        return f"an integer of {value.digits} digits"
     if isinstance(value, (int, float)):
+        if isinstance(value, int) and abs(value) >= 10 ** 15:
+            return f"{float(value):g}"
         return repr(value)
     if isinstance(value, str):
         return repr(value) if len(value) < 60 else repr(value[:57] + "...")
@@ -38,7 +124,11 @@ def _describe(value: Any) -> str:
 
 
 def _fmt(v) -> str:
-    return str(int(v)) if float(v).is_integer() and abs(v) < 1e15 else f"{v:g}"
+    return str(int(v)) if float(v).is_integer() and abs(v) < 1e9 else f"{v:g}"
+
+
+def _fmt_g(v) -> float | int:
+    return int(v) if float(v).is_integer() and abs(v) < 1e15 else float(f"{v:.6g}")
 
 
 def _range_text(lo, hi, lo_open, hi_open) -> str:
@@ -66,9 +156,43 @@ class LoadContext:
     def error(self, path: str, message: str) -> SceneError:
         return SceneError(self.where, path, message)
 
-    def resolve(self, relative: str) -> Path:
+    def resolve(self, relative: str, field: str | None = None) -> Path:
+        """``relative`` against the document's folder. With ``field``, a path that no file system
+        accepts (too long, a NUL character) is a SceneError naming that field."""
+        if field is not None:
+            problem = path_problem(relative)
+            if problem:
+                raise self.error(field, problem)
         p = Path(relative)
         return p if p.is_absolute() else (self.base_dir / p)
+
+    def existing_file(self, relative: str, field: str, what: str = "file") -> Path:
+        """The resolved path of a file that must exist; SceneError naming ``field`` otherwise."""
+        path = self.resolve(relative, field)
+        try:
+            ok = path.is_file()
+        except (OSError, ValueError) as exc:
+            raise self.error(field, f"cannot use {what} {short(path, 200)}: "
+                                    f"{getattr(exc, 'strerror', None) or exc}") from None
+        if not ok:
+            raise self.error(field, f"{what} not found: {short(path, 200)}")
+        return path
+
+
+def path_problem(text: str) -> str | None:
+    """Why ``text`` cannot be a file path here (limits.MAX_PATH_LENGTH/COMPONENT), or None."""
+    from ..limits import MAX_PATH_COMPONENT, MAX_PATH_LENGTH
+    if not text:
+        return "expected a file path, got an empty string"
+    if "\x00" in text:
+        return "a file path cannot contain a NUL character"
+    if len(text) > MAX_PATH_LENGTH:
+        return f"file path too long ({len(text)} characters, at most {MAX_PATH_LENGTH}): {short(text)}"
+    for part in Path(text).parts:
+        if len(part.encode("utf-8", "surrogateescape")) > MAX_PATH_COMPONENT:
+            return (f"file path has a name longer than {MAX_PATH_COMPONENT} bytes "
+                    f"({short(part)})")
+    return None
 
 
 class Node:
@@ -84,6 +208,7 @@ class Node:
     def sub(self, key: str | int) -> str:
         if isinstance(key, int):
             return f"{self.path}[{key}]"
+        key = short(key)
         return f"{self.path}.{key}" if self.path else key
 
     def fail(self, message: str, key: str | int | None = None) -> SceneError:
@@ -166,12 +291,12 @@ class Node:
                 hi: int | None = None) -> int:
         value = self._get(key, default)
         if isinstance(value, bool) or not isinstance(value, int):
-            if isinstance(value, float) and value.is_integer():
+            if isinstance(value, float) and value.is_integer() and abs(value) < 2.0 ** 63:
                 value = int(value)
             else:
                 raise self.fail(f"expected an integer{' ' + _range_text(lo, hi, False, False) if lo is not None or hi is not None else ''}, got {_describe(value)}", key)
         if (lo is not None and value < lo) or (hi is not None and value > hi):
-            raise self.fail(f"expected an integer {_range_text(lo, hi, False, False)}, got {value}", key)
+            raise self.fail(f"expected an integer {_range_text(lo, hi, False, False)}, got {_describe(value)}", key)
         return value
 
     def vector(self, key: str, size: int, default: Any = _MISSING, lo: float | None = None,
@@ -188,15 +313,25 @@ class Node:
         return check_vector(value, 3, self.sub(key), self.ctx, lo, hi, False, what="an RGB colour")
 
     def matrix4(self, key: str, default: Any = _MISSING) -> np.ndarray:
-        """A 4×4 matrix given as 4 rows of 4 numbers (row-major, column vectors: p' = M p)."""
+        """A 4×4 affine matrix given as 4 rows of 4 numbers (row-major, column vectors:
+        p' = M p): entries within ±MAX_COORDINATE, last row [0, 0, 0, 1] (as Blender's
+        matrix_world; a projective matrix has no meaning for an object), not singular."""
         value = self._get(key, default)
         path = self.sub(key)
         if not (isinstance(value, list) and len(value) == 4 and
                 all(isinstance(r, list) and len(r) == 4 for r in value)):
             raise self.ctx.error(path, f"expected a 4×4 matrix (4 rows of 4 numbers), got {_describe(value)}")
-        rows = [check_vector(r, 4, f"{path}[{i}]", self.ctx) for i, r in enumerate(value)]
+        rows = [check_vector(r, 4, f"{path}[{i}]", self.ctx, -MAX_COORDINATE, MAX_COORDINATE)
+                for i, r in enumerate(value)]
         m = np.array(rows, dtype=np.float64)
-        if abs(np.linalg.det(m[:3, :3])) < 1e-12:
+        if np.max(np.abs(m[3] - [0.0, 0.0, 0.0, 1.0])) > 1e-6:
+            raise self.ctx.error(f"{path}[3]", f"expected [0, 0, 0, 1] (an affine transform, as Blender's "
+                                               f"matrix_world), got {[_fmt_g(v) for v in m[3]]}")
+        m[3] = [0.0, 0.0, 0.0, 1.0]
+        m[np.abs(m) < 1e-300] = 0.0             # subnormal entries only make LAPACK warn
+        with np.errstate(all="ignore"):          # subnormal entries: det may warn
+            det = float(np.linalg.det(m[:3, :3]))
+        if not abs(det) >= 1e-12:
             raise self.ctx.error(path, "matrix is singular (zero scale?)")
         return m
 
@@ -220,7 +355,7 @@ def dispatch(node: Node, parsers: dict[str, Callable]):
     node.require_object()
     kind = node.string("type")
     if kind not in parsers:
-        raise node.fail(f"unknown type {kind!r} (known: {', '.join(sorted(parsers))})", "type")
+        raise node.fail(f"unknown type {short(kind)!r} (known: {', '.join(sorted(parsers))})", "type")
     result = parsers[kind](node)
     node.finish()
     return result
@@ -228,9 +363,11 @@ def dispatch(node: Node, parsers: dict[str, Callable]):
 
 def check_number(value: Any, path: str, ctx: LoadContext, lo=None, hi=None,
                  lo_open=False, hi_open=False) -> float:
+    """A finite number in the given range. A bound left open is MAX_NUMBER in magnitude
+    (backend/limits.py): beyond it, products formed while rendering could overflow."""
     rng = _range_text(lo, hi, lo_open, hi_open)
     what = f"a number {rng}".strip()
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or isinstance(value, HugeInt):
         raise ctx.error(path, f"expected {what}, got {_describe(value)}")
     value = float(value)
     if not math.isfinite(value):
@@ -238,6 +375,11 @@ def check_number(value: Any, path: str, ctx: LoadContext, lo=None, hi=None,
     if ((lo is not None and (value < lo or (lo_open and value == lo))) or
             (hi is not None and (value > hi or (hi_open and value == hi)))):
         raise ctx.error(path, f"expected {what}, got {_fmt(value)}")
+    if abs(value) > MAX_NUMBER:
+        capped = _range_text(-MAX_NUMBER if lo is None else lo, MAX_NUMBER if hi is None else hi,
+                             lo_open, hi_open)
+        raise ctx.error(path, f"expected a number {capped} (larger values overflow while "
+                              f"rendering), got {_fmt(value)}")
     return value
 
 
@@ -261,10 +403,12 @@ def parse_param(value: Any, path: str, ctx, channels: int, lo, hi, lo_open: bool
         file = node.string("texture")
         colorspace = node.string("colorspace", "auto", choices=("auto", "sRGB", "linear"))
         channel = node.integer("channel", -1, lo=-1, hi=3)
+        # A parameter that cannot be negative cannot take a negative scale either.
+        scale_lo = 0.0 if lo is not None and lo >= 0 else None
         if channels == 3:
-            scale = node.rgb("scale", [1.0, 1.0, 1.0], lo=None)
+            scale = node.rgb("scale", [1.0, 1.0, 1.0], lo=scale_lo)
         else:
-            scale = np.asarray(node.number("scale", 1.0))
+            scale = np.asarray(node.number("scale", 1.0, lo=scale_lo))
         node.finish()
         return image_param(ctx, file, path, channels, channel, colorspace, color, lo, hi, scale)
     if channels == 3:
