@@ -110,6 +110,12 @@ class PathTracer:
         self.any_hidden = bool(soup.count) and not bool(soup.camera_visible.all())
         self.deferred = [i for i, k in enumerate(self.materials.kind) if k == km.DEFERRED]
 
+    def set_camera(self, camera) -> None:
+        """Render the next work items through another camera (a viewport session's view moved;
+        nothing else depends on the camera)."""
+        self.scene.camera = camera
+        self.camera = camera_vector(camera)
+
     # ------------------------------------------------------------------ work item
     def render(self, pixels: np.ndarray, spp: int, rng: np.random.Generator, sample0: int = 0) -> dict:
         """``spp`` samples (indices sample0 …) in each of ``pixels`` (flat, row 0 = top).
