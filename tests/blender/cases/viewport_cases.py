@@ -1,0 +1,310 @@
+"""Rendered-shading cases (run inside Blender by tests/blender/test_viewport.py).
+
+Headless Blender has no viewport and cannot draw, so each case plays Blender's part: a stand-in
+engine (the methods ``view_update``/``view_draw`` use), a region/region-data context built from
+the scene camera's own matrices, the add-on's timer called by hand, and a recording drawer in
+place of the GPU one (``viewport.make_drawer``). The session behind it is the real renderer.
+"""
+from __future__ import annotations
+
+import gc
+import math
+import os
+import signal
+import time
+from types import SimpleNamespace
+
+import bpy
+import numpy as np
+
+from . import build
+
+W, H = 32, 24
+
+
+class StubEngine:
+    """What view_update/view_draw need of the RenderEngine Blender would create."""
+
+    is_preview = False
+
+    def __init__(self):
+        self.viewport = None
+        self.stats: list[str] = []
+        self.redraws = 0
+        self.bound = 0
+
+    def update_stats(self, a, b):
+        if not self.stats or self.stats[-1] != b:
+            self.stats.append(b)
+
+    def tag_redraw(self):
+        self.redraws += 1
+
+    def bind_display_space_shader(self, scene):
+        self.bound += 1
+
+    def unbind_display_space_shader(self):
+        self.bound -= 1
+
+    def get_preview_pixel_size(self, scene):
+        return 1
+
+
+class RecordingDrawer:
+    """Stands in for the GPU drawer: remembers every upload and every draw."""
+
+    log: list = []
+
+    def __init__(self):
+        self.frame = None
+
+    def upload(self, frame):
+        self.frame = frame
+        RecordingDrawer.log.append(("upload", frame.generation, frame.frame, frame.scale, frame.spp,
+                                    frame.width, frame.height, float(np.mean(frame.pixels[..., :3]))))
+
+    def draw(self, engine, scene, width, height):
+        assert engine.bound == 0, "display space shader bound twice"
+        f = self.frame
+        RecordingDrawer.log.append(("draw", f.generation, f.frame, f.scale, f.spp, width, height))
+
+    def free(self):
+        RecordingDrawer.log.append(("free",))
+
+
+def _engine_class():
+    import sys
+    package = os.environ.get("LAMINA_TEST_PACKAGE", "lamina")
+    return sys.modules[f"{package}.addon.engine.engine"].LaminaRenderEngine
+
+
+def _viewport_module():
+    import sys
+    package = os.environ.get("LAMINA_TEST_PACKAGE", "lamina")
+    return sys.modules[f"{package}.addon.engine.viewport"]
+
+
+def _context(scene, camera_view=False, width=W, height=H, ortho=False, border=None):
+    dg = bpy.context.evaluated_depsgraph_get()
+    cam = scene.camera
+    view = cam.matrix_world.normalized().inverted()
+    if ortho:
+        cam.data.type = "ORTHO"
+    window = cam.calc_matrix_camera(dg, x=width, y=height)
+    region = SimpleNamespace(width=width, height=height)
+    rv3d = SimpleNamespace(view_matrix=view, window_matrix=window, is_perspective=not ortho,
+                           view_perspective="CAMERA" if camera_view else ("ORTHO" if ortho else "PERSP"))
+    space = SimpleNamespace(use_render_border=border is not None)
+    if border is not None:
+        (space.render_border_min_x, space.render_border_min_y,
+         space.render_border_max_x, space.render_border_max_y) = border
+    return SimpleNamespace(region=region, region_data=rv3d, space_data=space, scene=scene)
+
+
+def _scene(samples=4):
+    sc = build.scene()
+    build.camera()
+    build.plane(material=build.diffuse_material("Grey", (0.5, 0.5, 0.5)), size=6)
+    build.uv_sphere(material=build.diffuse_material("Ball", (0.7, 0.3, 0.2)))
+    build.light("Lamp", "POINT", (1.0, -1.0, 3.0), energy=300.0)
+    build.world_colour((0.2, 0.2, 0.2))
+    sc.lamina.viewport_samples = samples
+    sc.lamina.workers = 1
+    return sc
+
+
+class Driver:
+    """Blender's part: view_update, then the timer and view_draw whenever it asks for a redraw."""
+
+    def __init__(self, scene, **context):
+        self.engine = StubEngine()
+        self.cls = _engine_class()
+        self.vp = _viewport_module()
+        self.vp.make_drawer = RecordingDrawer
+        RecordingDrawer.log = []
+        self.scene = scene
+        self.context = _context(scene, **context)
+        self.t0 = time.perf_counter()
+
+    def update(self):
+        """Blender calls view_update after each depsgraph evaluation, with the updates listed
+        in ``depsgraph.updates``; a depsgraph_update_post handler sees the same depsgraph."""
+        seen = []
+
+        def handler(scene, depsgraph):
+            seen.append(1)
+            self.cls.view_update(self.engine, self.context, depsgraph)
+
+        bpy.app.handlers.depsgraph_update_post.append(handler)
+        try:
+            bpy.context.view_layer.update()
+        finally:
+            bpy.app.handlers.depsgraph_update_post.remove(handler)
+        if not seen:                       # nothing to evaluate (first call): no updates
+            self.cls.view_update(self.engine, self.context, bpy.context.evaluated_depsgraph_get())
+
+    def draw(self):
+        self.cls.view_draw(self.engine, self.context, bpy.context.evaluated_depsgraph_get())
+
+    def run(self, until, timeout=60.0):
+        """Tick and draw until ``until(self)``; returns seconds waited."""
+        t0 = time.perf_counter()
+        while time.perf_counter() - t0 < timeout:
+            before = self.engine.redraws
+            self.vp._tick()
+            if self.engine.redraws != before:
+                self.draw()
+            if until(self):
+                return time.perf_counter() - t0
+            time.sleep(0.01)
+        raise AssertionError(f"timed out; log tail {RecordingDrawer.log[-5:]}, stats {self.engine.stats[-3:]}")
+
+    @property
+    def client(self):
+        return self.engine.viewport.client
+
+    def draws(self):
+        return [e for e in RecordingDrawer.log if e[0] == "draw"]
+
+    def drawn_generation(self, g):
+        return any(e[1] == g for e in self.draws())
+
+
+def _alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:                                   # a zombie counts as gone
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def _wait_gone(pid, timeout=5.0):
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < timeout:
+        if not _alive(pid):
+            return True
+        time.sleep(0.02)
+    return False
+
+
+# ---------------------------------------------------------------------- cases
+
+def progressive(tmp):
+    """Enter Rendered mode: frames arrive, reduced first, then full resolution up to the
+    Viewport Samples, then the session idles (its CPU time stops growing)."""
+    sc = _scene(samples=4)
+    d = Driver(sc)
+    d.update()
+    first = d.run(lambda d: d.draws())
+    d.run(lambda d: d.client.idle and d.draws()[-1][4] == 4)
+    pid = d.client.pid
+    cpu = _cpu(pid)
+    time.sleep(1.0)
+    for _ in range(10):
+        d.vp._tick()
+    idle_cpu = _cpu(pid) - cpu
+    out = {"first": first, "log": RecordingDrawer.log, "stats": d.engine.stats, "idle_cpu": idle_cpu,
+           "generation": d.client.generation, "bound": d.engine.bound}
+    d.engine.viewport.free()
+    out["gone"] = _wait_gone(pid)
+    return out
+
+
+def _cpu(pid):
+    with open(f"/proc/{pid}/stat") as f:
+        parts = f.read().rsplit(")", 1)[1].split()
+    return (int(parts[11]) + int(parts[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def edits(tmp):
+    """Each kind of edit reaches the session as its own section(s), rebuilds only what it needs
+    and restarts accumulation; after an edit, no frame of an older generation is drawn."""
+    sc = _scene(samples=2)
+    coat = bpy.data.materials.new("Coat")
+    from lamina.addon.ops.stack import add_layer
+    top = add_layer(coat.lamina, "DIELECTRIC", 0)
+    top.ior, top.roughness = 1.5, 0.2
+    add_layer(coat.lamina, "DIFFUSE", 1).color = (0.6, 0.2, 0.1)
+    coat.lamina.use_stack = True
+    build.plane("Card", size=1.0, material=coat, z=0.05).location = (1.5, 0.0, 0.0)
+    d = Driver(sc)
+    d.update()
+    d.run(lambda d: d.client.idle)
+    sent_log = []
+    client = d.client
+    original_send = client.send_update
+
+    def send_update(changes):
+        sent_log.append(sorted(changes))
+        g = original_send(changes)
+        RecordingDrawer.log.append(("send", g))
+        return g
+
+    client.send_update = send_update
+    steps = []
+
+    def step(name, change, view=False):
+        g0 = client.generation
+        n_log = len(RecordingDrawer.log)
+        n_sent = len(sent_log)
+        change()
+        if view:
+            bpy.context.view_layer.update()
+            d.draw()
+        else:
+            d.update()
+        t0 = time.perf_counter()
+        d.run(lambda d: client.generation > g0 and d.drawn_generation(client.generation))
+        first = time.perf_counter() - t0
+        d.run(lambda d: client.idle and d.draws()[-1][4] == 2)
+        g = client.generation
+        later = RecordingDrawer.log[n_log:]
+        sends = [i for i, e in enumerate(later) if e[0] == "send"]
+        after_send = later[sends[0]:] if sends else []
+        steps.append({"name": name, "generation": g, "sent": sent_log[n_sent:],
+                      "rebuilt": client.last_updated["rebuilt"] if client.last_updated else None,
+                      "stale_draws": [e for e in after_send if e[0] == "draw" and e[1] < g],
+                      "draws_before_send": len([e for e in later[:sends[0] if sends else 0] if e[0] == "draw"]),
+                      "generations_drawn": sorted({e[1] for e in later if e[0] == "draw"}),
+                      "spp": [e[4] for e in later if e[0] == "draw" and e[1] == g and e[3] == 1],
+                      "first": first})
+
+    ball = bpy.data.objects["Sphere"]
+    step("transform", lambda: setattr(ball, "location", (0.3, 0.0, 1.0)))
+    step("material", lambda: setattr(
+        bpy.data.materials["Ball"].node_tree.nodes["Diffuse BSDF"].inputs["Color"], "default_value",
+        (0.1, 0.8, 0.1, 1.0)))
+    def stack_edit():
+        coat.lamina.layers[0].ior = 1.3
+        # The properties editor tags the owner ID after a change (RNA_property_update); a
+        # Python assignment to an add-on property does not, so the case does what the UI does.
+        coat.update_tag()
+    step("stack", stack_edit)
+    step("light", lambda: setattr(bpy.data.lights["Lamp"], "energy", 600.0))
+    step("world", lambda: build.world_colour((0.5, 0.1, 0.1)))
+    step("add", lambda: build.uv_sphere("Extra", material=bpy.data.materials["Grey"],
+                                        location=(-1.5, 0, 0.5), radius=0.4))
+    step("remove", lambda: bpy.data.objects.remove(bpy.data.objects["Extra"]))
+
+    def move_view():
+        cam = sc.camera
+        cam.location.x += 0.5
+        bpy.context.view_layer.update()
+        d.context.region_data.view_matrix = cam.matrix_world.normalized().inverted()
+    step("view", move_view, view=True)
+
+    def resize():
+        d.context.region.width, d.context.region.height = 40, 20
+        dg = bpy.context.evaluated_depsgraph_get()
+        d.context.region_data.window_matrix = sc.camera.calc_matrix_camera(dg, x=40, y=20)
+    step("resize", resize, view=True)
+    step("settings", lambda: setattr(sc.lamina, "max_bounces", 3))
+    out = {"steps": steps, "stats": d.engine.stats[-1], "stale_frames": client.stale_frames}
+    pid = client.pid
+    d.engine.viewport.free()
+    out["gone"] = _wait_gone(pid)
+    return out
