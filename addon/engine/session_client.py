@@ -70,11 +70,12 @@ def session_command(python: str, frames: Path, *, samples: int, workers: int = 0
 
 
 class SessionClient:
-    def __init__(self, cmd: list[str], folder: Path, *, env: dict | None = None):
+    def __init__(self, cmd: list[str], folder: Path, *, env: dict | None = None, job=None):
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
         self.cmd = cmd
-        self.job = BackendJob(cmd, env=env, stdin_pipe=True)
+        # ``job``: a stand-in with BackendJob's interface (tests).
+        self.job = job if job is not None else BackendJob(cmd, env=env, stdin_pipe=True)
         self.pid = self.job.proc.pid
         self.started = time.perf_counter()
         self.generation = 0            # of the last scene/edit sent (0 = none yet)

@@ -308,3 +308,196 @@ def edits(tmp):
     d.engine.viewport.free()
     out["gone"] = _wait_gone(pid)
     return out
+
+
+def _start(samples=2, **context):
+    sc = _scene(samples=samples)
+    d = Driver(sc, **context)
+    d.update()
+    d.run(lambda d: d.client.idle)
+    return sc, d
+
+
+def lifecycle(tmp):
+    """Every way a viewport render ends stops its session: the engine freed by Blender (seen by
+    the timer through a weak reference), the engine's __del__, opening a file (load_pre) and
+    disabling the add-on. Nothing survives: the process group is gone."""
+    import addon_utils
+    out = {}
+    # 1. Blender frees the engine (leaving Rendered mode): the timer notices.
+    sc, d = _start()
+    pid = d.client.pid
+    d.engine = None
+    gc.collect()
+    d.vp._tick()
+    out["engine_dropped"] = _wait_gone(pid)
+    # 2. The engine's __del__ (what Blender calls when it frees the engine).
+    sc, d = _start()
+    pid = d.client.pid
+    d.cls.__del__(d.engine)
+    out["engine_del"] = _wait_gone(pid)
+    out["del_twice"] = (d.cls.__del__(d.engine), True)[1]
+    # 3. File > Open / New (load_pre).
+    sc, d = _start()
+    pid = d.client.pid
+    d.vp._load_pre(None)
+    out["load_pre"] = _wait_gone(pid)
+    out["sessions_after_load"] = len(d.vp._SESSIONS)
+    # 4. Disabling the add-on.
+    sc, d = _start()
+    pid = d.client.pid
+    vp = d.vp
+    addon_utils.disable("lamina", default_set=True)
+    out["unregister"] = _wait_gone(pid)
+    out["timer_after_unregister"] = bpy.app.timers.is_registered(vp._tick)
+    addon_utils.enable("lamina", default_set=True)
+    # 5. Interpreter exit (atexit): kill_all.
+    sc, d = _start()
+    pid = d.client.pid
+    d.vp.kill_all()
+    out["atexit"] = _wait_gone(pid)
+    d.vp.stop_all()
+    return out
+
+
+def crash(tmp):
+    """The session process dies: the viewport says so in its header (one line), the console
+    gets the same line once, and nothing raises."""
+    import contextlib
+    import io
+    sc, d = _start()
+    pid = d.client.pid
+    os.kill(pid, signal.SIGKILL)
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        d.run(lambda d: d.client.error is not None, timeout=10)
+        for _ in range(5):
+            d.vp._tick()
+        d.draw()
+        d.update()
+    out = {"status": d.engine.stats[-1], "console": err.getvalue(), "error": d.client.error}
+    d.engine.viewport.free()
+    return out
+
+
+def export_error(tmp):
+    """A scene that cannot be exported (an empty layer stack): one line in the header and the
+    console, no traceback; fixing it brings the image back."""
+    import contextlib
+    import io
+    sc, d = _start()
+    mat = bpy.data.materials["Ball"]
+    mat.lamina.use_stack = True              # a stack without interfaces
+    mat.update_tag()
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        d.update()
+        d.draw()
+    status = d.engine.stats[-1]
+    g0 = d.client.generation
+    mat.lamina.use_stack = False                 # back to what the session renders already
+    mat.update_tag()
+    d.update()
+    d.draw()
+    out = {"status": status, "console": err.getvalue(), "after": d.engine.stats[-1],
+           "new_generation": d.client.generation != g0}
+    d.engine.viewport.free()
+    return out
+
+
+def coalesce(tmp):
+    """Edits made while the session has not shown the previous one wait and go out together."""
+    sc, d = _start(samples=64)
+    sent = []
+    original = d.client.send_update
+
+    def send_update(changes):
+        sent.append(sorted(changes))
+        return original(changes)
+
+    d.client.send_update = send_update
+    time.sleep(0.2)                                     # the last image has been on screen long enough
+    bpy.data.lights["Lamp"].energy = 500.0
+    d.update()                                          # sent at once
+    bpy.data.objects["Sphere"].location.x = 0.4
+    d.update()                                          # waits: generation 2 has no image yet
+    bpy.data.lights["Lamp"].energy = 700.0
+    d.update()                                          # waits too, merged with the move
+    waiting = sorted(d.engine.viewport.pending)
+    sent_before = list(sent)
+    g = d.client.generation + 1
+    d.run(lambda d: d.client.generation >= g and d.drawn_generation(g))
+    out = {"sent_before": sent_before, "waiting": waiting, "sent": sent,
+           "lights": d.engine.viewport.live.sent["lights"][0]["power"]}
+    d.engine.viewport.free()
+    return out
+
+
+def samples_change(tmp):
+    """Raising Viewport Samples continues the accumulation (no new generation)."""
+    sc, d = _start(samples=2)
+    g = d.client.generation
+    sc.lamina.viewport_samples = 5
+    sc.update_tag()
+    d.update()
+    d.run(lambda d: d.client.idle and d.draws()[-1][4] == 5)
+    out = {"generation_before": g, "generation_after": d.client.generation,
+           "spp": [e[4] for e in d.draws() if e[1] == g]}
+    d.engine.viewport.free()
+    return out
+
+
+def views(tmp):
+    """The viewport camera from the region matrices next to the scene camera's export, for
+    perspective (with shift and each sensor fit) and orthographic cameras."""
+    from lamina.addon.export.camera import camera_json
+    from lamina.addon.export.view import view_camera
+    sc = _scene()
+    cam = sc.camera
+    out = []
+    for kind, fit, shift, size in (("PERSP", "AUTO", (0.0, 0.0), (32, 24)), ("PERSP", "AUTO", (0.2, -0.1), (32, 24)),
+                                   ("PERSP", "VERTICAL", (0.1, 0.0), (24, 32)),
+                                   ("PERSP", "HORIZONTAL", (0.0, 0.15), (40, 20)),
+                                   ("ORTHO", "AUTO", (0.1, 0.1), (32, 24))):
+        cam.data.type, cam.data.sensor_fit = kind, fit
+        cam.data.shift_x, cam.data.shift_y = shift
+        sc.render.resolution_x, sc.render.resolution_y = size
+        bpy.context.view_layer.update()
+        dg = bpy.context.evaluated_depsgraph_get()
+        view = cam.matrix_world.normalized().inverted()
+        window = cam.calc_matrix_camera(dg, x=size[0], y=size[1])
+        out.append({"kind": kind, "fit": fit, "shift": shift,
+                    "exported": camera_json(cam, sc),
+                    "viewport": view_camera(view, window, kind == "PERSP")})
+    return out
+
+
+def borders(tmp):
+    """Camera view with a render border (crop inside the camera frame), a View Region border,
+    and a 2-pixel viewport resolution: the session renders only the crop (alpha 0 elsewhere)."""
+    out = {}
+    for name, context in (("camera", {"camera_view": True}),
+                          ("region", {"border": (0.5, 0.5, 1.0, 1.0)})):
+        sc = _scene(samples=1)
+        if name == "camera":
+            sc.render.use_border = True
+            sc.render.border_min_x, sc.render.border_max_x = 0.25, 0.75
+            sc.render.border_min_y, sc.render.border_max_y = 0.0, 0.5
+        d = Driver(sc, **context)
+        d.update()
+        d.run(lambda d: d.client.idle)
+        film = d.engine.viewport.live.sent["film"]
+        alpha = RecordingDrawer.log and d.engine.viewport.drawer.frame.pixels[..., 3]
+        out[name] = {"crop": film.get("crop"), "size": [film["width"], film["height"]],
+                     "alpha_rows": [int(v) for v in (alpha > 0).sum(axis=1)],
+                     "alpha_cols": [int(v) for v in (alpha > 0).sum(axis=0)]}
+        d.engine.viewport.free()
+    sc = _scene(samples=1)
+    d = Driver(sc)
+    d.engine.get_preview_pixel_size = lambda scene: 2
+    d.update()
+    d.run(lambda d: d.client.idle)
+    f = d.engine.viewport.drawer.frame
+    out["pixel_size_2"] = [f.width, f.height, d.draws()[-1][5], d.draws()[-1][6]]
+    d.engine.viewport.free()
+    return out
