@@ -501,3 +501,122 @@ def borders(tmp):
     out["pixel_size_2"] = [f.width, f.height, d.draws()[-1][5], d.draws()[-1][6]]
     d.engine.viewport.free()
     return out
+
+
+# ---------------------------------------------------------------------- measurement (not a test)
+
+def _demo_scene(width, height, samples):
+    """demo/demo.json rebuilt in Blender: three 128-segment spheres with the reference stack, the
+    coated copper stack and glass (through the preset converter), a checker floor, an area light,
+    a sun and a constant world; the camera of the file (50 mm lens on a 36 mm sensor)."""
+    import json
+    from pathlib import Path
+    from mathutils import Matrix
+    from lamina.addon.presets.convert import material_from_json
+    from lamina.backend.geometry.mesh import uv_sphere
+    root = Path(__file__).resolve().parents[3]
+    doc = json.loads((root / "demo" / "demo.json").read_text())
+    sc = build.scene()
+    sc.render.resolution_x, sc.render.resolution_y = width, height
+    cam_data = bpy.data.cameras.new("Camera")
+    cam_data.lens, cam_data.sensor_width, cam_data.sensor_fit = 50.0, 36.0, "HORIZONTAL"
+    cam = build.link(bpy.data.objects.new("Camera", cam_data))
+    cam.matrix_world = Matrix(doc["camera"]["to_world"])
+    sc.camera = cam
+    mats = {}
+    for name in ("reference", "coated_copper", "glass"):
+        mats[name] = bpy.data.materials.new(name)
+        material_from_json(mats[name], doc["materials"][name], root / "demo", name)
+    floor_mat = build.diffuse_material("floor")
+    tree = floor_mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(str(root / "demo" / "textures" / "checker.png"))
+    tree.links.new(tex.outputs["Color"], tree.nodes["Diffuse BSDF"].inputs["Color"])
+    mats["floor"] = floor_mat
+    sphere = uv_sphere(0.75, 128)
+    me = bpy.data.meshes.new("ball")
+    me.from_pydata(sphere.positions.tolist(), [], sphere.indices.tolist())
+    me.shade_smooth()
+    me.materials.append(None)
+    for obj in doc["objects"]:
+        if obj["mesh"] == "ball":              # one mesh, three objects: the slot links to each object
+            o = build.link(bpy.data.objects.new(obj["name"], me))
+            o.matrix_world = Matrix(obj["to_world"])
+            o.material_slots[0].link = "OBJECT"
+            o.material_slots[0].material = mats[obj["materials"][0]]
+    build.plane("floor", size=40.0, material=floor_mat)
+    for l in doc["lights"]:
+        if l["type"] == "area":
+            ob = build.light("Area", "AREA", energy=l["power"], shape="RECTANGLE", size=l["size"],
+                             size_y=l["size_y"], color=l["color"])
+        else:
+            ob = build.light("Sun", "SUN", energy=l["strength"], angle=math.radians(l["angle"]), color=l["color"])
+        ob.matrix_world = Matrix(l["to_world"])
+    world = build.world_colour(tuple(doc["world"]["color"]), doc["world"]["strength"])
+    sc.lamina.max_bounces = doc["render"]["max_bounces"]
+    sc.lamina.viewport_samples = samples
+    sc.lamina.workers = 0
+    bpy.context.view_layer.update()
+    return sc, world
+
+
+def demo_latency(tmp, width=960, height=540, samples=4, repeats=3, standby=True):
+    """Rendered mode on the demo scene: first image after entering it (pre-started session, warm
+    kernel cache), first image after a view move and after a stack edit, session CPU when idle."""
+    sc, _ = _demo_scene(width, height, samples)
+    vp = _viewport_module()
+    runs = []
+    for r in range(repeats):
+        if standby:
+            vp._STANDBY["client"] = vp.start_client(int(sc.lamina.workers))
+            t = time.perf_counter()
+            while not vp._STANDBY["client"].warm:
+                vp._STANDBY["client"].poll()
+                time.sleep(0.02)
+                assert time.perf_counter() - t < 120, vp._STANDBY["client"].job.stderr_text()
+        d = Driver(sc, width=width, height=height)
+        cpu = lambda: _cpu(d.client.pid) if d.engine.viewport and d.client else 0.0  # noqa: E731
+        t0 = time.perf_counter()
+        d.update()
+        export_s = time.perf_counter() - t0
+        d.run(lambda d: d.draws())
+        first = time.perf_counter() - t0
+        first_frame = d.draws()[0]
+        d.run(lambda d: any(e[3] == 1 for e in d.draws()))          # a full-resolution image
+        time.sleep(0.2)
+        # view move: orbit the view a little (what the region's matrices do when navigating)
+        rv3d = d.context.region_data
+        from mathutils import Matrix
+        rv3d.view_matrix = rv3d.view_matrix @ Matrix.Rotation(math.radians(2.0), 4, "Z")
+        g0 = d.client.generation
+        c0 = cpu()
+        t0 = time.perf_counter()
+        d.draw()
+        d.run(lambda d: d.client.generation > g0 and d.drawn_generation(d.client.generation))
+        move = time.perf_counter() - t0
+        move_cpu = cpu() - c0
+        time.sleep(0.2)
+        # stack edit: the top interface's IOR of the reference stack
+        mat = bpy.data.materials["reference"]
+        mat.lamina.layers[0].ior = 1.45 + 0.01 * r
+        mat.update_tag()
+        g0 = d.client.generation
+        c0 = cpu()
+        t0 = time.perf_counter()
+        d.update()
+        d.run(lambda d: d.client.generation > g0 and d.drawn_generation(d.client.generation))
+        edit = time.perf_counter() - t0
+        edit_cpu = cpu() - c0
+        updated = d.client.last_updated
+        d.run(lambda d: d.client.idle, timeout=600)
+        time.sleep(0.5)
+        c0 = cpu()
+        time.sleep(5.0)
+        idle_cpu = (cpu() - c0) / 5.0
+        runs.append({"first": first, "export_and_send": export_s, "first_scale": first_frame[3],
+                     "move": move, "move_cpu": move_cpu, "edit": edit, "edit_cpu": edit_cpu,
+                     "edit_rebuilt": updated["rebuilt"], "edit_timings": updated["timings"],
+                     "idle_cpu_fraction": idle_cpu, "load": os.getloadavg()})
+        d.engine.viewport.free()
+        mat.lamina.layers[0].ior = 1.5
+    return runs
