@@ -19,6 +19,7 @@ _MODULES = (
     "ops.presets",
     "ops.export",
     "engine.engine",
+    "engine.viewport",
     "ui.compat",
     "ui.material",
     "ui.light",

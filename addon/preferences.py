@@ -31,6 +31,12 @@ class LaminaPreferences(bpy.types.AddonPreferences):
         name="Preview Samples", default=16, min=1, soft_max=256,
         description="Samples per pixel of material, light and world preview thumbnails")
 
+    viewport_prestart: BoolProperty(
+        name="Pre-start Viewport Renderer", default=True,
+        description="While a scene renders with Lamina, keep one idle renderer process ready (it loads "
+                    "its libraries and compiled kernels in advance, and uses no CPU while it waits), so "
+                    "Rendered shading shows its first image within about a second")
+
     user_preset_thumbnails: BoolProperty(
         name="Thumbnails for Saved Presets", default=True, update=_thumbnails_toggled,
         description="Render a thumbnail for each preset you save, in the background (one renderer "
@@ -41,6 +47,7 @@ class LaminaPreferences(bpy.types.AddonPreferences):
         layout.prop(self, "python_executable")
         layout.prop(self, "keep_files")
         layout.prop(self, "preview_samples")
+        layout.prop(self, "viewport_prestart")
         layout.prop(self, "user_preset_thumbnails")
 
 

@@ -18,6 +18,7 @@ COMMAND_MODULES = (
     "backend.bsdf_cli",        # bsdf albedo / eval / plot
     "backend.ies.cli",         # ies info / plot
     "backend.presets_cli",     # presets list / show
+    "backend.session.cli",     # session (interactive renderer, docs/session.md)
 )
 
 

@@ -56,7 +56,16 @@ class _Queue:
         return (self.slot, self.key, self.o, self.d, self.o32, self.d32, self.beta, self.pdf, self.delta)
 
 
+class RenderInterrupted(Exception):
+    """``PathTracer.render`` stopped between two bounces because ``interrupt()`` returned true."""
+
+
 class PathTracer:
+    #: Optional callable checked before every bounce of ``render``; when it returns true the work
+    #: item is abandoned (RenderInterrupted). The viewport session sets it so that an edit does
+    #: not wait for a whole work item.
+    interrupt = None
+
     def __init__(self, scene, accel):
         self.scene = scene
         self.accel = accel
@@ -103,6 +112,12 @@ class PathTracer:
         self.filter = scene.pixel_filter.tables()
         self.any_hidden = bool(soup.count) and not bool(soup.camera_visible.all())
 
+    def set_camera(self, camera) -> None:
+        """Render the next work items through another camera (a viewport session's view moved;
+        nothing else depends on the camera)."""
+        self.scene.camera = camera
+        self.camera = camera_vector(camera)
+
     # ------------------------------------------------------------------ work item
     def render(self, pixels: np.ndarray, spp: int, rng: np.random.Generator, sample0: int = 0) -> dict:
         """``spp`` samples (indices sample0 …) in each of ``pixels`` (flat, row 0 = top).
@@ -139,6 +154,8 @@ class PathTracer:
         for segment in range(self.max_segments):
             if active == 0:
                 break
+            if self.interrupt is not None and self.interrupt():
+                raise RenderInterrupted
             o32, d32 = cur.o32[:active], cur.d32[:active]
             t_in = tmax32[:active] if segment == 0 else np.full(active, 3e38, np.float32)
             prim, t, b1, b2 = self.accel.intersect32(o32, d32, t_in)

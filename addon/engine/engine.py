@@ -21,6 +21,7 @@ from ..export.camera import border_rect, film_size
 from ..export.scene import ExportError
 from .job import BackendJob, child_environment, render_command
 from .pixels import ALBEDO_PASS, NORMAL_PASS, fill_passes, load_npy
+from . import viewport
 
 PREVIEW_WORKERS = 1          # worker processes cost ~1 s to start; thumbnails are small
 
@@ -83,6 +84,7 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.job = None
+        self.viewport = None             # Rendered shading (viewport.py)
 
     def __del__(self):
         job = getattr(self, "job", None)
@@ -91,6 +93,18 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
                 job.kill_group()
             except Exception:  # noqa: BLE001 - interpreter shutdown
                 pass
+        try:
+            viewport.free_engine(self)   # leaving Rendered mode: the session ends with the engine
+        except Exception:  # noqa: BLE001 - interpreter shutdown
+            pass
+
+    # ------------------------------------------------------------------ viewport
+
+    def view_update(self, context, depsgraph):
+        viewport.view_update(self, context, depsgraph)
+
+    def view_draw(self, context, depsgraph):
+        viewport.view_draw(self, context, depsgraph)
 
     def cancel_requested(self) -> bool:
         """Esc in the UI (``test_break``). A plain method so tests can simulate it: RNA functions

@@ -116,7 +116,8 @@ class _OutputFile:
 class BackendJob:
     """One running backend process. ``poll()`` returns the JSON events that arrived."""
 
-    def __init__(self, cmd: list[str], *, env: dict | None = None, cwd: str | None = None):
+    def __init__(self, cmd: list[str], *, env: dict | None = None, cwd: str | None = None,
+                 stdin_pipe: bool = False):
         kwargs = {}
         if sys.platform == "win32":
             kwargs["creationflags"] = subprocess.CREATE_NEW_PROCESS_GROUP
@@ -127,7 +128,8 @@ class BackendJob:
         self._out, self._err = _OutputFile("out"), _OutputFile("err")
         try:
             self.proc = subprocess.Popen(cmd, stdout=self._out.child_fd, stderr=self._err.child_fd,
-                                         stdin=subprocess.DEVNULL, env=env, cwd=cwd, **kwargs)
+                                         stdin=subprocess.PIPE if stdin_pipe else subprocess.DEVNULL,
+                                         env=env, cwd=cwd, **kwargs)
         except BaseException:
             self._out.close()
             self._err.close()
@@ -138,6 +140,31 @@ class BackendJob:
         self._pending: list[dict] = []
         self._stderr: list[str] = []
         self.cancelled = False
+
+    # -- writing (a session's commands; only with stdin_pipe)
+
+    def send(self, line: str) -> bool:
+        """Write one line to the child's stdin. False if the child cannot take it any more
+        (exited, or its end of the pipe is closed). The child reads its stdin all the time,
+        so a line never waits for long; big payloads go through files (docs/session.md)."""
+        stdin = self.proc.stdin
+        if stdin is None or stdin.closed or self._exited():
+            return False
+        try:
+            stdin.write(line.encode("utf-8") + b"\n")
+            stdin.flush()
+        except (BrokenPipeError, OSError, ValueError):
+            return False
+        return True
+
+    def close_stdin(self) -> None:
+        """End of input: a session then ends by itself."""
+        stdin = self.proc.stdin
+        if stdin is not None and not stdin.closed:
+            try:
+                stdin.close()
+            except OSError:
+                pass
 
     # -- reading
 
@@ -254,6 +281,7 @@ class BackendJob:
             self.proc.wait(5)
         except subprocess.TimeoutExpired:
             pass
+        self.close_stdin()
         if self.proc.returncode is not None and self._out.is_open:
             self._read(final=True)                   # the last words, then the files go
             self._out.close()

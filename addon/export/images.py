@@ -74,6 +74,16 @@ class ImageExporter:
             tex["channel"] = channel
         return tex
 
+    def forget(self, image) -> None:
+        """Export ``image`` again when next asked (it was edited): a viewport session then gets
+        it under a new file name (generated and painted images) or reads the file again."""
+        pointers = {image.as_pointer()}
+        original = getattr(image, "original", None)
+        if original is not None:
+            pointers.add(original.as_pointer())
+        for key in [k for k in self._cache if k[0] in pointers]:
+            del self._cache[key]
+
     def file(self, source: Path) -> str:
         """A texture path for an image file on disk (a preset's texture): copied next to the
         scene for a portable export, else referenced where it is (absolute)."""

@@ -158,12 +158,17 @@ class SceneExporter:
 
     # ---------------------------------------------------------------- geometry
 
+    @staticmethod
+    def mesh_key(obj) -> tuple:
+        """What identifies an evaluated object's mesh: its mesh data-block (shared by instances)
+        or, for curves, text and the like, the object."""
+        if obj.type == "MESH":
+            return ("mesh", obj.data.as_pointer())
+        return ("object", obj.original.as_pointer() if obj.original else obj.as_pointer())
+
     def mesh_for(self, obj) -> str | None:
         """The mesh entry name for an evaluated object, extracting its mesh the first time."""
-        if obj.type == "MESH":
-            key = ("mesh", obj.data.as_pointer())
-        else:
-            key = ("object", obj.original.as_pointer() if obj.original else obj.as_pointer())
+        key = self.mesh_key(obj)
         if key in self._mesh_keys:
             return self._mesh_keys[key]
         if obj.type == "MESH":
@@ -237,22 +242,28 @@ class SceneExporter:
 
     # ---------------------------------------------------------------- whole scene
 
-    def build(self, camera_object, *, samples=None, seed_offset=0) -> dict:
+    def build(self, camera_object, *, samples=None, seed_offset=0, camera: dict | None = None,
+              film: dict | None = None) -> dict:
+        """The scene document. ``camera``/``film`` given (a viewport's view): used instead of
+        the scene camera's and the render resolution's."""
         scene = self.scene
-        if camera_object is None:
-            raise ExportError("the scene has no active camera (set one in Scene properties)")
-        width, height = film_size(scene.render)
-        try:
-            camera = camera_json(camera_object, scene)
-        except CameraError as exc:
-            raise ExportError(str(exc)) from None
+        if camera is None:
+            if camera_object is None:
+                raise ExportError("the scene has no active camera (set one in Scene properties)")
+            try:
+                camera = camera_json(camera_object, scene)
+            except CameraError as exc:
+                raise ExportError(str(exc)) from None
+        if film is None:
+            width, height = film_size(scene.render)
+            film = film_json(scene, width, height)
         for inst in self.depsgraph.object_instances:
             self.add_instance(inst)
         if not self.preview:
             self.notes.extend(scene_notes(scene, getattr(self.depsgraph, "view_layer", None)))
         doc = {"format": "lamina-scene", "version": 1,
                "_generator": "Lamina Blender add-on",
-               "film": film_json(scene, width, height),
+               "film": film,
                "camera": camera,
                "render": render_json(scene, samples=samples, seed_offset=seed_offset),
                "materials": self.materials,

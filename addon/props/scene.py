@@ -22,6 +22,9 @@ FILTERS = (
 class LaminaRenderSettings(PropertyGroup):
     samples: IntProperty(name="Samples", default=64, min=1, soft_max=4096, max=1 << 24,
                          description="Samples per pixel (the maximum when a noise threshold is set)")
+    viewport_samples: IntProperty(name="Viewport Samples", default=32, min=0, soft_max=4096, max=1 << 24,
+                                  description="Samples per pixel of Rendered shading in the viewport, "
+                                              "after which it stops; 0 = until stopped")
     time_limit: FloatProperty(name="Time Limit", default=0.0, min=0.0, unit='TIME_ABSOLUTE',
                               description="Stop after this time (after a full sample pass); 0 = no limit")
     noise_threshold: FloatProperty(name="Noise Threshold", default=0.0, min=0.0, max=1.0, precision=4,

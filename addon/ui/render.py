@@ -15,6 +15,7 @@ def _column(layout):
 
 def draw_sampling(layout, settings) -> None:
     col = _column(layout)
+    col.prop(settings, "viewport_samples")
     col.prop(settings, "samples")
     col.prop(settings, "noise_threshold")
     sub = col.column()

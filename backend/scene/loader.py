@@ -84,7 +84,22 @@ def known(names, most: int = 12) -> str:
 REBASE_ABOVE = 1000.0   # world units: a camera farther than this from the origin rebases the scene
 
 
-def rebased(data):
+def rebase_offset(data) -> np.ndarray | None:
+    """The offset ``rebased`` subtracts: the camera position if it is more than REBASE_ABOVE
+    units from the origin, else None (also for malformed input, left for validation)."""
+    try:
+        cam = np.asarray(data["camera"]["to_world"], dtype=np.float64)
+        if cam.shape != (4, 4):
+            return None
+        offset = cam[:3, 3].copy()
+        if not np.all(np.isfinite(offset)) or np.linalg.norm(offset) <= REBASE_ABOVE:
+            return None
+        return offset
+    except (KeyError, TypeError, ValueError, IndexError):
+        return None
+
+
+def rebased(data, offset: np.ndarray | None = None):
     """The scene moved so that the camera sits at the origin, if it is more than REBASE_ABOVE
     units away from it (a georeferenced or large-world scene); else ``data`` itself.
 
@@ -93,34 +108,42 @@ def rebased(data):
     where the origin is — textures use UVs, the environment and sun only directions — so
     subtracting one offset from the translation of every ``to_world`` (camera, objects, lights)
     changes nothing but precision. The offset is exact in float64 and the document is not
-    modified (a shallow copy is returned). Malformed input is left for validation to report."""
+    modified (a shallow copy is returned). Malformed input is left for validation to report.
+
+    ``offset`` given: subtract that one instead (a viewport session keeps the offset it chose
+    when the scene arrived, so later camera moves do not move the world)."""
+    if offset is None:
+        offset = rebase_offset(data)
+        if offset is None:
+            return data
     try:
-        cam = np.asarray(data["camera"]["to_world"], dtype=np.float64)
-        if cam.shape != (4, 4):
-            return data
-        offset = cam[:3, 3].copy()
-        if not np.all(np.isfinite(offset)) or np.linalg.norm(offset) <= REBASE_ABOVE:
-            return data
-
-        def moved(node, default_identity: bool):
-            if not isinstance(node, dict) or ("to_world" not in node and not default_identity):
-                return node
-            m = np.asarray(node.get("to_world", np.eye(4).tolist()), dtype=np.float64)
-            if m.shape != (4, 4):
-                return node
-            m = m.copy()
-            m[:3, 3] -= offset
-            return {**node, "to_world": m.tolist()}
-
-        out = dict(data)
-        out["camera"] = moved(data["camera"], False)
-        if isinstance(data.get("objects"), list):
-            out["objects"] = [moved(o, True) for o in data["objects"]]
-        if isinstance(data.get("lights"), list):
-            out["lights"] = [moved(l, False) for l in data["lights"]]
-        return out
+        return rebase_sections(data, offset)
     except (KeyError, TypeError, ValueError, IndexError):
         return data
+
+
+def rebase_sections(data: dict, offset: np.ndarray) -> dict:
+    """``data`` with ``offset`` subtracted from the translation of the camera, every object and
+    every light (the sections that are present; a shallow copy). A malformed transform raises
+    ValueError or TypeError."""
+    def moved(node, default_identity: bool):
+        if not isinstance(node, dict) or ("to_world" not in node and not default_identity):
+            return node
+        m = np.asarray(node.get("to_world", np.eye(4).tolist()), dtype=np.float64)
+        if m.shape != (4, 4):
+            raise ValueError("to_world is not a 4x4 matrix")
+        m = m.copy()
+        m[:3, 3] -= offset
+        return {**node, "to_world": m.tolist()}
+
+    out = dict(data)
+    if "camera" in data:
+        out["camera"] = moved(data["camera"], False)
+    if isinstance(data.get("objects"), list):
+        out["objects"] = [moved(o, True) for o in data["objects"]]
+    if isinstance(data.get("lights"), list):
+        out["lights"] = [moved(l, False) for l in data["lights"]]
+    return out
 
 
 def load_scene_data(data, where: str = "<scene>", base_dir: Path | None = None) -> Scene:
@@ -128,12 +151,7 @@ def load_scene_data(data, where: str = "<scene>", base_dir: Path | None = None) 
     ctx = LoadContext(where, base_dir)
     root = Node(data, "", ctx)
     root.require_object()
-    fmt = root.string("format")
-    if fmt != FORMAT:
-        raise root.fail(f"expected {FORMAT!r}, got {short(fmt)!r}", "format")
-    version = root.integer("version")
-    if version != VERSION:
-        raise root.fail(f"unsupported scene version {version} (this Lamina reads version {VERSION})", "version")
+    check_header(root)
 
     settings = parse_settings(root.optional_child("render"), ctx)
     width, height, pixel_filter, crop, transparent = parse_film(root.child("film"))
@@ -141,48 +159,44 @@ def load_scene_data(data, where: str = "<scene>", base_dir: Path | None = None) 
     camera = parse_camera(root.child("camera"))
 
     materials, names = parse_materials(root.optional_child("materials"))
-    meshes = {}
-    meshes_node = root.optional_child("meshes")
-    if meshes_node is not None:
-        from ..limits import geometry_memory_problem
-        held = 0
-        for name, mnode in meshes_node.entries():
-            meshes[name] = parse_mesh(mnode)
-            held += meshes[name].triangle_count
-            problem = geometry_memory_problem(held)
-            if problem:
-                raise mnode.fail(problem.replace("the objects hold", "the meshes so far hold")
-                                 .replace(" (instances counted)", ""))
+    meshes = parse_meshes(root.optional_child("meshes"))
     soup = flatten_objects(root.optional_child("objects"), meshes, materials, names, ctx)
-
-    from ..lights import load_all as load_lights
-    light_parsers, world_parsers = load_lights()
-    lights, light_nodes = [], []
     lights_node = root.optional_child("lights")
-    if lights_node is not None:
-        for lnode in lights_node.items():
-            lights.append(dispatch(lnode, light_parsers))
-            light_nodes.append(lnode)
-    world = None
-    world_node = root.optional_child("world")
-    if world_node is not None:
-        world_node.require_object()
-        if world_node.value.get("type") != "none":
-            world = dispatch(world_node, world_parsers)
-        else:
-            world_node.ignore("type")
-            world_node.finish()
+    lights = parse_lights(lights_node)
+    light_nodes = lights_node.items() if lights_node is not None else []   # for the warnings
+    world = parse_world(root.optional_child("world"))
     root.finish()
+    return assemble_scene(ctx, width, height, pixel_filter, crop, transparent, camera, settings,
+                          materials, names, soup, lights, world, light_nodes=light_nodes, root=root)
 
+
+def check_header(root: Node) -> None:
+    fmt = root.string("format")
+    if fmt != FORMAT:
+        raise root.fail(f"expected {FORMAT!r}, got {short(fmt)!r}", "format")
+    version = root.integer("version")
+    if version != VERSION:
+        raise root.fail(f"unsupported scene version {version} (this Lamina reads version {VERSION})", "version")
+
+
+def assemble_scene(ctx: LoadContext, width: int, height: int, pixel_filter, crop, transparent: bool, camera,
+                   settings: RenderSettings, materials: list, names: list[str], soup: TriangleSoup,
+                   lights: list, world, bounds: tuple[np.ndarray, float] | None = None,
+                   light_nodes: list | None = None, root: Node | None = None) -> Scene:
+    """The renderable scene from its parsed sections: the mesh light of emissive triangles, every
+    light prepared with the scene bounds (computed unless ``bounds`` is given), the warnings (those
+    naming a light or the render options when their nodes, ``light_nodes`` and ``root``, are given)."""
     mesh_light = build_mesh_light(soup, materials)
     all_lights = list(lights) + ([mesh_light] if mesh_light is not None else []) + ([world] if world is not None else [])
-    center, radius = scene_bounds(soup, lights, camera)
+    center, radius = bounds if bounds is not None else scene_bounds(soup, lights, camera)
     for light in all_lights:
         light.prepare(center, radius)
     scene = Scene(ctx.where, width, height, pixel_filter, crop, transparent, camera, settings, materials, names,
                   soup, all_lights, world, mesh_light, ctx.warnings, center, radius)
-    warn_dark_lights(lights, light_nodes, ctx)
-    warn_unused_layered_options(root, materials, ctx)
+    if light_nodes is not None:
+        warn_dark_lights(lights, light_nodes, ctx)
+    if root is not None:
+        warn_unused_layered_options(root, materials, ctx)
     if not all_lights:
         ctx.warn("", "the scene has no lights and no world: the image will be black")
     elif all(light.power() <= 0.0 for light in all_lights):
@@ -268,6 +282,42 @@ def parse_materials(node: Node | None):
         materials.append(parse_material(mnode))
         names.append(name)
     return materials, names
+
+
+def parse_meshes(node: Node | None) -> dict[str, Mesh]:
+    """The named meshes; refused as soon as the triangles so far cannot fit in memory."""
+    meshes = {}
+    if node is not None:
+        from ..limits import geometry_memory_problem
+        held = 0
+        for name, mnode in node.entries():
+            meshes[name] = parse_mesh(mnode)
+            held += meshes[name].triangle_count
+            problem = geometry_memory_problem(held)
+            if problem:
+                raise mnode.fail(problem.replace("the objects hold", "the meshes so far hold")
+                                 .replace(" (instances counted)", ""))
+    return meshes
+
+
+def parse_lights(node: Node | None) -> list:
+    from ..lights import load_all as load_lights
+    light_parsers, _ = load_lights()
+    return [dispatch(lnode, light_parsers) for lnode in node.items()] if node is not None else []
+
+
+def parse_world(node: Node | None):
+    """The world light, or None (no world, or ``{"type": "none"}``)."""
+    if node is None:
+        return None
+    node.require_object()
+    if node.value.get("type") == "none":
+        node.ignore("type")
+        node.finish()
+        return None
+    from ..lights import load_all as load_lights
+    _, world_parsers = load_lights()
+    return dispatch(node, world_parsers)
 
 
 def default_material():
