@@ -24,6 +24,8 @@ def register(sub) -> None:
     p.add_argument("--sampler", choices=("sobol", "independent"),
                    help="path sampler (overrides the scene; default sobol: scrambled Sobol points)")
     p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), help="parallel workers (default: all cores)")
+    p.add_argument("--parallel", choices=("threads", "processes"),
+                   help="kind of worker (default threads; processes: a crashed worker loses nothing)")
     p.add_argument("--max-bounces", type=_int_in(0, MAX_BOUNCES), help="Cycles-style max bounces")
     p.add_argument("--time-limit", type=_number(0.0), help="seconds (0 = none); stop after this time, never before the first full pass")
     p.add_argument("--noise-target", type=_number(0.0, 1.0), help="adaptive sampling: relative error target (0 = off)")
@@ -144,7 +146,7 @@ def cmd_render(args) -> int:
         options = RenderOptions(spp=args.spp, seed=args.seed, workers=args.workers,
                                 time_limit=args.time_limit, noise_target=args.noise_target,
                                 min_spp=args.min_spp, max_bounces=args.max_bounces, sampler=args.sampler,
-                                resolution=args.resolution)
+                                resolution=args.resolution, parallel=args.parallel)
         options.apply(scene)
         if args.resolution is not None:
             from .limits import film_memory_problem

@@ -56,7 +56,7 @@ def workers_of(pid: int) -> list[int]:
 
 def render(scene: Path, out: Path, args, kill_at: float | None = None, rng: random.Random | None = None):
     cmd = [sys.executable, "-m", "backend", "render", str(scene), "-o", str(out), "--workers", "2",
-           "--progress", "json"]
+           "--parallel", "processes", "--progress", "json"]
     if args.resolution:
         cmd += ["--resolution", args.resolution]
     if args.spp:

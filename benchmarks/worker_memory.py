@@ -4,9 +4,10 @@
 
 Renders a scene holding one big mesh (a displaced grid, default 1298² × 2 = 3.37 M triangles, with
 per-vertex normals and UVs, written once as .npz) at 64 × 64 pixels, 1 sample, with each worker
-count: ``threads`` uses a diffuse material (compiled: worker threads share one scene and one
-BVH), ``processes`` a two-interface layered stack (worker processes, each loading the scene and
-building its own BVH). A sampler reads the proportional set size (PSS, /proc/PID/smaps_rollup:
+count: ``threads`` uses a diffuse material and worker threads (they share one scene and one BVH),
+``processes`` a two-interface layered stack and ``--parallel processes`` (forked on Linux after
+the scene and BVH are built, so they share them; spawned with LAMINA_WORKER_START=spawn, each
+loading the scene and building its own BVH). A sampler reads the proportional set size (PSS, /proc/PID/smaps_rollup:
 shared pages split between the processes sharing them) and the RSS of the render process and
 all its descendants every 50 ms; the peak of their sums is the render's peak memory. The
 process's own ru_maxrss (self, and largest child) is printed too.
@@ -107,14 +108,14 @@ def _mem(pid: int) -> tuple[int, int]:
         return 0, 0
 
 
-def measure(scene_path: Path, workers: int, out: Path) -> dict:
+def measure(scene_path: Path, workers: int, out: Path, parallel: str = "threads") -> dict:
     code = ("import resource, runpy, sys; sys.argv = ['backend'] + sys.argv[1:]; "
             "from backend import cli; rc = cli.main(sys.argv[1:]); "
             "s = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; "
             "c = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss; "
             "print('MAXRSS', s, c, file=sys.stderr); sys.exit(rc)")
     proc = subprocess.Popen([sys.executable, "-c", code, "render", str(scene_path), "-o", str(out),
-                             "--workers", str(workers), "--progress", "json"], cwd=ROOT,
+                             "--workers", str(workers), "--parallel", parallel, "--progress", "json"], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     peak = {"pss": 0, "rss": 0, "procs": 0, "pss_with_workers": 0}
     done = threading.Event()
@@ -165,7 +166,7 @@ def main(argv=None) -> int:
         path = work / f"{kind}.json"
         path.write_text(json.dumps(scene(str(mesh), kind == "processes")))
         for w in args.workers:
-            r = measure(path, w, work / "out.exr")
+            r = measure(path, w, work / "out.exr", kind)
             rows.append((kind, r))
             print(f"{kind:9s} workers={w}: {r['parallel']:9s} peak PSS {r['peak_pss'] / 2**30:5.2f} GiB, "
                   f"({r['processes_at_peak']} processes; while worker processes ran: "

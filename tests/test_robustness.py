@@ -361,7 +361,7 @@ def layered_scene(size: int, spp: int) -> dict:
 
 @pytest.fixture(scope="module")
 def layered_reference(tmp_path_factory):
-    """A small layered scene (rendered by worker processes) and its undisturbed image."""
+    """A small layered scene and its undisturbed image (one worker)."""
     d = tmp_path_factory.mktemp("lost")
     path = d / "scene.json"
     path.write_text(json.dumps(layered_scene(40, 6)))
@@ -379,7 +379,7 @@ def render_with_faults(path: Path, out: Path, faults: list[str], workers: int = 
         (folder / name).write_text("")
     env = dict(os.environ, LAMINA_TEST_FAULT_DIR=str(folder), LAMINA_WORKER_START=start)
     proc = subprocess.run([sys.executable, "-m", "backend", "render", str(path), "-o", str(out),
-                           "--workers", str(workers), "--progress", "json", *extra], cwd=ROOT, env=env,
+                           "--workers", str(workers), "--parallel", "processes", "--progress", "json", *extra], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=600)
     events = [json.loads(ln) for ln in proc.stdout.splitlines() if ln.startswith("{")]
     return proc, events, sorted(p.name for p in folder.iterdir())
@@ -388,8 +388,8 @@ def render_with_faults(path: Path, out: Path, faults: list[str], workers: int = 
 @pytest.mark.slow
 @pytest.mark.parametrize("start", ["fork", "spawn"])
 def test_a_killed_worker_process_loses_nothing(layered_reference, tmp_path, start):
-    """SIGKILL and SIGSEGV of worker processes (layered scenes render with processes; forked on
-    Linux, spawned elsewhere): their items are redone by new workers, the image is bit-identical
+    """SIGKILL and SIGSEGV of worker processes (``--parallel processes``; forked on Linux,
+    spawned elsewhere): their items are redone by new workers, the image is bit-identical
     to an undisturbed render, and each loss is one warning; exit 0, no traceback."""
     path, reference = layered_reference
     out = tmp_path / "killed.exr"
@@ -463,8 +463,8 @@ def test_worker_processes_share_the_scene(tmp_path):
     wm.grid_mesh(mesh, 500)                      # 500 000 triangles
     path = tmp_path / "scene.json"
     path.write_text(json.dumps(wm.scene(str(mesh), layered=True)))
-    one = wm.measure(path, 1, tmp_path / "one.exr")
-    two = wm.measure(path, 2, tmp_path / "two.exr")
+    one = wm.measure(path, 1, tmp_path / "one.exr", "processes")
+    two = wm.measure(path, 2, tmp_path / "two.exr", "processes")
     assert two["parallel"] == "processes" and two["peak_pss_while_workers"] > 0
     assert two["peak_pss"] <= 1.5 * one["peak_pss"], (one, two)
     assert two["peak_pss_while_workers"] <= 1.5 * one["peak_pss"], (one, two)
