@@ -372,14 +372,15 @@ def layered_reference(tmp_path_factory):
     return path, read_exr(ref)[0]
 
 
-def render_with_faults(path: Path, out: Path, faults: list[str], workers: int = 2, extra=(), start="fork"):
+def render_with_faults(path: Path, out: Path, faults: list[str], workers: int = 2, extra=(), start="fork",
+                       parallel="processes"):
     folder = out.parent / f"faults-{out.stem}"
     folder.mkdir()
     for name in faults:
         (folder / name).write_text("")
     env = dict(os.environ, LAMINA_TEST_FAULT_DIR=str(folder), LAMINA_WORKER_START=start)
     proc = subprocess.run([sys.executable, "-m", "backend", "render", str(path), "-o", str(out),
-                           "--workers", str(workers), "--parallel", "processes", "--progress", "json", *extra], cwd=ROOT, env=env,
+                           "--workers", str(workers), "--parallel", parallel, "--progress", "json", *extra], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=600)
     events = [json.loads(ln) for ln in proc.stdout.splitlines() if ln.startswith("{")]
     return proc, events, sorted(p.name for p in folder.iterdir())
@@ -473,7 +474,7 @@ def test_worker_processes_share_the_scene(tmp_path):
 
 @pytest.mark.parametrize("workers", [1, 2])
 def test_an_exception_in_a_worker_thread_stops_with_an_error_and_the_partial_image(tmp_path, workers):
-    """Analytic scenes render with threads (which cannot die alone): an exception in one is
+    """Worker threads (the default; they cannot die alone): an exception in one is
     reported in one line (exit 2) and the samples merged before it are written, never lost."""
     data = scene(48, 48, front_perspective(4.0, 0.3), {"m": {"type": "diffuse", "color": 0.8}},
                  {"ball": {"shape": "sphere", "radius": 1.0, "segments": 32}}, [{"mesh": "ball", "materials": ["m"]}],
@@ -483,7 +484,7 @@ def test_an_exception_in_a_worker_thread_stops_with_an_error_and_the_partial_ima
     path.write_text(json.dumps(data))
     out = tmp_path / "t.exr"
     partial = tmp_path / "p.npy"
-    proc, events, left = render_with_faults(path, out, ["raise-1"], workers=workers,
+    proc, events, left = render_with_faults(path, out, ["raise-1"], workers=workers, parallel="threads",
                                             extra=("--partial", str(partial)))
     assert proc.returncode == 2 and left == [] and "Traceback" not in proc.stderr
     assert events[0]["parallel"] == "threads"

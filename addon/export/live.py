@@ -6,11 +6,14 @@ files), material JSON and exported images — and throws away exactly what an up
 instances again (cheap: matrices and cache look-ups), builds the document with the same
 ``SceneExporter`` as F12, and ``changes`` compares it section by section with what the session
 already has: only differing sections are sent (``materials`` and ``meshes`` entry by entry). A
-changed mesh is written under a new file name, so the session knows to read it again.
+changed mesh is written under a new file name, so the session knows to read it again; a mesh
+read again with the same content (Blender may flag an object's geometry when only its material
+changed) keeps its name, so nothing is sent.
 """
 from __future__ import annotations
 
 import copy
+import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -74,11 +77,28 @@ class _LiveSceneExporter(SceneExporter):
                 self.stats["meshes"] += 1
             return entry.name
         before = self.stats["triangles"]
-        name = super().mesh_for(obj)
+        name = super().mesh_for(obj)   # through store_mesh below
         if name is not None:
             self.live.mesh_names.add(name)
         cache[key] = _Mesh(name, _data_name(obj), self.stats["triangles"] - before, {owner})
-        self.live.meshes_written += name is not None
+        return name
+
+
+    def store_mesh(self, base: str, arrays: dict) -> str:
+        """A mesh whose content was written before (same base name) keeps that file and name."""
+        digest = hashlib.blake2b(digest_size=16)
+        for key in sorted(arrays):
+            a = arrays[key]
+            digest.update(key.encode() + str(a.dtype).encode() + str(a.shape).encode())
+            digest.update(a.tobytes())
+        digest = digest.hexdigest()
+        known = self.live.mesh_digests
+        for name, d in known.items():
+            if d == digest and (name == base or name.startswith(base + "_")):
+                return name
+        name = super().store_mesh(base, arrays)
+        known[name] = digest
+        self.live.meshes_written += 1
         return name
 
 
@@ -90,6 +110,7 @@ class LiveExporter:
         self.material_cache: dict[str, dict] = {}
         self.mesh_cache: dict[tuple, _Mesh] = {}
         self.mesh_names: set[str] = set()
+        self.mesh_digests: dict[str, str] = {}   # mesh name -> digest of the arrays in its file
         self.meshes_written = 0
         self.sent: dict | None = None          # the document the session has (sections)
         self.notes: list[str] = []
@@ -140,6 +161,8 @@ class LiveExporter:
         used = set(doc["meshes"])
         for key in [k for k, m in self.mesh_cache.items() if m.name is not None and m.name not in used]:
             del self.mesh_cache[key]
+        for name in [n for n in self.mesh_digests if n not in used]:
+            del self.mesh_digests[name]
 
     def changes(self, doc: dict) -> dict:
         """The sections of ``doc`` that differ from what was sent (and remember ``doc`` as sent)."""

@@ -183,21 +183,29 @@ class SceneExporter:
         name = None
         if arrays is not None:
             base = safe_name(obj.data.name if obj.type == "MESH" else obj.name)
-            name = base
-            n = 1
-            while name in self._mesh_names:
-                n += 1
-                name = f"{base}_{n}"
-            self._mesh_names.add(name)
-            arrays = sanitise(arrays, name, self.notes)
+            arrays = sanitise(arrays, base, self.notes)
+            name = self.store_mesh(base, arrays)
             self.stats["triangles"] += len(arrays["indices"])
             self.stats["meshes"] += 1
-            if self.directory is not None:
-                folder = self.directory / self.mesh_folder
-                folder.mkdir(parents=True, exist_ok=True)
-                write_npz(folder / f"{name}.npz", arrays)
             self.meshes[name] = {"file": f"{self.mesh_folder}/{name}.npz"}
         self._mesh_keys[key] = name
+        return name
+
+    def unique_mesh_name(self, base: str) -> str:
+        name, n = base, 1
+        while name in self._mesh_names:
+            n += 1
+            name = f"{base}_{n}"
+        self._mesh_names.add(name)
+        return name
+
+    def store_mesh(self, base: str, arrays: dict) -> str:
+        """Name a new mesh entry and write its file (when exporting to a folder)."""
+        name = self.unique_mesh_name(base)
+        if self.directory is not None:
+            folder = self.directory / self.mesh_folder
+            folder.mkdir(parents=True, exist_ok=True)
+            write_npz(folder / f"{name}.npz", arrays)
         return name
 
     def add_instance(self, inst) -> None:
