@@ -146,8 +146,9 @@ class Driver:
     def draw(self):
         self.cls.view_draw(self.engine, self.context, bpy.context.evaluated_depsgraph_get())
 
-    def run(self, until, timeout=60.0):
-        """Tick and draw until ``until(self)``; returns seconds waited."""
+    def run(self, until, timeout=300.0):
+        """Tick and draw until ``until(self)``; returns seconds waited. The timeout allows a cold
+        kernel cache (the first session of a run may compile the kernels: ~80 s CPU)."""
         t0 = time.perf_counter()
         while time.perf_counter() - t0 < timeout:
             before = self.engine.redraws
