@@ -123,7 +123,7 @@ class ViewportRender:
         """view_update: the scene changed (or the viewport entered Rendered mode)."""
         try:
             scene = depsgraph.scene
-            if self.client is None:
+            if not self.scene_sent:
                 self._start(engine, context, depsgraph)
             else:
                 self.live.invalidate(depsgraph)
@@ -143,7 +143,7 @@ class ViewportRender:
         """view_draw: draw the newest frame of the newest generation (or nothing)."""
         scene = depsgraph.scene
         try:
-            if self.client is None:
+            if not self.scene_sent:
                 if self.error is None:
                     self._start(engine, context, depsgraph)
             else:
@@ -176,16 +176,26 @@ class ViewportRender:
 
     # ------------------------------------------------------------------ session
 
+    @property
+    def scene_sent(self) -> bool:
+        """The session has a whole scene (edits are sent as updates only after that)."""
+        return self.client is not None and self.live is not None and self.live.sent is not None
+
     def _start(self, engine, context, depsgraph) -> None:
+        """Start (or take) the session if there is none, and send it the whole scene. An export
+        that fails leaves the session waiting for the scene: the next update tries again."""
         scene = depsgraph.scene
         self.view = self.compute_view(engine, context, scene)
-        workers = int(scene.lamina.workers)
-        python, env, _ = _settings()
-        client = take_standby(_command(python, Path("frames"), workers))
+        client = self.client
         if client is None:
-            client = start_client(workers)
-        self.client, self.folder = client, client.folder
-        self.live = LiveExporter(self.folder / "scene")
+            workers = int(scene.lamina.workers)
+            python, env, _ = _settings()
+            client = take_standby(_command(python, Path("frames"), workers))
+            if client is None:
+                client = start_client(workers)
+            self.client, self.folder = client, client.folder
+            self.live = LiveExporter(self.folder / "scene")
+        self.pending = {}
         doc = self.live.export(depsgraph, *self.view)
         self.live.sent = doc
         self._note(self.live.notes)
@@ -218,7 +228,8 @@ class ViewportRender:
         now = time.perf_counter()
         answered = c.answered >= c.generation
         shown = c.scene_error is not None or (
-            self.shown_generation == c.generation and now - self.shown_at >= HOLD)
+            self.shown_generation == c.generation and self.shown_at is not None
+            and now - self.shown_at >= HOLD)
         if not ((answered and shown) or now - c.sent_at >= MAX_WAIT):
             return False
         changes, self.pending = self.pending, {}
@@ -240,6 +251,10 @@ class ViewportRender:
         if c.scene_error is not None and c.scene_error not in self.reported:
             self.reported.add(c.scene_error)
             _console(c.scene_error)
+        for warning in c.warnings:                  # the renderer's own warnings, once each
+            if warning not in self.reported:
+                self.reported.add(warning)
+                _console(f"warning: {warning}")
         return c.frame_waiting or sent or before != after or bool(self.pending)
 
     @property
@@ -485,13 +500,15 @@ def stop_all(grace: float = STOP_GRACE) -> None:
 
 
 def kill_all() -> None:
-    """Interpreter exit: end every session's process group at once."""
+    """Interpreter exit: end every session's process group at once and remove its folder."""
     for vr in list(_SESSIONS):
         if vr.client is not None:
             vr.client.kill()
+            _remove(vr.folder)
     client = _STANDBY["client"]
     if client is not None:
         client.kill()
+        _remove(client.folder)
 
 
 @bpy.app.handlers.persistent

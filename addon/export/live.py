@@ -151,7 +151,11 @@ class LiveExporter:
         """The whole document for this depsgraph and view."""
         exporter = _LiveSceneExporter(depsgraph, self)
         doc = exporter.build(None, camera=camera, film=film)
-        doc["render"] = render_json(depsgraph.scene)
+        # The session's sample target is Viewport Samples (set_samples); the final render's
+        # samples, adaptive sampling and time limit do not apply, so editing them must not
+        # restart the viewport: they are left out.
+        doc["render"] = {k: v for k, v in render_json(depsgraph.scene).items()
+                         if k not in ("spp", "noise_target", "min_spp", "time_limit")}
         self.notes = exporter.notes
         self.stats = dict(exporter.stats)
         self._forget_unused(doc)

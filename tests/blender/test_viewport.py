@@ -80,6 +80,9 @@ def test_an_export_error_is_shown_not_raised(results):
     assert r["status"] == "Lamina | Error: material 'Ball': material 'Ball' has an empty layer stack"
     assert "Traceback" not in r["console"] and r["console"].count("\n") == 1
     assert r["after"] == "Lamina | Sample 2/2 | Done" and not r["new_generation"]
+    # present when entering Rendered mode: shown, nothing sent; fixed: the scene renders
+    assert r["entering_status"] == r["status"] and r["entering_scene_sent"] is False
+    assert r["fixed_status"] == "Lamina | Sample 2/2 | Done" and r["fixed_frames"] > 0
 
 
 def test_edits_wait_for_the_previous_image_and_go_out_together(results):
@@ -92,6 +95,7 @@ def test_more_viewport_samples_continue_without_restarting(results):
     r = result_of(results, "samples_change")
     assert r["generation_before"] == r["generation_after"] == 1
     assert r["spp"][0] == 2 and r["spp"][-1] == 5
+    assert r["generation_after_final_settings"] == r["generation_before"]
 
 
 def _rays(camera, st):

@@ -403,6 +403,27 @@ def export_error(tmp):
     out = {"status": status, "console": err.getvalue(), "after": d.engine.stats[-1],
            "new_generation": d.client.generation != g0}
     d.engine.viewport.free()
+    # The error already there when entering Rendered mode: nothing is sent until it is fixed,
+    # then the whole scene goes out and renders.
+    bpy.ops.wm.read_homefile(use_empty=True)
+    sc = _scene(samples=2)
+    mat = bpy.data.materials["Ball"]
+    mat.lamina.use_stack = True
+    d = Driver(sc)
+    with contextlib.redirect_stderr(io.StringIO()):
+        d.update()
+        d.draw()
+        d.draw()
+    out["entering_status"] = d.engine.stats[-1]
+    out["entering_scene_sent"] = d.engine.viewport.scene_sent
+    uploads = len([e for e in RecordingDrawer.log if e[0] == "upload"])
+    mat.lamina.use_stack = False
+    mat.update_tag()
+    d.update()
+    d.run(lambda d: d.client.idle and d.drawn_generation(d.client.generation))
+    out["fixed_status"] = d.engine.stats[-1]
+    out["fixed_frames"] = len([e for e in RecordingDrawer.log if e[0] == "upload"]) - uploads
+    d.engine.viewport.free()
     return out
 
 
@@ -444,6 +465,16 @@ def samples_change(tmp):
     d.run(lambda d: d.client.idle and d.draws()[-1][4] == 5)
     out = {"generation_before": g, "generation_after": d.client.generation,
            "spp": [e[4] for e in d.draws() if e[1] == g]}
+    # The final render's samples, noise threshold, minimum samples and time limit do not apply
+    # to the viewport: editing them sends nothing and keeps the image.
+    sc.lamina.samples = 7
+    sc.lamina.noise_threshold = 0.05
+    sc.lamina.min_samples = 3
+    sc.lamina.time_limit = 9.0
+    sc.update_tag()
+    d.update()
+    d.run(lambda d: not d.engine.viewport.pending)
+    out["generation_after_final_settings"] = d.client.generation
     d.engine.viewport.free()
     return out
 
