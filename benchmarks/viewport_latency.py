@@ -7,7 +7,8 @@ environment's ``bpy`` module): the add-on's Rendered-mode engine drives a real b
 on the demo scene (rebuilt in Blender), with a stand-in for the GPU drawing call (headless
 Blender cannot draw). Per repeat it measures, in wall seconds from the Blender-side call:
 
-* first image after entering Rendered mode (a pre-started standby session, warm kernel cache),
+* first image after entering Rendered mode (warm kernel cache; a pre-started standby session, as
+  the add-on keeps one by default, or with --no-standby a renderer process started then),
 * first updated image drawn after a 2° view orbit,
 * first updated image drawn after a stack edit (the top interface's IOR),
 * the session's CPU use (process + children) over 5 s once the viewport sample count is reached.
@@ -33,20 +34,23 @@ def main(argv=None) -> int:
     ap.add_argument("--width", type=int, default=960)
     ap.add_argument("--height", type=int, default=540)
     ap.add_argument("--samples", type=int, default=4, help="Viewport Samples")
+    ap.add_argument("--no-standby", action="store_true",
+                    help="no pre-started session: entering Rendered mode starts the renderer process")
     args = ap.parse_args(argv)
     sys.path.insert(0, str(ROOT / "tests" / "blender"))
     from bpy_harness import run_cases
     tmp = Path(tempfile.mkdtemp(prefix="lamina-vp-latency-"))
     res = run_cases("viewport_cases", ["demo_latency"], tmp=tmp, timeout=1800,
                     args={"demo_latency": {"width": args.width, "height": args.height,
-                                           "samples": args.samples, "repeats": args.repeats}})
+                                           "samples": args.samples, "repeats": args.repeats,
+                                           "standby": not args.no_standby}})
     runs = res["demo_latency"]
     if isinstance(runs, dict) and "error" in runs:
         print(runs["error"], file=sys.stderr)
         return 1
     load = os.getloadavg()
     print(f"viewport latency, demo scene {args.width}×{args.height}, Viewport Samples {args.samples}, "
-          f"{len(runs)} repeats (load at end {load[0]:.2f} {load[1]:.2f})")
+          f"{'no standby session' if args.no_standby else 'pre-started standby session'}, {len(runs)} repeats (load at end {load[0]:.2f} {load[1]:.2f})")
 
     def row(label, key, unit="s", scale=1.0, goal=""):
         vals = [r[key] * scale for r in runs]
