@@ -143,6 +143,23 @@ def test_progressive_frames_then_idle_and_the_image_of_render(session, tmp_path)
     np.testing.assert_array_equal(pixels[..., :3], reference)
 
 
+def test_a_crop_leaves_every_pixel_outside_it_empty(session, tmp_path):
+    """A border render (film crop, edges not multiples of the reduced pass's divisor): the final
+    frame is RGBA 0 outside the crop, also in the band the reduced pass's rounded-out crop covers,
+    and rendered (alpha 1) inside it."""
+    data = small_scene(spp=4)
+    x0, y0, x1, y1 = 13, 10, 91, 67
+    data["film"]["crop"] = [x0, y0, x1, y1]
+    _start(session, tmp_path, data)
+    frames = _frames(session.log, 1)
+    assert frames[0]["scale"] == 4 and frames[-1]["final"]
+    info, pixels = read_frame(frames[-1]["path"])
+    inside = np.zeros((120, 160), bool)
+    inside[y0:y1, x0:x1] = True
+    assert (pixels[~inside] == 0).all()
+    assert (pixels[inside][:, 3] == 1).all()
+
+
 def test_each_edit_rebuilds_only_what_it_needs_and_restarts_accumulation(session, tmp_path):
     data = small_scene(spp=2)
     session.send(cmd="samples", samples=2)

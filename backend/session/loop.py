@@ -192,7 +192,15 @@ class Progressive:
         lw, lh = self.level_film.width, self.level_film.height
         xs = np.minimum(((np.arange(self.width) + 0.5) * lw / self.width).astype(np.int64), lw - 1)
         ys = np.minimum(((np.arange(self.height) + 0.5) * lh / self.height).astype(np.int64), lh - 1)
-        return low[ys][:, xs]
+        up = low[ys][:, xs]
+        if self.crop is None:
+            return up
+        # The reduced pass's crop is rounded outwards (scaled_crop): only pixels inside the
+        # full-resolution crop take its values, the rest stay 0 (alpha 0) as in every frame.
+        x0, y0, x1, y1 = self.crop
+        out = np.zeros_like(up)
+        out[y0:y1, x0:x1] = up[y0:y1, x0:x1]
+        return out
 
     def _frame(self, scale: int, spp: int, final: bool) -> None:
         if scale == 1 and spp == 0 and self.level_film is None and not final:
