@@ -196,8 +196,7 @@ def section(results: list, summaries: list, info: dict, link) -> str:
     """``link(path)`` gives the Markdown path of a figure."""
     md = ["## 0. Lamina vs Cycles", "",
           f"Each scene is described once (a Lamina scene dict) and rendered by Lamina and by Cycles "
-          f"(bpy {info.get('blender', '?')}, CPU, {info['threads']} threads; Lamina {info['threads']} workers: threads, or "
-          f"processes for scenes with layered stacks) "
+          f"(bpy {info.get('blender', '?')}, CPU, {info['threads']} threads; Lamina {info['threads']} worker threads) "
           "with the settings below made equal. Every render is measured against its **own** renderer's converged "
           "reference (reference noise removed). Runs of the two renderers are interleaved pair by pair "
           "(order alternating A B / B A, independent seeds, "
@@ -260,10 +259,10 @@ def section(results: list, summaries: list, info: dict, link) -> str:
         if su:
             md += ["", f"Start-up per render (fixed cost, intercept of CPU time vs spp): Lamina {_fmt(t0)} s, Cycles "
                    f"{_fmt(s['costs']['cycles']['t0'])} s (scene sync and BVH build in one process). Lamina's parts, "
-                   f"measured alone (`startup.py`): {n} worker interpreters with their imports {n} × "
-                   f"{_fmt(su['interpreter_imports'])} s, scene load {n + 1} × {_fmt(su['scene_load'])} s (master and "
-                   f"workers), embree build {n} × {_fmt(su['embree_build'])} s: {_fmt(su['predicted_t0'])} s; the rest, "
-                   f"{_fmt(t0 - su['predicted_t0'])} s, is the process pool and the first work items' warm-up."]
+                   f"measured alone (`startup.py`): scene load {_fmt(su['scene_load'])} s, embree build "
+                   f"{_fmt(su['embree_build'])} s, integrator tables {_fmt(su['tables'])} s: "
+                   f"{_fmt(su['predicted_t0'])} s; the rest, {_fmt(t0 - su['predicted_t0'])} s, is starting the "
+                   f"{n} worker threads and the first work items' warm-up (and the fit's scatter)."]
         md += ["", f"References: Lamina {refs['lamina']['spp']} spp ({_fmt(refs['lamina']['cpu'])} s CPU"
                f"{', cached' if refs['lamina']['cached'] else ''}), Cycles {refs['cycles']['spp']} spp as 4 independent "
                f"renders ({_fmt(refs['cycles']['cpu'])} s CPU{', cached' if refs['cycles']['cached'] else ''}). "
