@@ -59,7 +59,7 @@ def parse_address(text: str) -> str:
                       f"or local:N for a local cluster of N worker processes")
 
 
-def _import_distributed():
+def require_distributed():
     try:
         import distributed
     except ImportError:
@@ -71,7 +71,7 @@ def _import_distributed():
 
 def connect(address: str, timeout: float = CONNECT_TIMEOUT):
     """(client, local cluster or None) for ``address``; one clear LaminaError when that fails."""
-    distributed = _import_distributed()
+    distributed = require_distributed()
     cluster = None
     try:
         if address.startswith("local:"):
@@ -202,10 +202,10 @@ class ClusterItems:
                 self.stats["cluster_scene_bytes_sent"] += len(data)
                 self.stats["cluster_scene_files_sent"] += 1
 
-    def _check_workers(self) -> None:
+    def _check_workers(self, force: bool = False) -> None:
         """Warn once per worker that left during the render (its tasks are rerun elsewhere)."""
         now = time.perf_counter()
-        if now - self._last_check < WORKER_CHECK:
+        if now - self._last_check < WORKER_CHECK and not force:
             return
         self._last_check = now
         try:
@@ -243,6 +243,8 @@ class ClusterItems:
                         raise _Failed(self._failure(exc, _failure_text)) from exc
                     break
                 self.futures[i] = None            # merged once; drop the worker's copy
+                if i == len(items) - 1:
+                    self._check_workers(force=True)   # a loss during a short round is still told
                 yield result
         finally:
             self._cancel()

@@ -26,6 +26,14 @@ def register(sub) -> None:
     p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), help="parallel workers (default: all cores)")
     p.add_argument("--parallel", choices=("threads", "processes"),
                    help="kind of worker (default threads; processes: a crashed worker loses nothing)")
+    p.add_argument("--cluster", type=_cluster_address, metavar="ADDRESS",
+                   help="render the work items on a Dask cluster: its scheduler (tcp://HOST:8786) or "
+                        "local:N (a local cluster of N worker processes); needs `distributed`, docs/cluster.md")
+    p.add_argument("--cluster-files", choices=("send", "shared"), default="send",
+                   help="with --cluster: send the scene's files to the workers (content-hashed, "
+                        "cached there; default), or 'shared': the workers read the same paths")
+    p.add_argument("--cluster-timeout", type=_number(0.1), metavar="SECONDS",
+                   help="with --cluster: seconds to reach the scheduler and its first worker (default 10)")
     p.add_argument("--max-bounces", type=_int_in(0, MAX_BOUNCES), help="Cycles-style max bounces")
     p.add_argument("--time-limit", type=_number(0.0), help="seconds (0 = none); stop after this time, never before the first full pass")
     p.add_argument("--noise-target", type=_number(0.0, 1.0), help="adaptive sampling: relative error target (0 = off)")
@@ -76,6 +84,15 @@ def _number(lo: float, hi: float | None = None):
             raise argparse.ArgumentTypeError(f"expected a number {span}, got {text!r}")
         return value
     return parse
+
+
+def _cluster_address(text: str) -> str:
+    import argparse
+    from .cluster import parse_address
+    try:
+        return parse_address(text)
+    except LaminaError as exc:
+        raise argparse.ArgumentTypeError(str(exc).split(": ", 1)[-1]) from None
 
 
 MAX_FILM = MAX_FILM_SIDE   # pixels per side, as film.width/height in the scene format
@@ -142,11 +159,16 @@ def cmd_render(args) -> int:
             check_writable(Path(args.png), "preview (--png)")
         if args.partial:
             check_writable(Path(args.partial), "partial result (--partial)")
+        if args.cluster:
+            from .cluster import require_distributed
+            require_distributed()          # before loading the scene: one clear line if missing
         scene = load_scene(args.scene)
         options = RenderOptions(spp=args.spp, seed=args.seed, workers=args.workers,
                                 time_limit=args.time_limit, noise_target=args.noise_target,
                                 min_spp=args.min_spp, max_bounces=args.max_bounces, sampler=args.sampler,
-                                resolution=args.resolution, parallel=args.parallel)
+                                resolution=args.resolution, parallel=args.parallel,
+                                cluster=args.cluster, cluster_files=args.cluster_files,
+                                cluster_timeout=args.cluster_timeout)
         options.apply(scene)
         if args.resolution is not None:
             from .limits import film_memory_problem
@@ -156,7 +178,10 @@ def cmd_render(args) -> int:
         for w in scene.warnings:
             printer.emit({"event": "warning", "message": w})
         from .limits import cpu_count
-        if args.workers is not None and args.workers > cpu_count():
+        if args.cluster and args.workers is not None:
+            printer.emit({"event": "warning", "message": "--workers is ignored with --cluster: "
+                          "the cluster's workers render (start them with the threads you want)"})
+        elif args.workers is not None and args.workers > cpu_count():
             printer.emit({"event": "warning", "message":
                           f"--workers {args.workers} is more than the {cpu_count()} core(s) this "
                           f"process may use: the extra workers only compete for them (and, for "

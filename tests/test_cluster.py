@@ -1,0 +1,193 @@
+"""Rendering on a Dask cluster (``render --cluster``, backend/cluster.py): a local cluster of two
+worker processes gives the very image of a local render, also when a worker is killed halfway;
+the scene's files are sent once (counted); an unreachable scheduler or a missing ``distributed``
+is one clear line."""
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from backend.imageio import read_exr, write_exr
+from backend.render import Renderer, RenderOptions
+from backend.scene.loader import load_scene
+from conftest import DATA, ROOT
+from render_util import IDENTITY, front_perspective, scene
+
+distributed = pytest.importorskip("distributed")   # requirements-dev.txt pins it
+
+
+def write_scene(folder: Path, spp: int = 16, camera_distance: float = 4.0, files: bool = True) -> Path:
+    """A scene that reads three kinds of files: a mesh (.npz), an environment map (.exr) and an
+    IES profile, in sub-folders, named by relative paths (``files=False``: the document only)."""
+    if files:
+        (folder / "meshes").mkdir(parents=True, exist_ok=True)
+        (folder / "maps").mkdir(exist_ok=True)
+        positions = np.array([[-2, -2, -1], [2, -2, -1], [2, 2, -1], [-2, 2, -1]], dtype=np.float64)
+        np.savez(folder / "meshes" / "floor.npz", positions=positions, indices=np.array([[0, 1, 2], [0, 2, 3]]))
+        sky = np.linspace(0.2, 1.0, 16 * 8 * 3, dtype=np.float32).reshape(8, 16, 3)
+        write_exr(folder / "maps" / "sky.exr", {"": sky})
+        shutil.copy(DATA / "ies" / "erco_defined_spot_lm95.ies", folder / "maps" / "spot.ies")
+    light = {"type": "point", "power": 200.0, "color": [1, 1, 1],
+             "to_world": [[1, 0, 0, 0], [0, 1, 0, -1], [0, 0, 1, 2], [0, 0, 0, 1]],
+             "ies": {"file": "maps/spot.ies"}}
+    data = scene(48, 48, front_perspective(camera_distance, 0.4),
+                 {"m": {"type": "diffuse", "color": 0.7}},
+                 {"floor": {"file": "meshes/floor.npz"},
+                  "ball": {"shape": "sphere", "radius": 0.8, "segments": 24}},
+                 [{"mesh": "floor", "materials": ["m"]},
+                  {"mesh": "ball", "materials": ["m"], "to_world": IDENTITY}],
+                 lights=[light], world={"type": "environment", "file": "maps/sky.exr", "strength": 0.5},
+                 render={"spp": spp, "max_bounces": 3, "seed": 7})
+    path = folder / "scene.json"
+    path.write_text(json.dumps(data))
+    return path
+
+
+def render(path: Path, **options):
+    sc = load_scene(path)
+    opts = RenderOptions(**options)
+    opts.apply(sc)
+    result = Renderer(sc, str(path), opts).run()
+    assert result.error is None, result.error
+    return result
+
+
+def same_image(a, b) -> bool:
+    return (np.array_equal(a.film.sum, b.film.sum) and np.array_equal(a.film.sum_sq, b.film.sum_sq)
+            and np.array_equal(a.film.count, b.film.count))
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    """A local cluster of 2 worker processes (1 thread each). The workers inherit the fault
+    folder (backend/render.py, _injected_fault) and a fresh file cache from this environment."""
+    root = tmp_path_factory.mktemp("cluster")
+    faults, cache = root / "faults", root / "worker-cache"
+    faults.mkdir()
+    saved = {k: os.environ.get(k) for k in ("LAMINA_TEST_FAULT_DIR", "LAMINA_CLUSTER_CACHE")}
+    os.environ["LAMINA_TEST_FAULT_DIR"] = str(faults)
+    os.environ["LAMINA_CLUSTER_CACHE"] = str(cache)
+    import logging
+    local = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                     dashboard_address=None, silence_logs=logging.CRITICAL)
+    try:
+        yield local.scheduler_address, faults, root
+    finally:
+        local.close()
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+@pytest.fixture(scope="module")
+def reference(cluster):
+    """The scene and its local render (threads of this process)."""
+    path = write_scene(cluster[2] / "scene")
+    return path, render(path, workers=2)
+
+
+def test_cluster_render_is_bit_identical_and_sends_files_once(cluster, reference):
+    address = cluster[0]
+    path, local = reference
+    first = render(path, cluster=address)
+    assert same_image(first, local)
+    files = sorted(p.name for p in (cluster[2] / "scene").rglob("*") if p.is_file())
+    assert files == ["floor.npz", "scene.json", "sky.exr", "spot.ies"]
+    size = sum(p.stat().st_size for p in (cluster[2] / "scene").rglob("*") if p.is_file())
+    # Both workers use one cache folder (one machine): every file is sent once, whole.
+    assert first.stats["cluster_scene_files_sent"] == 4
+    assert first.stats["cluster_scene_bytes_sent"] == size
+    again = render(path, cluster=address)
+    assert same_image(again, local)
+    assert again.stats["cluster_scene_files_sent"] == 0
+    assert again.stats["cluster_scene_bytes_sent"] == 0
+    # The next frame (another camera, same files): only the scene document travels.
+    frame2 = write_scene(cluster[2] / "scene", camera_distance=4.5, files=False)
+    moved = render(frame2, cluster=address)
+    assert moved.stats["cluster_scene_files_sent"] == 1
+    assert moved.stats["cluster_scene_bytes_sent"] == frame2.stat().st_size
+    write_scene(cluster[2] / "scene", files=False)         # back to the reference's document for later tests
+
+
+def test_worker_killed_mid_render_gives_the_identical_image(cluster, reference):
+    address, faults, _ = cluster
+    path, local = reference
+    (faults / "kill-1").write_text("")          # the first item to take it SIGKILLs its worker
+    warnings = []
+    sc = load_scene(path)
+    opts = RenderOptions(cluster=address)
+    opts.apply(sc)
+    renderer = Renderer(sc, str(path), opts,
+                        lambda e: warnings.append(e["message"]) if e["event"] == "warning" else None)
+    result = renderer.run()
+    assert not (faults / "kill-1").exists(), "the fault was not taken"
+    assert result.error is None and not result.interrupted
+    assert same_image(result, local)
+    assert any("left during the render" in w and "unaffected" in w for w in warnings), warnings
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_unreachable_scheduler_is_one_clear_line(tmp_path):
+    path = write_scene(tmp_path)
+    address = f"tcp://127.0.0.1:{_free_port()}"
+    proc = subprocess.run([sys.executable, "-m", "backend", "render", str(path), "-o", str(tmp_path / "o.exr"),
+                           "--cluster", address, "--cluster-timeout", "1"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        f"error: cannot reach the Dask scheduler at {address} within 1 s "
+        f"(Timed out trying to connect to {address} after 1 s); is `dask scheduler` running there, "
+        f"and the port open?"]
+    assert not (tmp_path / "o.exr").exists()
+
+
+def test_missing_distributed_is_one_clear_line(tmp_path):
+    path = write_scene(tmp_path)
+    # Runs the CLI with `distributed` made unimportable, as in an install without it.
+    code = ("import sys\n"
+            "class Block:\n"
+            "    def find_spec(self, name, path=None, target=None):\n"
+            "        if name == 'distributed' or name.startswith('distributed.'):\n"
+            "            raise ImportError('No module named ' + repr(name))\n"
+            "sys.meta_path.insert(0, Block())\n"
+            "from backend.cli import main\n"
+            "sys.exit(main(sys.argv[1:]))\n")
+    proc = subprocess.run([sys.executable, "-c", code, "render", str(path), "-o", str(tmp_path / "o.exr"),
+                           "--cluster", "local:2"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: --cluster needs Dask's 'distributed' package"), proc.stderr
+    assert "pip install distributed==" in lines[0]
+
+
+def test_cli_local_cluster_json_progress_and_same_exr(tmp_path, reference):
+    path, local = reference
+    out = tmp_path / "cluster.exr"
+    env = dict(os.environ, LAMINA_CLUSTER_CACHE=str(tmp_path / "cache"))
+    env.pop("LAMINA_TEST_FAULT_DIR", None)
+    proc = subprocess.run([sys.executable, "-m", "backend", "render", str(path), "-o", str(out),
+                           "--cluster", "local:2", "--progress", "json"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300, env=env)
+    assert proc.returncode == 0, proc.stderr
+    events = [json.loads(line) for line in proc.stdout.splitlines()]
+    assert events[0]["event"] == "start" and events[0]["parallel"] == "cluster"
+    assert events[0]["workers"] == 2 and events[0]["cluster"] == "local:2"
+    fractions = [e["fraction"] for e in events if e["event"] == "progress"]
+    assert fractions == sorted(fractions) and fractions[-1] == 1.0
+    assert events[-1]["event"] == "done" and events[-1]["spp"] == 16
+    pixels, names = read_exr(out)
+    rgb = pixels[:, :, [names.index(c) for c in "RGB"]]
+    assert np.array_equal(rgb, local.film.combined().astype(np.float32))
