@@ -31,7 +31,6 @@ from .limits import MAX_WORKERS
 
 DISTRIBUTED_PIN = "distributed==2026.8.0"        # the version tested (requirements-dev.txt)
 CONNECT_TIMEOUT = 10.0        # s: reaching the scheduler, and waiting for its first worker
-SCHEDULER_GRACE = 10.0        # s: a lost scheduler connection may come back within this
 WORKER_CHECK = 1.0            # s between looks at the worker list (to report lost workers)
 
 
@@ -72,6 +71,12 @@ def require_distributed():
 def connect(address: str, timeout: float = CONNECT_TIMEOUT):
     """(client, local cluster or None) for ``address``; one clear LaminaError when that fails."""
     distributed = require_distributed()
+    # Dask's client logs every reconnection attempt with a traceback; Lamina reports what
+    # matters itself, in one line (a lost scheduler, a lost worker).
+    # Its configuration gives some child loggers levels of their own: quiet each of them.
+    for name in ["distributed", *logging.root.manager.loggerDict]:
+        if name == "distributed" or name.startswith("distributed."):
+            logging.getLogger(name).setLevel(logging.CRITICAL + 1)
     cluster = None
     try:
         if address.startswith("local:"):
@@ -156,6 +161,7 @@ class ClusterItems:
                  timeout: float = CONNECT_TIMEOUT):
         from . import cluster_files
         self.address, self.options, self.warn = address, options, warn
+        self.grace = timeout       # s: a lost scheduler connection may come back within this
         self.package, self.blobs = cluster_files.make_package(scene, source, shared=shared_files)
         self.client, self.cluster = connect(address, timeout)
         self.futures: list = []
@@ -261,15 +267,14 @@ class ClusterItems:
                 pass
             if self.client.status != "running":
                 lost_since = lost_since or time.perf_counter()
-                if time.perf_counter() - lost_since > SCHEDULER_GRACE:
+                if time.perf_counter() - lost_since > self.grace:
                     raise _Failed(self._scheduler_lost())
             else:
                 lost_since = None
                 self._check_workers()
 
     def _scheduler_lost(self) -> str:
-        return (f"lost the connection to the Dask scheduler at {self.address} (for more than "
-                f"{SCHEDULER_GRACE:g} s); the render stopped")
+        return f"lost the connection to the Dask scheduler at {self.address}; the render stopped"
 
     def _failure(self, exc: BaseException, failure_text) -> str:
         name = type(exc).__name__

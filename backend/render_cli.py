@@ -33,7 +33,7 @@ def register(sub) -> None:
                    help="with --cluster: send the scene's files to the workers (content-hashed, "
                         "cached there; default), or 'shared': the workers read the same paths")
     p.add_argument("--cluster-timeout", type=_number(0.1), metavar="SECONDS",
-                   help="with --cluster: seconds to reach the scheduler and its first worker (default 10)")
+                   help="with --cluster: seconds to reach the scheduler and its first worker, and to wait for a lost scheduler connection to come back (default 10)")
     p.add_argument("--max-bounces", type=_int_in(0, MAX_BOUNCES), help="Cycles-style max bounces")
     p.add_argument("--time-limit", type=_number(0.0), help="seconds (0 = none); stop after this time, never before the first full pass")
     p.add_argument("--noise-target", type=_number(0.0, 1.0), help="adaptive sampling: relative error target (0 = off)")

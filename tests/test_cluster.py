@@ -191,3 +191,59 @@ def test_cli_local_cluster_json_progress_and_same_exr(tmp_path, reference):
     pixels, names = read_exr(out)
     rgb = pixels[:, :, [names.index(c) for c in "RGB"]]
     assert np.array_equal(rgb, local.film.combined().astype(np.float32))
+
+
+def _dask(*args, env=None) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "dask", *args], cwd=ROOT, env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+def _end(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=5)
+
+
+def test_scheduler_lost_mid_render_is_an_error_and_the_partial_image_is_written(tmp_path):
+    """A `dask scheduler` and a `dask worker` started as a user would (docs/cluster.md); the
+    scheduler is killed once the render has merged its first pass."""
+    path = write_scene(tmp_path / "scene", spp=256)
+    address = f"tcp://127.0.0.1:{_free_port()}"
+    env = dict(os.environ, PYTHONPATH=str(ROOT), LAMINA_CLUSTER_CACHE=str(tmp_path / "cache"))
+    env.pop("LAMINA_TEST_FAULT_DIR", None)
+    scheduler = _dask("scheduler", "--host", "127.0.0.1", "--port", address.rsplit(":", 1)[1],
+                      "--no-dashboard", env=env)
+    worker = None
+    render_proc = None
+    try:
+        worker = _dask("worker", address, "--nworkers", "1", "--nthreads", "1", "--no-dashboard", env=env)
+        out = tmp_path / "out.exr"
+        render_proc = subprocess.Popen(
+            [sys.executable, "-m", "backend", "render", str(path), "-o", str(out), "--resolution", "96x96",
+             "--cluster", address, "--cluster-timeout", "20", "--progress", "json"],
+            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        events = []
+        for line in render_proc.stdout:
+            events.append(json.loads(line))
+            if events[-1]["event"] == "progress" and events[-1]["done"] >= 1:
+                scheduler.kill()
+                break
+        stdout, stderr = render_proc.communicate(timeout=120)
+        events += [json.loads(line) for line in stdout.splitlines()]
+        assert render_proc.returncode == 2, stderr
+        assert events[-1]["event"] == "error"
+        lines = stderr.strip().splitlines()
+        assert len(lines) == 1, stderr                        # one line, no Dask traceback
+        assert lines[0].startswith(f"error: lost the connection to the Dask scheduler at {address}")
+        assert lines[0].endswith(f"{out} holds the samples done before that")
+        pixels, names = read_exr(out)
+        samples = pixels[:, :, names.index("samples.Y")]
+        assert 1 <= samples.min() and samples.max() < 256     # the passes merged before the loss
+    finally:
+        for proc in (render_proc, worker, scheduler):
+            if proc is not None:
+                _end(proc)
