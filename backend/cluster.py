@@ -82,7 +82,8 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT):
         if address.startswith("local:"):
             cluster = distributed.LocalCluster(n_workers=int(address[6:]), threads_per_worker=1,
                                                processes=True, dashboard_address=None,
-                                               silence_logs=logging.ERROR)
+                                               silence_logs=logging.CRITICAL,
+                                               preload=["backend.cluster"])
             client = distributed.Client(cluster, timeout=timeout)
         else:
             client = distributed.Client(address, timeout=timeout)
@@ -114,6 +115,16 @@ def _close(client, cluster) -> None:
 
 
 # --------------------------------------------------------------------------- worker side
+
+def dask_setup(worker) -> None:
+    """Preload of the ``local:N`` cluster's worker processes (Dask calls it at their start).
+    They are children of the render process, so Ctrl-C at a terminal reaches them too: they
+    ignore it (each would print a traceback and die); the render process cancels their tasks
+    and closes the cluster."""
+    import signal
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
 
 _LOADED = {"key": None, "state": None}
 _LOAD_LOCK = threading.Lock()       # a worker process may run several tasks at once (--nthreads)
