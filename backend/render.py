@@ -19,6 +19,8 @@ Parallelism (``RenderOptions.parallel``):
   with threads against 6.3–8.1 s with processes). On Linux they are forked once this process holds
   the scene and its BVH, and share both; elsewhere they are spawned and each loads the scene
   (``_ProcessItems``).
+* ``cluster`` (``RenderOptions.cluster``): Dask tasks on other machines (backend/cluster.py,
+  docs/cluster.md); the same items and the same item function, this process only merges.
 Kernels are compiled (or loaded from the cache) once, before any worker starts.
 
 Failures (docs/cli.md, "When a worker fails"):

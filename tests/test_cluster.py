@@ -134,6 +134,30 @@ def test_worker_killed_mid_render_gives_the_identical_image(cluster, reference):
     assert any("left during the render" in w and "unaffected" in w for w in warnings), warnings
 
 
+def test_worker_lacking_files_asks_for_them(cluster, reference, monkeypatch):
+    """A worker that joined after the files were sent (here: no files are sent up front) raises
+    MissingSceneFiles from its task; the master sends them to it and resubmits the item."""
+    from backend.cluster import ClusterItems
+    address = cluster[0]
+    render(reference[0], cluster=address)                  # the workers hold the scene's files
+    shutil.copytree(cluster[2] / "scene", cluster[2] / "late")
+    path = write_scene(cluster[2] / "late", spp=8, files=False)     # same files, a new document
+    local = render(path, workers=1)
+    original = ClusterItems._send_files
+    calls = []
+
+    def lazy(self, workers):
+        calls.append(workers)
+        if workers is not None:                              # only on a task's request
+            original(self, workers)
+    monkeypatch.setattr(ClusterItems, "_send_files", lazy)
+    result = render(path, cluster=address)
+    assert same_image(result, local)
+    assert calls[0] is None and len(calls) >= 2
+    assert result.stats["cluster_scene_files_sent"] == 1     # the new document; the rest is cached
+    assert result.stats["cluster_scene_bytes_sent"] == path.stat().st_size
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
