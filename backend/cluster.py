@@ -78,6 +78,10 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT):
         if name == "distributed" or name.startswith("distributed."):
             logging.getLogger(name).setLevel(logging.CRITICAL + 1)
     cluster = None
+    # A local cluster's scheduler serves HTTP on port 8787 or, when that is taken (another
+    # cluster), on any port, with a warning: it serves nothing Lamina needs.
+    import warnings
+    warnings.filterwarnings("ignore", message="Port 8787 is already in use", category=UserWarning)
     try:
         if address.startswith("local:"):
             cluster = distributed.LocalCluster(n_workers=int(address[6:]), threads_per_worker=1,
@@ -87,9 +91,12 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT):
             client = distributed.Client(cluster, timeout=timeout)
         else:
             client = distributed.Client(address, timeout=timeout)
-    except (OSError, TimeoutError) as exc:
+    except (OSError, TimeoutError, RuntimeError) as exc:
         if cluster is not None:
             cluster.close()
+        if address.startswith("local:"):
+            raise LaminaError(f"could not start a local Dask cluster ({address}): "
+                              f"{type(exc).__name__}: {str(exc).strip()[:200]}") from None
         detail = str(exc).strip().splitlines()[0][:200] if str(exc).strip() else type(exc).__name__
         raise LaminaError(f"cannot reach the Dask scheduler at {address} within {timeout:g} s "
                           f"({detail}); is `dask scheduler` running there, and the port open?") from None
