@@ -32,6 +32,7 @@ from .limits import MAX_WORKERS
 DISTRIBUTED_PIN = "distributed==2026.8.0"        # the version tested (requirements-dev.txt)
 CONNECT_TIMEOUT = 10.0        # s: reaching the scheduler, and waiting for its first worker
 WORKER_CHECK = 1.0            # s between looks at the worker list (to report lost workers)
+PRIORITY_SPAN = 1 << 24       # more than the items of one round (65536² pixels, ≥ 65536 per item)
 
 
 class MissingSceneFiles(Exception):
@@ -133,17 +134,20 @@ def dask_setup(worker) -> None:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-_LOADED = {"key": None, "state": None}
+SCENES_KEPT = 2     # scenes a worker process keeps loaded: two frames of an animation overlap
+_LOADED: dict = {}                  # key -> tracer state, oldest first
 _LOAD_LOCK = threading.Lock()       # a worker process may run several tasks at once (--nthreads)
 
 
 def _scene_state(package, options) -> dict:
     """The tracer for (package, options) in this worker process: loaded on the first item and
-    kept (one scene at a time: the memory of the previous one is released)."""
-    key = (package.key, repr(dataclasses.astuple(options)))
+    kept for the next items and renders (the SCENES_KEPT most recently used scenes; an older
+    one's memory is released)."""
+    key = (package.key, repr(dataclasses.astuple(dataclasses.replace(options, cluster_priority=0))))
     with _LOAD_LOCK:
-        if _LOADED["key"] == key:
-            return _LOADED["state"]
+        if key in _LOADED:
+            _LOADED[key] = _LOADED.pop(key)           # most recently used last
+            return _LOADED[key]
         from . import cluster_files
         missing = cluster_files.missing_files(package)
         if missing:
@@ -152,7 +156,8 @@ def _scene_state(package, options) -> dict:
         from .kernels.cache import ensure_compiled
         from .render import _setup_local
         ensure_compiled()
-        _LOADED["key"], _LOADED["state"] = None, None
+        while len(_LOADED) >= SCENES_KEPT:
+            _LOADED.pop(next(iter(_LOADED)))
         scene = cluster_files.load_package(package)
         options.apply(scene)
         state: dict = {}
@@ -160,7 +165,7 @@ def _scene_state(package, options) -> dict:
         # embree builds the BVH on the first query: once here, not in racing task threads.
         import numpy as np
         state["accel"].intersect(np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]))
-        _LOADED["key"], _LOADED["state"] = key, state
+        _LOADED[key] = state
         return state
 
 
@@ -245,9 +250,11 @@ class ClusterItems:
 
     def _submit(self, item, index: int, count: int):
         key, *_ = item
+        # Earlier items first (merged in order); an earlier frame's items before a later one's.
+        priority = self.options.cluster_priority * PRIORITY_SPAN + (count - index)
         return self.client.submit(render_task, self.package, self.options, item, pure=False,
                                   key=f"lamina-{self.render_id}-{key[0]}-{key[1]}-{uuid.uuid4().hex[:6]}",
-                                  priority=count - index)     # earlier items first: merged in order
+                                  priority=priority)
 
     def run(self, items, should_stop):
         from .render import _Failed, _failure_text, _Stopped

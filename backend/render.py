@@ -75,6 +75,7 @@ class RenderOptions:
     cluster: str | None = None           # Dask scheduler address or "local:N" (backend/cluster.py)
     cluster_files: str = "send"          # "send": content-hashed copies; "shared": same paths
     cluster_timeout: float | None = None  # s to reach the scheduler (None: cluster.CONNECT_TIMEOUT)
+    cluster_priority: int = 0            # higher first: frames of an animation in order
 
     def apply(self, scene) -> None:
         s = scene.settings

@@ -271,3 +271,31 @@ def test_scheduler_lost_mid_render_is_an_error_and_the_partial_image_is_written(
         for proc in (render_proc, worker, scheduler):
             if proc is not None:
                 _end(proc)
+
+
+def test_cli_frames_of_an_animation_on_the_cluster(cluster, reference, tmp_path):
+    """Several scene files: each frame written to its own EXR (#### = the number ending the
+    file's name), each bit-identical to its local render."""
+    address = cluster[0]
+    folder = tmp_path / "shot"
+    shutil.copytree(cluster[2] / "scene", folder)
+    scenes, locals_ = [], []
+    for number, distance in ((7, 4.0), (8, 4.3), (9, 4.6)):
+        path = write_scene(folder, camera_distance=distance, files=False).rename(folder / f"shot_{number:04d}.json")
+        scenes.append(path)
+        locals_.append(render(path, workers=2))
+    env = dict(os.environ)
+    env.pop("LAMINA_TEST_FAULT_DIR", None)
+    proc = subprocess.run([sys.executable, "-m", "backend", "render", *map(str, scenes),
+                           "-o", str(tmp_path / "out" / "frame_####.exr"), "--cluster", address,
+                           "--progress", "json"], cwd=ROOT, capture_output=True, text=True, timeout=300, env=env)
+    assert proc.returncode == 0, proc.stderr
+    events = [json.loads(line) for line in proc.stdout.splitlines()]
+    done = {e["frame"]: e for e in events if e["event"] == "done"}
+    assert sorted(done) == [7, 8, 9]
+    for number, local in zip((7, 8, 9), locals_):
+        out = tmp_path / "out" / f"frame_{number:04d}.exr"
+        assert done[number]["path"] == str(out.resolve())
+        pixels, names = read_exr(out)
+        rgb = pixels[:, :, [names.index(c) for c in "RGB"]]
+        assert np.array_equal(rgb, local.film.combined().astype(np.float32)), number
