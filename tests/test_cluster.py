@@ -117,6 +117,23 @@ def test_cluster_render_is_bit_identical_and_sends_files_once(cluster, reference
     write_scene(cluster[2] / "scene", files=False)         # back to the reference's document for later tests
 
 
+def test_adaptive_sampling_and_time_limit_work_the_same_on_the_cluster(cluster, reference):
+    """Adaptive rounds are planned from the merged image, so the cluster stops the same pixels
+    at the same rounds; a time limit stops after the first full pass."""
+    address = cluster[0]
+    path, _ = reference
+    # 96 × 96 px: 28 samples per pixel per round, so the 56 spp take two rounds.
+    adaptive = dict(spp=56, noise_target=0.1, min_spp=8, resolution=(96, 96))
+    local = render(path, workers=2, **adaptive)
+    remote = render(path, cluster=address, **adaptive)
+    counts = local.film.count
+    assert counts.min() < counts.max() == 56                 # some pixels stopped early
+    assert same_image(remote, local)
+    limited = render(path, cluster=address, spp=100000, time_limit=0.5)
+    assert not limited.interrupted and 1 <= limited.spp_done < 100000
+    assert limited.film.count.min() >= 1
+
+
 def test_worker_killed_mid_render_gives_the_identical_image(cluster, reference):
     address, faults, _ = cluster
     path, local = reference
