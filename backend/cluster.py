@@ -104,13 +104,13 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT):
     try:
         client.wait_for_workers(1, timeout=timeout)
     except (OSError, TimeoutError):
-        _close(client, cluster)
+        close_connection(client, cluster)
         raise LaminaError(f"the Dask scheduler at {address} has no workers (waited {timeout:g} s); "
                           f"start some with `dask worker {address}` (docs/cluster.md)") from None
     return client, cluster
 
 
-def _close(client, cluster) -> None:
+def close_connection(client, cluster) -> None:
     try:
         client.close(timeout=5)
     except Exception:  # noqa: BLE001 - closing a broken connection must not hide the real error
@@ -194,7 +194,7 @@ class ClusterItems:
             self.workers = self._worker_threads()
             self._send_files(None)
         except BaseException:
-            _close(self.client, self.cluster)
+            close_connection(self.client, self.cluster)
             raise
         self._known = set(self._worker_list())
         self._last_check = time.perf_counter()
@@ -322,4 +322,4 @@ class ClusterItems:
 
     def close(self, stopped: bool) -> None:
         self._cancel()
-        _close(self.client, self.cluster)
+        close_connection(self.client, self.cluster)

@@ -114,8 +114,8 @@ def render_frames(args, printer) -> int:
             statuses = list(pool.map(one, range(len(scenes))))
     finally:
         if local is not None:
-            from .cluster import _close
-            _close(*local)
+            from .cluster import close_connection
+            close_connection(*local)
     failed = [numbers[k] for k, s in enumerate(statuses) if s == "failed"]
     if failed:
         raise LaminaError(f"{len(failed)} of {len(scenes)} frame(s) failed: "

@@ -81,7 +81,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     import backend  # noqa: F401 - one BLAS thread per process, before NumPy's first use
     import backend.render as render_module
-    from backend.cluster import connect, _close
+    from backend.cluster import close_connection, connect
     resolution = tuple(int(v) for v in args.resolution.lower().split("x"))
     path = Path(args.scene)
     sizes = [int(s) for s in args.sizes.split(",")]
@@ -111,7 +111,7 @@ def main(argv=None) -> int:
                          walls[1] / walls[2]))
     finally:
         for client, cluster in clusters.values():
-            _close(client, cluster)
+            close_connection(client, cluster)
     print(f"scene {path.name} at {resolution[0]}x{resolution[1]}, {args.spp} spp; best of {args.repeats}; "
           f"images bit-identical to the local render in every case")
     print(f"{'paths/item':>10} {'items':>6} {'local 1 [s]':>11} {'dask 1 [s]':>10} {'dask 2 [s]':>10} "
