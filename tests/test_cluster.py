@@ -117,6 +117,25 @@ def test_cluster_render_is_bit_identical_and_sends_files_once(cluster, reference
     write_scene(cluster[2] / "scene", files=False)         # back to the reference's document for later tests
 
 
+def test_shared_files_send_only_the_document(cluster, tmp_path):
+    """--cluster-files shared: the workers read the master's paths (one machine here)."""
+    path = write_scene(tmp_path / "shared", spp=4)
+    local = render(path, workers=1)
+    shared = render(path, cluster=cluster[0], cluster_files="shared")
+    assert same_image(shared, local)
+    assert shared.stats["cluster_scene_files_sent"] == 1
+    assert shared.stats["cluster_scene_bytes_sent"] == path.stat().st_size
+
+
+def test_workers_with_another_renderer_are_refused(cluster, reference, monkeypatch):
+    """Their samples would differ: the render does not start, the error names a worker."""
+    from backend.errors import LaminaError
+    from backend.kernels import cache
+    monkeypatch.setattr(cache, "source_key", lambda: "edited-kernels")     # on this side only
+    with pytest.raises(LaminaError, match=r"the cluster worker at tcp://\S+ runs another version"):
+        render(reference[0], cluster=cluster[0])
+
+
 def test_adaptive_sampling_and_time_limit_work_the_same_on_the_cluster(cluster, reference):
     """Adaptive rounds are planned from the merged image, so the cluster stops the same pixels
     at the same rounds; a time limit stops after the first full pass."""
