@@ -32,6 +32,7 @@ from .limits import MAX_WORKERS
 DISTRIBUTED_PIN = "distributed==2026.8.0"        # the version tested (requirements-dev.txt)
 CONNECT_TIMEOUT = 10.0        # s: reaching the scheduler, and waiting for its first worker
 WORKER_CHECK = 1.0            # s between looks at the worker list (to report lost workers)
+MAX_RESENDS = 3               # a worker asking again and again for files it was sent: give up
 PRIORITY_SPAN = 1 << 24       # more than the items of one round (65536² pixels, ≥ 65536 per item)
 
 
@@ -227,9 +228,23 @@ class ClusterItems:
         for address, missing in plan.values():
             for digest in sorted(missing):
                 data = cluster_files.blob_bytes(self.blobs[digest])
-                self.client.run(cluster_files.store, digest, hashes[digest], data, workers=[address])
+                try:
+                    self.client.run(cluster_files.store, digest, hashes[digest], data, workers=[address])
+                except Exception as exc:  # noqa: BLE001 - the worker's disk, or the connection
+                    what = self._file_name(digest)
+                    raise LaminaError(f"could not store {what} on the cluster worker {address} "
+                                      f"({type(exc).__name__}: {str(exc)[:200]}); is its cache folder "
+                                      f"writable (LAMINA_CLUSTER_CACHE, docs/cluster.md)?") from None
                 self.stats["cluster_scene_bytes_sent"] += len(data)
                 self.stats["cluster_scene_files_sent"] += 1
+
+    def _file_name(self, digest: str) -> str:
+        if digest == self.package.document:
+            return f"the scene document {self.package.where}"
+        for path, (h, _) in self.package.files.items():
+            if h == digest:
+                return path
+        return digest[:12]
 
     def _check_workers(self, force: bool = False) -> None:
         """Warn once per worker that left during the render (its tasks are rerun elsewhere)."""
@@ -259,13 +274,22 @@ class ClusterItems:
     def run(self, items, should_stop):
         from .render import _Failed, _failure_text, _Stopped
         self.futures = [self._submit(item, i, len(items)) for i, item in enumerate(items)]
+        resent: dict = {}               # item index -> times its worker was sent missing files
         try:
             for i in range(len(items)):
                 while True:
                     try:
                         result = self._wait(self.futures[i], should_stop)
                     except MissingSceneFiles as exc:
-                        self._send_files([exc.address])
+                        resent[i] = resent.get(i, 0) + 1
+                        if resent[i] > MAX_RESENDS:
+                            raise _Failed(f"the cluster worker {exc.address} still lacks the scene's "
+                                          f"files after they were sent {MAX_RESENDS} times (its cache "
+                                          f"folder deleted during the render?)") from None
+                        try:
+                            self._send_files([exc.address])
+                        except LaminaError as error:
+                            raise _Failed(str(error)) from None
                         self.futures[i] = self._submit(items[i], i, len(items))
                         continue
                     except (_Stopped, _Failed):
