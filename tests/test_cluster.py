@@ -127,6 +127,31 @@ def test_shared_files_send_only_the_document(cluster, tmp_path):
     assert shared.stats["cluster_scene_bytes_sent"] == path.stat().st_size
 
 
+def test_user_preset_with_a_texture_reaches_workers_that_lack_it(cluster, tmp_path, monkeypatch):
+    """A material named by a preset from a folder only this process knows (LAMINA_PRESET_PATH,
+    set after the workers started), whose colour is a texture next to the preset: the workers
+    get the preset document and its texture and use them under the master's paths."""
+    folder = tmp_path / "my-presets"
+    (folder / "textures").mkdir(parents=True)
+    ramp = np.linspace(0.1, 0.9, 8 * 8 * 3, dtype=np.float32).reshape(8, 8, 3)
+    write_exr(folder / "textures" / "ramp.exr", {"": ramp})
+    (folder / "cluster-test-ramp.json").write_text(json.dumps(
+        {"format": "lamina-preset", "version": 1, "name": "cluster-test-ramp",
+         "material": {"type": "diffuse", "color": {"texture": "textures/ramp.exr"}}}))
+    monkeypatch.setenv("LAMINA_PRESET_PATH", str(folder))
+    data = scene(32, 32, front_perspective(4.0, 0.3), {"m": "cluster-test-ramp"},
+                 {"ball": {"shape": "sphere", "radius": 1.0, "segments": 24}},
+                 [{"mesh": "ball", "materials": ["m"]}],
+                 world={"type": "constant", "color": [0.5, 0.5, 0.5], "strength": 1.0},
+                 render={"spp": 4, "max_bounces": 2, "seed": 3})
+    path = tmp_path / "preset-scene.json"
+    path.write_text(json.dumps(data))
+    local = render(path, workers=1)
+    remote = render(path, cluster=cluster[0])
+    assert same_image(remote, local)
+    assert remote.stats["cluster_scene_files_sent"] == 3        # document, preset, texture
+
+
 def test_workers_with_another_renderer_are_refused(cluster, reference, monkeypatch):
     """Their samples would differ: the render does not start, the error names a worker."""
     from backend.errors import LaminaError
