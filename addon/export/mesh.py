@@ -85,15 +85,6 @@ def sanitise(arrays: dict, name: str, notes: list[str]) -> dict:
 
 
 def write_npz(path, arrays: dict) -> None:
-    """An ``.npz`` archive (as ``np.savez`` writes it) whose bytes depend only on the arrays.
-
-    ``np.savez`` stamps each entry with the current time, so re-exporting an unchanged mesh gave
-    a different file every frame; a cluster render sends files by content hash
-    (docs/cluster.md) and would send every mesh again for every frame. Uncompressed: writing is
-    ~10× faster than deflate and the files are temporary or local."""
-    import zipfile
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
-        for key, value in arrays.items():
-            info = zipfile.ZipInfo(f"{key}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            with zf.open(info, "w", force_zip64=True) as f:
-                np.lib.format.write_array(f, np.asanyarray(value), allow_pickle=False)
+    # Uncompressed: writing is ~10× faster than deflate and the files are temporary or local.
+    with open(path, "wb") as f:
+        np.savez(f, **arrays)
