@@ -360,3 +360,40 @@ def test_cli_frames_of_an_animation_on_the_cluster(cluster, reference, tmp_path)
         pixels, names = read_exr(out)
         rgb = pixels[:, :, [names.index(c) for c in "RGB"]]
         assert np.array_equal(rgb, local.film.combined().astype(np.float32)), number
+
+
+def test_ctrl_c_cancels_and_writes_what_is_done(cluster, reference, tmp_path):
+    import signal
+    import time
+    address = cluster[0]
+    path, _ = reference
+    out = tmp_path / "stopped.exr"
+    env = dict(os.environ)
+    env.pop("LAMINA_TEST_FAULT_DIR", None)
+    proc = subprocess.Popen([sys.executable, "-m", "backend", "render", str(path), "-o", str(out),
+                             "--spp", "100000", "--cluster", address, "--progress", "json"],
+                            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for line in proc.stdout:
+            event = json.loads(line)
+            if event["event"] == "progress" and event["done"] >= 1:
+                break
+        t0 = time.perf_counter()
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=60)
+        stopped_in = time.perf_counter() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr
+    assert stopped_in < 10.0
+    done = json.loads(stdout.splitlines()[-1])
+    assert done["event"] == "done" and done["interrupted"] and 1 <= done["spp"] < 100000
+    pixels, names = read_exr(out)
+    assert pixels[:, :, names.index("samples.Y")].min() >= 1
+    # The cluster is free again: none of the render's tasks is left on the scheduler.
+    with distributed.Client(address, timeout=10) as client:
+        left = client.run_on_scheduler(
+            lambda dask_scheduler: [k for k in dask_scheduler.tasks if str(k).startswith("lamina-")])
+    assert left == []
