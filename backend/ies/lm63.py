@@ -431,7 +431,7 @@ def _check_ranges(name, ptype, v, v_line, h, h_line) -> None:
 ANGLE_TOL = 1e-4  # degrees; Cycles' angle_close() tolerance
 
 
-def close_connection(a: float, b: float) -> bool:
+def _close(a: float, b: float) -> bool:
     return abs(a - b) < ANGLE_TOL
 
 
@@ -443,13 +443,13 @@ def describe_symmetry(f: LM63File) -> tuple[str, str]:
         if h.size == 1:
             return "axial", rng
         span = h[-1] - h[0]
-        if close_connection(span, 90.0):
+        if _close(span, 90.0):
             return "quadrilateral", rng
-        if close_connection(span, 180.0):
+        if _close(span, 180.0):
             return "bilateral", rng
         return "none", rng
     # Types A/B: horizontal angles from 0 mean the file gives one half, mirrored about H = 0.
-    return ("bilateral" if close_connection(h[0], 0.0) else "none"), rng
+    return ("bilateral" if _close(h[0], 0.0) else "none"), rng
 
 
 def to_cycles_frame(f: LM63File) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -483,22 +483,22 @@ def _expand_type_c(f: LM63File, h: np.ndarray, table: np.ndarray):
     if h.size == 1:
         # One horizontal angle (whatever its value): rotationally symmetric.
         return np.array([0.0, 360.0]), np.concatenate([table, table], axis=0)
-    if close_connection(h[0], 90.0):
+    if _close(h[0], 90.0):
         h = h - 90.0  # Cycles: a 90..270 (or 90..180) file is relabelled to start at 0
-    if not close_connection(h[0], 0.0):
+    if not _close(h[0], 0.0):
         raise LM63Error(name, None, f"type C horizontal angles must start at 0° (or 90°), got "
                                     f"{f.horizontal_angles[0]:g}°")
     h[0] = 0.0
-    if close_connection(h[-1], 90.0):
+    if _close(h[-1], 90.0):
         h[-1] = 90.0
         h, table = _mirror(h, table, 90.0)
-    if close_connection(h[-1], 180.0):
+    if _close(h[-1], 180.0):
         h[-1] = 180.0
         h, table = _mirror(h, table, 180.0)
-    if not close_connection(h[-1], 360.0):
+    if not _close(h[-1], 360.0):
         # Some files omit the 360° column (equal to 0°); add it when the spacing shows it (Cycles).
         gap = 360.0 - h[-1]
-        if h.size >= 2 and (close_connection(h[-1] - h[-2], gap) or close_connection(h[1] - h[0], gap)):
+        if h.size >= 2 and (_close(h[-1] - h[-2], gap) or _close(h[1] - h[0], gap)):
             h = np.append(h, 360.0)
             table = np.concatenate([table, table[:1]], axis=0)
         else:
@@ -521,12 +521,12 @@ def _convert_type_b(h: np.ndarray, v: np.ndarray, table: np.ndarray):
     # Transpose: the file's vertical angles (plane tilts) become h, its horizontal angles v.
     table = table.T  # now (file V, file H) = (h, v)
     h_new, v_new = v, h
-    if close_connection(h_new[0], 0.0):
+    if _close(h_new[0], 0.0):
         h_new, idx = _half_to_full(h_new)
         table = table[idx, :]
     else:
         h_new = h_new + 90.0
-    if close_connection(v_new[0], 0.0):
+    if _close(v_new[0], 0.0):
         v_new, idx = _half_to_full(v_new)
         table = table[:, idx]
     else:
@@ -540,7 +540,7 @@ def _convert_type_a(h: np.ndarray, v: np.ndarray, table: np.ndarray):
     rev = np.arange(n - 1, -1, -1)
     h_new = 180.0 - h[rev]
     rows = table[rev]
-    if close_connection(h[0], 0.0):
+    if _close(h[0], 0.0):
         h_new = np.concatenate([h_new, 180.0 + h[1:]])
         rows = np.concatenate([rows, table[1:]], axis=0)
     return h_new, v_new, rows
