@@ -56,16 +56,19 @@ def file_hash(path: Path) -> str:
 
 def make_package(scene, source, shared: bool = False) -> tuple[ScenePackage, dict]:
     """The package of a loaded scene and, for the master, {hash: path or bytes} of the data."""
+    # Paths are made absolute the same way on both sides (os.path.abspath: the master's current
+    # folder for relative ones, ".." folded, symbolic links kept), so that the master's recorded
+    # paths and the worker's resolved ones are the same strings (scene/inputs.py, Redirect).
     if isinstance(source, (str, Path)):
         path = Path(source)
         from .limits import short
         document = path.read_bytes()
-        where, base = short(source, 300), str(path.resolve().parent)
+        where, base = short(source, 300), os.path.abspath(path.parent)
     else:
         data, where, base = source
         document = json.dumps(data).encode("utf-8")
         # load_scene_data resolves against the current folder without a base: the master's.
-        base = str(Path(base).resolve()) if base else os.getcwd()
+        base = os.path.abspath(base) if base else os.getcwd()
     blobs: dict = {}
     doc_hash = hashlib.sha256(document).hexdigest()
     blobs[doc_hash] = document
@@ -77,9 +80,9 @@ def make_package(scene, source, shared: bool = False) -> tuple[ScenePackage, dic
             if not p.is_file():
                 continue                   # resolved but never read (the load would have failed)
             digest = file_hash(p)
-            files[name] = (digest, p.suffix.lower())
+            files[os.path.abspath(name)] = (digest, p.suffix.lower())
             blobs.setdefault(digest, p)
-    presets = dict(inputs.get("presets", {})) if not shared else {}
+    presets = {k: os.path.abspath(v) for k, v in inputs.get("presets", {}).items()} if not shared else {}
     key = hashlib.sha256(json.dumps([doc_hash, where, base, sorted(files.items()),
                                      sorted(presets.items())]).encode()).hexdigest()
     return ScenePackage(key, doc_hash, str(where), base, files, presets), blobs

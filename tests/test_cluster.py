@@ -178,6 +178,25 @@ def test_adaptive_sampling_and_time_limit_work_the_same_on_the_cluster(cluster, 
     assert limited.film.count.min() >= 1
 
 
+def test_package_loads_from_the_cache_alone(tmp_path, monkeypatch):
+    """No shared file system: what a worker loads comes from its cache only. The scene is named
+    by a relative path (from its folder), the original folder is gone when the package loads."""
+    from backend import cluster_files
+    folder = tmp_path / "project"
+    write_scene(folder)
+    monkeypatch.chdir(folder)
+    monkeypatch.setenv("LAMINA_CLUSTER_CACHE", str(tmp_path / "cache"))
+    master = load_scene("scene.json")
+    package, blobs = cluster_files.make_package(master, "scene.json")
+    for digest, suffix in package.hashes().items():
+        cluster_files.store(digest, suffix, cluster_files.blob_bytes(blobs[digest]))
+    monkeypatch.chdir(tmp_path)
+    folder.rename(tmp_path / "moved-away")
+    worker = cluster_files.load_package(package)
+    assert np.array_equal(worker.soup.vertices, master.soup.vertices) and worker.width == master.width
+    assert sorted(Path(p).name for p in master.inputs["files"]) == ["floor.npz", "sky.exr", "spot.ies"]
+
+
 def test_worker_killed_mid_render_gives_the_identical_image(cluster, reference):
     address, faults, _ = cluster
     path, local = reference

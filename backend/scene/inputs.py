@@ -16,6 +16,7 @@ Without either (every ordinary render) both return their argument.
 from __future__ import annotations
 
 import contextvars
+import os
 from pathlib import Path
 
 _ACTIVE: contextvars.ContextVar = contextvars.ContextVar("lamina_scene_inputs", default=None)
@@ -64,7 +65,7 @@ class Recorder(_Hook):
 
 
 class Redirect(_Hook):
-    """Maps the master's paths to local copies: ``files`` {master path: local path},
+    """Maps the master's paths to local copies: ``files`` {absolute master path: local path},
     ``presets`` {name: master path of its document}. Paths not in the map are read as they are
     (a shared file system, or a file the master did not read)."""
 
@@ -73,7 +74,7 @@ class Redirect(_Hook):
         self.presets = presets
 
     def file(self, path: Path) -> Path:
-        local = self.files.get(str(path))
+        local = self.files.get(os.path.abspath(path))      # as the master's keys (cluster_files)
         return Path(local) if local is not None else path
 
     def preset(self, name: str, found: Path | None) -> Path | None:
