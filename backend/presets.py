@@ -314,10 +314,11 @@ def unknown_preset_message(name: str) -> str:
 
 def resolve_preset(name: str, node):
     """Parse preset ``name`` as a material (scene loader hook); errors name the preset file and field."""
-    path = find_preset(name)
+    from .scene.inputs import local_file, preset_file
+    path = preset_file(name, find_preset(name))     # a cluster worker uses the master's preset
     if path is None:
         raise node.fail(unknown_preset_message(name))
-    doc = load_preset_document(path)
+    doc = load_preset_document(local_file(path))
     material, warnings = parse_material_document(doc["material"], str(path), path.parent,
                                                  node.ctx.cache.get("layered_defaults", {}))
     node.ctx.warnings.extend(warnings)

@@ -19,6 +19,8 @@ Parallelism (``RenderOptions.parallel``):
   with threads against 6.3–8.1 s with processes). On Linux they are forked once this process holds
   the scene and its BVH, and share both; elsewhere they are spawned and each loads the scene
   (``_ProcessItems``).
+* ``cluster`` (``RenderOptions.cluster``): Dask tasks on other machines (backend/cluster.py,
+  docs/cluster.md); the same items and the same item function, this process only merges.
 Kernels are compiled (or loaded from the cache) once, before any worker starts.
 
 Failures (docs/cli.md, "When a worker fails"):
@@ -70,6 +72,10 @@ class RenderOptions:
     sampler: str | None = None
     resolution: tuple[int, int] | None = None
     parallel: str | None = None          # "threads" | "processes" | None (the scene's choice)
+    cluster: str | None = None           # Dask scheduler address or "local:N" (backend/cluster.py)
+    cluster_files: str = "send"          # "send": content-hashed copies; "shared": same paths
+    cluster_timeout: float | None = None  # s to reach the scheduler (None: cluster.CONNECT_TIMEOUT)
+    cluster_priority: int = 0            # higher first: frames of an animation in order
 
     def apply(self, scene) -> None:
         s = scene.settings
@@ -112,24 +118,26 @@ def _scene_from_source(source):
     return load_scene_data(data, where, Path(base) if base else None)
 
 
-def _setup_local(source, options: RenderOptions, scene=None):
+def _setup_local(source, options: RenderOptions, scene=None, state=None):
+    """The tracer of ``scene`` (loaded from ``source`` if None) in ``state`` (default: this
+    process's); a cluster worker keeps its own state per scene (backend/cluster.py)."""
     from .geometry.accel import Accelerator
     from .integrator import PathTracer
     if scene is None:
         scene = _scene_from_source(source)
         options.apply(scene)
+    state = _WORKER if state is None else state
     accel = Accelerator(scene.soup)
-    _WORKER["tracer"] = PathTracer(scene, accel)
-    _WORKER["accel"] = accel
+    state["tracer"] = PathTracer(scene, accel)
+    state["accel"] = accel
     return scene
 
 
-def _render_item(item) -> tuple:
+def _render_item(item, state=None) -> tuple:
     key, pixels, spp, seed, sample0 = item
     if os.environ.get("LAMINA_TEST_FAULT_DIR"):
         _injected_fault(os.environ["LAMINA_TEST_FAULT_DIR"])
-    tracer = _WORKER["tracer"]
-    accel = _WORKER["accel"]
+    tracer = (_WORKER if state is None else state)["tracer"]
     # Not used by the renderer (every random number is counter-based, keyed by (seed, pixel,
     # sample, dimension)); kept for the work item's interface.
     rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, *key])))
@@ -508,18 +516,29 @@ class Renderer:
         planned_samples = all_pixels.size * spp
         spp_done = 0
         interrupted = False
-        from .kernels.cache import ensure_compiled
-        ensure_compiled(self.on_progress)
-        parallel = self.options.parallel or default_parallel(scene)
-        self.on_progress({"event": "start", "width": W, "height": H, "spp": spp, "workers": workers,
-                          "parallel": parallel})
-
         error = None
-        if workers > 1 and parallel == "processes":
-            runner = _ProcessItems(workers, self.source, self.options, self._warn, scene)
+        if self.options.cluster:
+            # The workers compile (or load) the kernels; this process only merges.
+            from .cluster import CONNECT_TIMEOUT, ClusterItems
+            runner = ClusterItems(self.options.cluster, scene, self.source, self.options, self._warn,
+                                  shared_files=self.options.cluster_files == "shared",
+                                  timeout=self.options.cluster_timeout or CONNECT_TIMEOUT)
+            workers, parallel = runner.workers, "cluster"
         else:
-            _setup_local(self.source, self.options, scene)
-            runner = _ThreadItems(workers) if workers > 1 else _SerialItems()
+            from .kernels.cache import ensure_compiled
+            ensure_compiled(self.on_progress)
+            parallel = self.options.parallel or default_parallel(scene)
+            if workers > 1 and parallel == "processes":
+                runner = _ProcessItems(workers, self.source, self.options, self._warn, scene)
+            else:
+                _setup_local(self.source, self.options, scene)
+                runner = _ThreadItems(workers) if workers > 1 else _SerialItems()
+        start = {"event": "start", "width": W, "height": H, "spp": spp, "workers": workers,
+                 "parallel": parallel}
+        if self.options.cluster:
+            start["cluster"] = self.options.cluster
+            start.update(runner.stats)
+        self.on_progress(start)
         try:
             for r in range(rounds):
                 if self._stop:                     # a stop request between two passes
@@ -589,6 +608,7 @@ class Renderer:
             runner.close(stopped=self._stop or interrupted or error is not None)
         elapsed = time.perf_counter() - t_start
         totals["master_cpu_time"] = time.process_time() - cpu_start
+        totals.update(getattr(runner, "stats", {}))
         return RenderResult(film, spp_done, elapsed, totals.get("cpu_time", 0.0), interrupted, totals,
                             list(scene.warnings) + self._warnings, error)
 

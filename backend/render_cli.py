@@ -16,7 +16,8 @@ from .limits import MAX_BOUNCES, MAX_FILM_SIDE, MAX_SEED, MAX_SPP, MAX_WORKERS
 
 def register(sub) -> None:
     p = sub.add_parser("render", help="render a scene to an EXR (and optional PNG preview)")
-    p.add_argument("scene", help="scene description (.json), see docs/scene-format.md")
+    p.add_argument("scene", nargs="+", help="scene description (.json), see docs/scene-format.md; "
+                   "several: the frames of an animation (-o then needs #### for the frame number)")
     p.add_argument("-o", "--output", required=True, help="output EXR path")
     p.add_argument("--png", help="also write a display preview (PNG/JPEG, sRGB)")
     p.add_argument("--spp", type=_int_in(1, MAX_SPP), help="samples per pixel (overrides the scene)")
@@ -26,6 +27,14 @@ def register(sub) -> None:
     p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), help="parallel workers (default: all cores)")
     p.add_argument("--parallel", choices=("threads", "processes"),
                    help="kind of worker (default threads; processes: a crashed worker loses nothing)")
+    p.add_argument("--cluster", type=_cluster_address, metavar="ADDRESS",
+                   help="render the work items on a Dask cluster: its scheduler (tcp://HOST:8786) or "
+                        "local:N (a local cluster of N worker processes); needs `distributed`, docs/cluster.md")
+    p.add_argument("--cluster-files", choices=("send", "shared"), default="send",
+                   help="with --cluster: send the scene's files to the workers (content-hashed, "
+                        "cached there; default), or 'shared': the workers read the same paths")
+    p.add_argument("--cluster-timeout", type=_number(0.1), metavar="SECONDS",
+                   help="with --cluster: seconds to reach the scheduler and its first worker, and to wait for a lost scheduler connection to come back (default 10)")
     p.add_argument("--max-bounces", type=_int_in(0, MAX_BOUNCES), help="Cycles-style max bounces")
     p.add_argument("--time-limit", type=_number(0.0), help="seconds (0 = none); stop after this time, never before the first full pass")
     p.add_argument("--noise-target", type=_number(0.0, 1.0), help="adaptive sampling: relative error target (0 = off)")
@@ -78,6 +87,15 @@ def _number(lo: float, hi: float | None = None):
     return parse
 
 
+def _cluster_address(text: str) -> str:
+    import argparse
+    from .cluster import parse_address
+    try:
+        return parse_address(text)
+    except LaminaError as exc:
+        raise argparse.ArgumentTypeError(str(exc).split(": ", 1)[-1]) from None
+
+
 MAX_FILM = MAX_FILM_SIDE   # pixels per side, as film.width/height in the scene format
 
 
@@ -94,10 +112,16 @@ def _resolution(text: str) -> tuple[int, int]:
 
 class ProgressPrinter:
     def __init__(self, mode: str):
+        import threading
         self.mode = mode
         self.last = 0.0
+        self.lock = threading.Lock()      # frames of an animation may report from two threads
 
     def emit(self, event: dict) -> None:
+        with self.lock:
+            self._emit(event)
+
+    def _emit(self, event: dict) -> None:
         if self.mode == "json":
             sys.stdout.write(json.dumps(event) + "\n")
             sys.stdout.flush()
@@ -126,74 +150,102 @@ class ProgressPrinter:
 
 
 def cmd_render(args) -> int:
-    from .imageio import check_writable
-    from .render import Renderer, RenderOptions, install_signal_handlers
-    from .scene.loader import load_scene
-
     mode = args.progress or ("bar" if sys.stderr.isatty() else "none")
     printer = ProgressPrinter(mode)
+    if len(args.scene) > 1:
+        from .render_frames import render_frames
+        return render_frames(args, printer)
     output = Path(args.output)
-    if output.suffix.lower() != ".exr":
-        raise LaminaError(f"output must be an .exr file, got {output}")
     try:
-        # Every output is checked before rendering: a render must not be lost to a typo'd folder.
-        check_writable(output, "output")
-        if args.png:
-            check_writable(Path(args.png), "preview (--png)")
-        if args.partial:
-            check_writable(Path(args.partial), "partial result (--partial)")
-        scene = load_scene(args.scene)
-        options = RenderOptions(spp=args.spp, seed=args.seed, workers=args.workers,
-                                time_limit=args.time_limit, noise_target=args.noise_target,
-                                min_spp=args.min_spp, max_bounces=args.max_bounces, sampler=args.sampler,
-                                resolution=args.resolution, parallel=args.parallel)
-        options.apply(scene)
-        if args.resolution is not None:
-            from .limits import film_memory_problem
-            problem = film_memory_problem(scene.width, scene.height)
-            if problem:
-                raise LaminaError(f"--resolution {args.resolution[0]}x{args.resolution[1]}: {problem}")
-        for w in scene.warnings:
-            printer.emit({"event": "warning", "message": w})
-        from .limits import cpu_count
-        if args.workers is not None and args.workers > cpu_count():
-            printer.emit({"event": "warning", "message":
-                          f"--workers {args.workers} is more than the {cpu_count()} core(s) this "
-                          f"process may use: the extra workers only compete for them (and, for "
-                          f"scenes rendered with worker processes, each holds its own copy of the scene)"})
-        source = str(Path(args.scene).resolve())
-
-        def write_partial(film, spp_done):
-            _write_partial(Path(args.partial), film)
-            printer.emit({"event": "partial", "path": str(Path(args.partial).resolve()), "spp": spp_done})
-
-        renderer = Renderer(scene, source, options, printer.emit, write_partial if args.partial else None,
-                            args.partial_interval)
-        install_signal_handlers(renderer)
-        result = renderer.run()
-        changed = write_outputs_or_rescue(result, output, args.png, args.half)
-        if args.partial:
-            _write_partial(Path(args.partial), result.film, aovs=True)
-        if changed:
-            limit = "65504 (half float; write float without --half)" if args.half else "3.4e38 (float32)"
-            printer.emit({"event": "warning", "message":
-                          f"{changed} value(s) in {output} were not finite or beyond ±{limit}: written "
-                          f"as 0 (NaN) or clamped. The scene holds values too large to render "
-                          f"(light powers, emission, colours or textures)"})
-        if result.error:
-            if args.partial:               # the add-on shows the last partial result it was told of
-                printer.emit({"event": "partial", "path": str(Path(args.partial).resolve()),
-                              "spp": result.spp_done})
-            raise LaminaError(f"{result.error}; {output} holds the samples done before that")
-        summary = summarise(result)
-        printer.emit({"event": "done", "path": str(output.resolve()), **summary})
-        if mode != "json":
-            print(format_summary(summary, output), file=sys.stderr)
-        return 130 if result.interrupted else 0
+        if args.cluster:
+            from .cluster import require_distributed
+            require_distributed()          # before loading the scene: one clear line if missing
+        return render_scene(args, Path(args.scene[0]), output, args.png, printer)
     except LaminaError as exc:
         if mode == "json":
             printer.emit({"event": "error", "message": str(exc)})
         raise
+
+
+def options_from_args(args):
+    from .render import RenderOptions
+    return RenderOptions(spp=args.spp, seed=args.seed, workers=args.workers,
+                         time_limit=args.time_limit, noise_target=args.noise_target,
+                         min_spp=args.min_spp, max_bounces=args.max_bounces, sampler=args.sampler,
+                         resolution=args.resolution, parallel=args.parallel,
+                         cluster=args.cluster, cluster_files=args.cluster_files,
+                         cluster_timeout=args.cluster_timeout)
+
+
+def check_outputs(output: Path, png: str | None, partial: str | None) -> None:
+    """Every output is checked before rendering: a render must not be lost to a typo'd folder."""
+    from .imageio import check_writable
+    if output.suffix.lower() != ".exr":
+        raise LaminaError(f"output must be an .exr file, got {output}")
+    check_writable(output, "output")
+    if png:
+        check_writable(Path(png), "preview (--png)")
+    if partial:
+        check_writable(Path(partial), "partial result (--partial)")
+
+
+def render_scene(args, scene_path: Path, output: Path, png: str | None, printer, emit=None,
+                 options=None, on_renderer=None) -> int:
+    """Render one scene file to ``output`` (and ``png``); returns the exit status (0, or 130 when
+    interrupted); LaminaError for what went wrong. ``emit`` (default ``printer.emit``) receives
+    the events; ``on_renderer`` (default: SIGINT/SIGTERM handlers) the Renderer before it runs."""
+    from .render import Renderer, install_signal_handlers
+    from .scene.loader import load_scene
+
+    emit = emit or printer.emit
+    check_outputs(output, png, args.partial)
+    scene = load_scene(scene_path)
+    options = options or options_from_args(args)
+    options.apply(scene)
+    if args.resolution is not None:
+        from .limits import film_memory_problem
+        problem = film_memory_problem(scene.width, scene.height)
+        if problem:
+            raise LaminaError(f"--resolution {args.resolution[0]}x{args.resolution[1]}: {problem}")
+    for w in scene.warnings:
+        emit({"event": "warning", "message": w})
+    from .limits import cpu_count
+    if args.cluster and args.workers is not None:
+        emit({"event": "warning", "message": "--workers is ignored with --cluster: "
+              "the cluster's workers render (start them with the threads you want)"})
+    elif args.workers is not None and args.workers > cpu_count():
+        emit({"event": "warning", "message":
+              f"--workers {args.workers} is more than the {cpu_count()} core(s) this "
+              f"process may use: the extra workers only compete for them (and, for "
+              f"scenes rendered with worker processes, each holds its own copy of the scene)"})
+    source = str(scene_path.resolve())
+
+    def write_partial(film, spp_done):
+        _write_partial(Path(args.partial), film)
+        emit({"event": "partial", "path": str(Path(args.partial).resolve()), "spp": spp_done})
+
+    renderer = Renderer(scene, source, options, emit, write_partial if args.partial else None,
+                        args.partial_interval)
+    (on_renderer or install_signal_handlers)(renderer)
+    result = renderer.run()
+    changed = write_outputs_or_rescue(result, output, png, args.half)
+    if args.partial:
+        _write_partial(Path(args.partial), result.film, aovs=True)
+    if changed:
+        limit = "65504 (half float; write float without --half)" if args.half else "3.4e38 (float32)"
+        emit({"event": "warning", "message":
+              f"{changed} value(s) in {output} were not finite or beyond ±{limit}: written "
+              f"as 0 (NaN) or clamped. The scene holds values too large to render "
+              f"(light powers, emission, colours or textures)"})
+    if result.error:
+        if args.partial:               # the add-on shows the last partial result it was told of
+            emit({"event": "partial", "path": str(Path(args.partial).resolve()), "spp": result.spp_done})
+        raise LaminaError(f"{result.error}; {output} holds the samples done before that")
+    summary = summarise(result)
+    emit({"event": "done", "path": str(output.resolve()), **summary})
+    if printer.mode != "json":
+        print(format_summary(summary, output), file=sys.stderr)
+    return 130 if result.interrupted else 0
 
 
 def write_outputs(result, output: Path, png: str | None, half: bool = False) -> int:

@@ -190,9 +190,13 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
             return
 
         partial = workdir / "partial.npy"
+        # Material previews always render here; F12 and animation frames go to the cluster
+        # when one is set (the backend child process is its client: no Dask in Blender).
+        cluster = "" if preview else settings.cluster.strip()
         cmd = render_command(_python(), exported.path, workdir / "render.exr", partial,
-                             workers=PREVIEW_WORKERS if preview else settings.workers,
-                             partial_interval=0.5 if preview else settings.update_interval)
+                             workers=0 if cluster else (PREVIEW_WORKERS if preview else settings.workers),
+                             partial_interval=0.5 if preview else settings.update_interval,
+                             extra=["--cluster", cluster] if cluster else None)
         if not preview:
             self.add_pass(ALBEDO_PASS, 3, "RGB")
             self.add_pass(NORMAL_PASS, 3, "XYZ")

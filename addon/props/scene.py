@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 from bpy.types import PropertyGroup
 
 from ..constants import ESTIMATORS, PDF_MODES
@@ -46,6 +46,11 @@ class LaminaRenderSettings(PropertyGroup):
                                     description="Add the frame number to the seed (noise changes per frame)")
     workers: IntProperty(name="Workers", default=0, min=0, max=64,
                          description="Worker processes; 0 = one per CPU core")
+    cluster: StringProperty(name="Cluster", default="",
+                            description="Render F12 and animation frames on a Dask cluster: the "
+                                        "scheduler's address (tcp://HOST:8786). Empty = this computer. "
+                                        "Needs the distributed package for Blender's Python; see "
+                                        "docs/cluster.md")
     filter_type: EnumProperty(name="Pixel Filter", items=FILTERS, default="BLACKMAN_HARRIS")
     filter_width: FloatProperty(name="Filter Width", default=1.5, min=0.01, max=10.0, subtype='PIXEL')
     estimator: EnumProperty(name="Layered Estimator", items=ESTIMATORS, default="BIDIRECTIONAL",

@@ -43,7 +43,10 @@ def draw_film(layout, settings) -> None:
 
 def draw_performance(layout, settings) -> None:
     col = _column(layout)
-    col.prop(settings, "workers")
+    col.prop(settings, "cluster")
+    sub = col.column()
+    sub.active = not settings.cluster.strip()     # a cluster's workers bring their own threads
+    sub.prop(settings, "workers")
     col.prop(settings, "update_interval")
 
 

@@ -15,6 +15,7 @@ from ..errors import SceneError
 from ..geometry.accel import TriangleSoup
 from ..geometry.mesh import Mesh, parse_mesh
 from ..limits import MAX_BOUNCES, MAX_COORDINATE, MAX_FILM_SIDE, MAX_SEED, MAX_SPP, film_memory_problem, short
+from .inputs import record_inputs
 from .reader import LoadContext, Node, dispatch, path_problem, read_json
 
 FORMAT = "lamina-scene"
@@ -54,6 +55,9 @@ class Scene:
     warnings: list[str] = field(default_factory=list)
     center: np.ndarray = None
     radius: float = 1.0
+    # The files and preset names the load read (scene/inputs.py): what a cluster render sends
+    # to its workers. {"files": [absolute path, ...], "presets": {name: path}}.
+    inputs: dict = field(default_factory=dict)
 
 
 def load_scene(path: str | Path) -> Scene:
@@ -147,6 +151,16 @@ def rebase_sections(data: dict, offset: np.ndarray) -> dict:
 
 
 def load_scene_data(data, where: str = "<scene>", base_dir: Path | None = None) -> Scene:
+    recorder = record_inputs()
+    if recorder is None:
+        return _load_scene_data(data, where, base_dir)
+    with recorder:
+        scene = _load_scene_data(data, where, base_dir)
+    scene.inputs = {"files": list(recorder.files), "presets": dict(recorder.presets)}
+    return scene
+
+
+def _load_scene_data(data, where: str, base_dir: Path | None) -> Scene:
     data = rebased(data)
     ctx = LoadContext(where, base_dir)
     root = Node(data, "", ctx)

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import SceneError
 from ..limits import MAX_COORDINATE, MAX_INT_DIGITS, MAX_JSON_DEPTH, MAX_NUMBER, short
+from .inputs import local_file
 
 _MISSING = object()
 
@@ -164,7 +165,8 @@ class LoadContext:
             if problem:
                 raise self.error(field, problem)
         p = Path(relative)
-        return p if p.is_absolute() else (self.base_dir / p)
+        # local_file: a cluster worker reads its copy of the master's file (scene/inputs.py).
+        return local_file(p if p.is_absolute() else (self.base_dir / p))
 
     def existing_file(self, relative: str, field: str, what: str = "file") -> Path:
         """The resolved path of a file that must exist; SceneError naming ``field`` otherwise."""

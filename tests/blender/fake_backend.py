@@ -43,6 +43,9 @@ def main(argv):
     seed = scene.get("render", {}).get("seed", 0)
     w, h = film["width"], film["height"]
     mode = os.environ.get("FAKE_MODE", "pixels")
+    if os.environ.get("FAKE_ARGV"):                  # the command line the engine built
+        with open(os.environ["FAKE_ARGV"], "w") as f:
+            json.dump(argv, f)
     pids = [os.getpid()]
     emit(event="start", width=w, height=h, spp=4, workers=1)
     if mode == "error":

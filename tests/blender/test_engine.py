@@ -32,6 +32,21 @@ def fake(tmp_path_factory):
                                           args={"fake_failure": {"mode": "crash_after_partial"}})["fake_failure"]}
 
 
+@pytest.fixture(scope="module")
+def cluster_render(tmp_path_factory):
+    """F12 with the Cluster setting (the fake backend records its command line)."""
+    return run_cases("engine_cases", ["fake_pixels"], tmp=tmp_path_factory.mktemp("cluster"),
+                     args={"fake_pixels": {"cluster": " tcp://127.0.0.1:8786 "}})["fake_pixels"]
+
+
+def test_cluster_setting_passes_the_scheduler_to_the_backend(cluster_render):
+    r = cluster_render
+    assert r["error"] is None and r["exists"]
+    argv = r["argv"]
+    assert argv[argv.index("--cluster") + 1] == "tcp://127.0.0.1:8786"    # stripped
+    assert "--workers" not in argv              # the cluster's workers bring their own threads
+
+
 def read_exr_parts(path):
     """{part/layer name: (H, W, C) array, channel names} of a (multi-part) EXR, top row first."""
     import OpenImageIO as oiio
@@ -66,6 +81,7 @@ def channels_named(parts, suffixes):
 def test_result_pixels_orientation_and_passes(fake):
     r = result_of(fake, "fake_pixels")
     assert r["error"] is None and r["exists"]
+    assert "--cluster" not in r["argv"]          # no Cluster setting: rendered on this computer
     parts = read_exr_parts(r["path"])
     h, w = 12, 16
     y, x = np.mgrid[0:h, 0:w]

@@ -240,3 +240,4 @@ def test_export_operator_single_frame_and_animation(more):
     assert r["heights"][0] == pytest.approx(0.0) and r["heights"][2] == pytest.approx(2.0)
     assert 0.0 < r["heights"][1] < 2.0 and r["single_height"] == pytest.approx(r["heights"][1])
     assert r["frame_after"] == 2                        # the current frame is restored
+    assert r["mesh_bytes_stable"]                       # no time stamp in the .npz

@@ -56,9 +56,12 @@ def _render_to(sc, path: Path, multilayer: bool = True):
     return error, time.perf_counter() - t0
 
 
-def fake_pixels(tmp, border=False, layers=1):
+def fake_pixels(tmp, border=False, layers=1, cluster=""):
     sc = _simple_scene()
     _fake_backend(tmp, "pixels")
+    argv_file = Path(tmp) / "argv.json"
+    os.environ["FAKE_ARGV"] = str(argv_file)
+    sc.lamina.cluster = cluster
     for i in range(1, layers):
         sc.view_layers.new(f"Layer{i + 1}")
     if border:
@@ -69,7 +72,9 @@ def fake_pixels(tmp, border=False, layers=1):
     out = Path(tmp) / ("fake_border.exr" if border else "fake.exr")
     error, seconds = _render_to(sc, out)
     _reset_backend()
-    return {"error": error, "path": str(out), "exists": out.is_file(), "seconds": seconds}
+    os.environ.pop("FAKE_ARGV", None)
+    argv = json.loads(argv_file.read_text()) if argv_file.is_file() else None
+    return {"error": error, "path": str(out), "exists": out.is_file(), "seconds": seconds, "argv": argv}
 
 
 def fake_failure(tmp, mode="error"):

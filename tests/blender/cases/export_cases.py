@@ -304,6 +304,18 @@ def export_operator(tmp):
     frames = sorted(p.name for p in anim.parent.glob("shot_*.json"))
     heights = [json.loads((anim.parent / f).read_text())["objects"][0]["to_world"][2][3] for f in frames]
     doc = json.loads(single.read_text())
+    mesh_file = single.parent / doc["meshes"]["Plane"]["file"]
+    first_bytes = mesh_file.read_bytes() if mesh_file.is_file() else b""
+    # The same mesh exported again, an hour later as the clock says, gives the same bytes
+    # (np.savez stamps no time): cluster renders send files by content hash (docs/cluster.md).
+    import time as _time
+    clock = _time.time
+    _time.time = lambda: clock() + 3600.0
+    try:
+        bpy.ops.lamina.export_scene(filepath=str(single))
+    finally:
+        _time.time = clock
     return {"status": status, "status_anim": status_anim, "frames": frames, "heights": heights,
             "single_height": doc["objects"][0]["to_world"][2][3], "frame_after": sc.frame_current,
-            "mesh_file_exists": (single.parent / doc["meshes"]["Plane"]["file"]).is_file()}
+            "mesh_file_exists": mesh_file.is_file(),
+            "mesh_bytes_stable": bool(first_bytes) and mesh_file.read_bytes() == first_bytes}
