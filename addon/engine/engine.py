@@ -6,6 +6,7 @@ previews. Everything that goes wrong ends in ``report({'ERROR'})`` + ``error_set
 """
 from __future__ import annotations
 
+import os
 import shutil
 import sys
 import tempfile
@@ -49,13 +50,15 @@ def _keep_files() -> bool:
 
 def _user_env() -> dict:
     """Where the backend finds user presets and caches its compiled kernels: the extension's user
-    folder (never the install folder, which an update replaces and may be read-only)."""
+    folder (never the install folder, which an update replaces and may be read-only), unless
+    LAMINA_KERNEL_CACHE is set in Blender's own environment."""
     env = {}
     try:
         env["LAMINA_PRESET_PATH"] = bpy.utils.extension_path_user(preferences.ADDON_ID, path="presets",
                                                                   create=False)
-        env["LAMINA_KERNEL_CACHE"] = bpy.utils.extension_path_user(preferences.ADDON_ID, path="kernels",
-                                                                   create=True)
+        if not os.environ.get("LAMINA_KERNEL_CACHE"):     # set in Blender's environment, it wins
+            env["LAMINA_KERNEL_CACHE"] = bpy.utils.extension_path_user(preferences.ADDON_ID, path="kernels",
+                                                                       create=True)
     except (ValueError, RuntimeError, TypeError):   # not installed as an extension (development)
         pass
     return env

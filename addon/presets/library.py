@@ -9,6 +9,7 @@ that folder to the backend process as ``LAMINA_PRESET_PATH``.
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -157,8 +158,10 @@ def backend_environment() -> dict:
     extra = {}
     if user is not None:
         extra["LAMINA_PRESET_PATH"] = str(user)
-        # Compiled kernels are cached next to the presets, in the extension's user folder.
-        extra["LAMINA_KERNEL_CACHE"] = str(user.parent / "kernels")
+        # Compiled kernels are cached next to the presets, in the extension's user folder
+        # (unless LAMINA_KERNEL_CACHE is set in Blender's environment).
+        if not os.environ.get("LAMINA_KERNEL_CACHE"):
+            extra["LAMINA_KERNEL_CACHE"] = str(user.parent / "kernels")
     return child_environment(extra or None)
 
 

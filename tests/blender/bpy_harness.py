@@ -71,6 +71,11 @@ def run_cases(module: str, cases: list[str], *, tmp: Path, env: dict | None = No
                "repo": str(repo) if repo else None, "args": args or {}}
     child_env = dict(os.environ)
     child_env.setdefault("BLENDER_USER_RESOURCES", str(Path(tmp) / "blender-user"))
+    # One kernel cache for every Blender child of the test run (an installed extension would
+    # otherwise compile into its own user folder: ~1.5 min per case module). test_extension
+    # passes "" to test that folder.
+    from backend.kernels.cache import user_cache_root
+    child_env.setdefault("LAMINA_KERNEL_CACHE", str(user_cache_root()))
     child_env["PYTHONPATH"] = os.pathsep.join([str(HERE), str(ROOT), child_env.get("PYTHONPATH", "")])
     if env:
         child_env.update(env)

@@ -58,7 +58,7 @@ def test_installs_enables_and_finds_its_backend(built):
     tmp, path, log = built
     user = tmp / "user"
     r = result_of(run_cases("install_cases", ["install"], tmp=tmp, dev_load=False,
-                            env={"BLENDER_USER_RESOURCES": str(user)},
+                            env={"BLENDER_USER_RESOURCES": str(user), "LAMINA_KERNEL_CACHE": ""},
                             args={"install": {"zip_path": str(path)}}), "install")
     assert r["status"] == ["FINISHED"]
     assert "bl_ext.user_default.lamina.addon.engine.engine" in r["loaded"]
