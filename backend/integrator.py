@@ -22,6 +22,7 @@ from .kernels.layered.table import H_MAXV, StackBuilder
 from .kernels.lights.table import build_light_table
 from .kernels.params import ParamPacker
 from .kernels.sampler import SAMPLERS
+from .kernels.soup import interpolation_rows
 from .lights.environment import ConstantWorld
 
 #: Path segments whose sampling dimensions come from the stratified (Sobol) sampler; deeper ones
@@ -30,12 +31,6 @@ from .lights.environment import ConstantWorld
 #: RMSE 0.0382 vs 0.0382, independent 0.0487; gold + glass: 0.297 vs 0.303, independent 0.369)
 #: while each further stratified bounce costs ~130 ns per lane (3 scrambled 2-D slots).
 STRATIFIED_BOUNCES = 1
-
-
-def _table(corners: np.ndarray) -> np.ndarray:
-    """Per-triangle interpolation rows: corner 0, then the differences to corners 1 and 2."""
-    c0 = corners[:, 0]
-    return np.ascontiguousarray(np.concatenate([c0, corners[:, 1] - c0, corners[:, 2] - c0], axis=1))
 
 
 class _Queue:
@@ -93,9 +88,9 @@ class PathTracer:
             emitter[scene.mesh_light.triangle_ids] = np.arange(scene.mesh_light.triangle_ids.size)
         count = soup.count
         self.geometry = ki.Geometry(
-            _table(soup.vertices64) if count else np.zeros((1, 9)),
-            _table(soup.normals64) if soup.normals is not None else np.zeros((1, 9)),
-            _table(soup.uvs64) if soup.uvs is not None else np.zeros((1, 6)),
+            interpolation_rows(soup.vertices) if count else np.zeros((1, 9)),
+            interpolation_rows(soup.normals) if soup.normals is not None else np.zeros((1, 9)),
+            interpolation_rows(soup.uvs) if soup.uvs is not None else np.zeros((1, 6)),
             np.ascontiguousarray(soup.geo_normal) if count else np.zeros((1, 3)),
             np.ascontiguousarray(soup.tangent) if count else np.zeros((1, 3)),
             np.ascontiguousarray(soup.material, np.int32) if count else np.zeros(1, np.int32),

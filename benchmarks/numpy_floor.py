@@ -34,9 +34,9 @@ LIGHT_RADIANCE = np.array([60.0 / (0.25 * np.pi), 60.0 * 0.85 / (0.25 * np.pi), 
 def render_floor(scene, accel, spp: int, dtype, rng, max_bounces: int) -> np.ndarray:
     soup = scene.soup
     W, H = scene.width, scene.height
-    v0 = soup.vertices64[:, 0].astype(dtype)
-    e1 = (soup.vertices64[:, 1] - soup.vertices64[:, 0]).astype(dtype)
-    e2 = (soup.vertices64[:, 2] - soup.vertices64[:, 0]).astype(dtype)
+    v0 = soup.vertices[:, 0].astype(np.float64).astype(dtype)
+    e1 = (soup.vertices[:, 1].astype(np.float64) - soup.vertices[:, 0]).astype(dtype)
+    e2 = (soup.vertices[:, 2].astype(np.float64) - soup.vertices[:, 0]).astype(dtype)
     ng = soup.geo_normal.astype(dtype)
     # Lambertian stand-in for every material: its albedo AOV colour (materials/base.py).
     ctx = ShadingContext(np.full((1, 2), 0.5))

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mathutil import abs_max3, add_scaled, cross, dot, normalize
+from ..mathutil import abs_max3, add_scaled, dot
 
 # Offset in units of the coordinate magnitude: 2^-16 ≈ 1.5e-5, i.e. ~128 float32 ulps.
 OFFSET_RELATIVE = 2.0 ** -16
@@ -37,44 +37,16 @@ class TriangleSoup:
     geo_normal: np.ndarray = None   # (T, 3) float64 unit geometric normal (CCW winding)
     tangent: np.ndarray = None      # (T, 3) float64 unit dP/du (UV tangent), zeros where undefined
     area: np.ndarray = None         # (T,) float64
-    # float64 copies for shading (gathering float32 and converting per hit is 3-4x slower)
-    vertices64: np.ndarray = None
-    normals64: np.ndarray = None
-    uvs64: np.ndarray = None
 
     def __post_init__(self):
         if self.holdout is None:
             self.holdout = np.zeros(self.vertices.shape[0], dtype=bool)
-        v = self.vertices.astype(np.float64)
-        self.vertices64 = v
-        self.normals64 = None if self.normals is None else self.normals.astype(np.float64)
-        self.uvs64 = None if self.uvs is None else self.uvs.astype(np.float64)
-        e1 = v[:, 1] - v[:, 0]
-        e2 = v[:, 2] - v[:, 0]
-        n = cross(e1, e2)
-        self.area = 0.5 * np.linalg.norm(n, axis=1)
-        self.geo_normal = normalize(n)
-        self.tangent = _uv_tangents(e1, e2, self.uvs)
+        from ..kernels.soup import triangle_frames
+        self.geo_normal, self.tangent, self.area = triangle_frames(self.vertices, self.uvs)
 
     @property
     def count(self) -> int:
         return int(self.vertices.shape[0])
-
-
-def _uv_tangents(e1: np.ndarray, e2: np.ndarray, uvs: np.ndarray | None) -> np.ndarray:
-    """dP/du per triangle (anisotropy follows the UV map, DESIGN.md §3)."""
-    if uvs is None:
-        return np.zeros_like(e1)
-    uv = uvs.astype(np.float64)
-    du1 = uv[:, 1, 0] - uv[:, 0, 0]
-    du2 = uv[:, 2, 0] - uv[:, 0, 0]
-    dv1 = uv[:, 1, 1] - uv[:, 0, 1]
-    dv2 = uv[:, 2, 1] - uv[:, 0, 1]
-    det = du1 * dv2 - du2 * dv1
-    ok = np.abs(det) > 1e-20
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    dpdu = (e1 * dv2[:, None] - e2 * dv1[:, None]) * inv[:, None]
-    return normalize(dpdu)
 
 
 def offset_scale(p: np.ndarray) -> np.ndarray:

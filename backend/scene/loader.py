@@ -508,7 +508,7 @@ def build_mesh_light(soup: TriangleSoup, materials: list):
         # emission parameter (one slot per emissive material), evaluated per lane by the kernel.
         slot_of = np.full(len(materials), -1, np.int64)
         slot_of[emissive] = np.arange(len(emissive))
-        textured = dict(uvs=soup.uvs64[tri], emission=[materials[mi].emission for mi in emissive],
+        textured = dict(uvs=soup.uvs[tri].astype(np.float64), emission=[materials[mi].emission for mi in emissive],
                         slots=slot_of[soup.material[tri]])
     # Two-sided per triangle unless its material emits from the front only (emission_sides).
     two_sided = ~np.array([bool(getattr(m, "emission_front_only", False)) for m in materials])[soup.material[tri]]
