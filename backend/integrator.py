@@ -23,7 +23,6 @@ from .kernels.lights.table import build_light_table
 from .kernels.params import ParamPacker
 from .kernels.sampler import SAMPLERS
 from .kernels.soup import interpolation_rows
-from .lights.environment import ConstantWorld
 
 #: Path segments whose sampling dimensions come from the stratified (Sobol) sampler; deeper ones
 #: use the hashed numbers. Measured (benchmarks/sampler_depth.py, Cornell box 48², 3 seeds):
@@ -74,7 +73,7 @@ class PathTracer:
         # Next-event estimation never samples a constant world: BSDF sampling is the better
         # strategy for it everywhere (exact for a Lambertian surface: zero variance, as in
         # Cycles), and its escaped rays then keep MIS weight 1 (selection probability 0).
-        powers = [0.0 if isinstance(l, ConstantWorld) else float(l.power()) for l in self.lights]
+        powers = [float(l.power()) if l.light_sampled else 0.0 for l in self.lights]
         self.light_table = build_light_table(self.lights, packer, scene.radius, s.light_selection,
                                              powers=powers)
         self.textures = packer.table()

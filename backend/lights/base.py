@@ -56,6 +56,8 @@ class Light:
     is_infinite: ClassVar[bool] = False
     #: Can rays hit it at a finite distance (analytic area/sphere lights)?
     is_hittable: ClassVar[bool] = False
+    #: Does next-event estimation sample it? (A constant world is left to BSDF sampling.)
+    light_sampled: ClassVar[bool] = True
 
     def prepare(self, scene_center: np.ndarray, scene_radius: float) -> None:
         """Called once the scene bounds are known (infinite lights need them for power)."""

@@ -39,6 +39,9 @@ class ConstantWorld(Light):
 
     is_infinite = True
     visible_camera = True
+    # BSDF sampling is the better strategy for it everywhere (exact for a Lambertian surface:
+    # zero variance, as in Cycles); its escaped rays then keep MIS weight 1.
+    light_sampled = False
 
     def __init__(self, radiance):
         self.radiance = np.asarray(radiance, dtype=np.float64).reshape(3)

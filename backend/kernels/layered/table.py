@@ -363,8 +363,11 @@ class StackBuilder:
                 "phase": pk, "flags": flags, "s6": s6, "row": row}, textured
 
     def table(self, TX) -> StackTable:
-        from ...layered.phase.fiber import kernel_table
-        base = kernel_table()
+        if self.stacks:
+            from ...layered.phase.fiber import kernel_table
+            base = kernel_table()
+        else:
+            base = np.zeros((1, 1))     # no layered stack: the walks never read the fiber table
         FT = np.zeros((base.shape[0] + len(self.fiber_rows), base.shape[1]))
         FT[:base.shape[0]] = base
         if self.fiber_rows:
