@@ -45,7 +45,7 @@ class LaminaRenderSettings(PropertyGroup):
     use_animated_seed: BoolProperty(name="Animated Seed", default=False,
                                     description="Add the frame number to the seed (noise changes per frame)")
     workers: IntProperty(name="Workers", default=0, min=0, max=64,
-                         description="Worker processes; 0 = one per CPU core")
+                         description="Parallel render workers (threads of the renderer process); 0 = one per CPU core")
     cluster: StringProperty(name="Cluster", default="",
                             description="Render F12 and animation frames on a Dask cluster: the "
                                         "scheduler's address (tcp://HOST:8786). Empty = this computer. "
