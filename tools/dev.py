@@ -138,7 +138,7 @@ def start_test_313(rest: list[str]):
           "(their output follows the 3.11 suite's)", flush=True)
     paths = [] if any(arg.startswith("tests") for arg in rest) else ["tests"]
     import tempfile
-    folder = Path(tempfile.mkdtemp(prefix="lamina-test-313-"))
+    folder = Path(tempfile.mkdtemp(prefix="pytest-313-"))   # not "lamina-": tests look for leaked Lamina temp names
     log = folder / "pytest.log"
     env = dict(os.environ, PYTHONHASHSEED=os.environ.get("PYTHONHASHSEED", "0"))
     # A base temp folder of its own: two pytest sessions must not clean up each other's folders.
