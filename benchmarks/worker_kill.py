@@ -26,32 +26,14 @@ from pathlib import Path
 
 import numpy as np
 
+from .procs import children, render_workers
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def children(pid: int) -> list[int]:
-    out = []
-    try:
-        for tid in os.listdir(f"/proc/{pid}/task"):
-            with open(f"/proc/{pid}/task/{tid}/children") as f:
-                out += [int(c) for c in f.read().split()]
-    except OSError:
-        pass
-    return out
-
-
 def workers_of(pid: int) -> list[int]:
-    """The render's worker processes (children running the worker loop; not the resource
-    tracker multiprocessing starts)."""
-    found = []
-    for c in children(pid):
-        try:
-            cmd = open(f"/proc/{c}/cmdline", "rb").read()
-        except OSError:
-            continue
-        if b"resource_tracker" not in cmd:
-            found.append(c)
-    return found
+    """The render's worker processes (its children running the worker loop)."""
+    return render_workers(children(pid))
 
 
 def render(scene: Path, out: Path, args, kill_at: float | None = None, rng: random.Random | None = None):

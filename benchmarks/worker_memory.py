@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .procs import render_workers, tree
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -66,33 +68,6 @@ def scene(mesh: str, layered: bool) -> dict:
             "world": {"type": "constant", "color": [1, 1, 1], "strength": 1}}
 
 
-def _tree(pid: int) -> list[int]:
-    out, todo = [], [pid]
-    while todo:
-        p = todo.pop()
-        out.append(p)
-        try:
-            for tid in os.listdir(f"/proc/{p}/task"):
-                with open(f"/proc/{p}/task/{tid}/children") as f:
-                    todo += [int(c) for c in f.read().split()]
-        except OSError:
-            pass
-    return out
-
-
-def _workers(pids: list[int]) -> list[int]:
-    """Those of ``pids`` that are render workers (not multiprocessing's resource tracker)."""
-    out = []
-    for p in pids:
-        try:
-            with open(f"/proc/{p}/cmdline", "rb") as f:
-                if b"resource_tracker" not in f.read():
-                    out.append(p)
-        except OSError:
-            pass
-    return out
-
-
 def _mem(pid: int) -> tuple[int, int]:
     """(PSS, RSS) in bytes of one process (0, 0 if gone)."""
     try:
@@ -122,13 +97,13 @@ def measure(scene_path: Path, workers: int, out: Path, parallel: str = "threads"
 
     def sample():
         while not done.is_set():
-            pids = _tree(proc.pid)
+            pids = tree(proc.pid)
             mem = [_mem(p) for p in pids]
             pss, rss = sum(m[0] for m in mem), sum(m[1] for m in mem)
             alive = len([m for m in mem if m[1]])
             if pss > peak["pss"]:
                 peak.update(pss=pss, procs=alive)
-            if len(_workers(pids[1:])) >= 2:
+            if len(render_workers(pids[1:])) >= 2:
                 peak["pss_with_workers"] = max(peak["pss_with_workers"], pss)
             peak["rss"] = max(peak["rss"], rss)
             time.sleep(0.05)

@@ -88,6 +88,21 @@ def _sample(B, o, wi, u0, u1, u2, dens):
     return ki.sample(B, o + 0, wi, u0, u1, u2, dens == True)  # noqa: E712
 
 
+@njit(cache=True, _nrt=False, inline="always")
+def _exit_side(B, N, wo, R):
+    """Where the path leaves the stack towards wo: (exit through the top, the exit interface E, the
+    slab next to E, the interface across that slab, E's block offset) and the three numbers that
+    sample a direction at E (drawn here, in this order, by both next-event estimators)."""
+    exit_top = wo[2] > 0.0
+    E = 0 if exit_top else N - 1
+    slab_E = 0 if exit_top else N - 2
+    face = 1 if exit_top else N - 2
+    u0 = ph.rnd(R)
+    u1 = ph.rnd(R)
+    u2 = ph.rnd(R)
+    return exit_top, E, slab_E, face, _ifo(E), u0, u1, u2
+
+
 @njit(cache=True, _nrt=False, error_model="numpy")
 def power(a, b):
     a2 = a * a
@@ -349,14 +364,7 @@ def bidirectional(B, FT, W, nL, nR, exit_top, pdf_mode, approx, nmax, hero):
 def unidirectional(B, FT, W, nL, wo, R, mis):
     """NEE through the exit interface plus the continuation half of the MIS pair, over walk 0."""
     N = int(B[H_N])
-    exit_top = wo[2] > 0.0
-    E = 0 if exit_top else N - 1
-    slab_E = 0 if exit_top else N - 2
-    face = 1 if exit_top else N - 2
-    oE = _ifo(E)
-    u0 = ph.rnd(R)
-    u1 = ph.rnd(R)
-    u2 = ph.rnd(R)
+    exit_top, E, slab_E, face, oE, u0, u1, u2 = _exit_side(B, N, wo, R)
     u, wb, p_E, _, delta_E = _sample(B, oE, wo, u0, u1, u2, True)
     if not (u[2] * wo[2] < 0.0 and abs(u[2]) >= GRAZING):
         wb = (0.0, 0.0, 0.0)
@@ -439,14 +447,7 @@ def pdf_nee(B, FT, W, nL, wo, R, hero, approx, kmax):
         continuation  P(d_v) p_E(wo | −d_v) · p_v² / (p_v² + q(−d_v)²)
     (P: ``_pass``). E must not be a delta interface (then the bidirectional estimate is used)."""
     N = int(B[H_N])
-    exit_top = wo[2] > 0.0
-    E = 0 if exit_top else N - 1
-    slab_E = 0 if exit_top else N - 2
-    face = 1 if exit_top else N - 2
-    oE = _ifo(E)
-    u0 = ph.rnd(R)
-    u1 = ph.rnd(R)
-    u2 = ph.rnd(R)
+    exit_top, E, slab_E, face, oE, u0, u1, u2 = _exit_side(B, N, wo, R)
     u, _, qf, qr, _ = _sample(B, oE, wo, u0, u1, u2, True)
     nee = u[2] * wo[2] < 0.0 and abs(u[2]) >= GRAZING and qf > 0.0
     d = (-u[0], -u[1], -u[2])
