@@ -24,7 +24,7 @@ from .kernels.layered.table import H_MAXV, StackBuilder
 from .kernels.lights.table import build_light_table
 from .kernels.params import ParamPacker
 from .kernels.sampler import SAMPLERS
-from .kernels.soup import interpolation_rows
+from .kernels.soup import shading_rows
 
 #: Path segments whose sampling dimensions come from the stratified (Sobol) sampler; deeper ones
 #: use the hashed numbers. Measured (benchmarks/sampler_depth.py, Cornell box 48², 3 seeds):
@@ -106,15 +106,11 @@ class PathTracer:
         if scene.mesh_light is not None:
             emitter[scene.mesh_light.triangle_ids] = np.arange(scene.mesh_light.triangle_ids.size)
         count = soup.count
-        self.geometry = ki.Geometry(
-            interpolation_rows(soup.vertices) if count else np.zeros((1, 9)),
-            interpolation_rows(soup.normals) if soup.normals is not None else np.zeros((1, 9)),
-            interpolation_rows(soup.uvs) if soup.uvs is not None else np.zeros((1, 6)),
-            np.ascontiguousarray(soup.geo_normal) if count else np.zeros((1, 3)),
-            np.ascontiguousarray(soup.tangent) if count else np.zeros((1, 3)),
-            np.ascontiguousarray(soup.material, np.int32) if count else np.zeros(1, np.int32),
-            np.ascontiguousarray(soup.holdout, bool) if count else np.zeros(1, bool),
-            emitter, soup.normals is not None, soup.uvs is not None)
+        rows, irows = shading_rows(soup.vertices, soup.normals, soup.uvs, soup.geo_normal, soup.tangent,
+                                   soup.material, emitter[:count])
+        self.geometry = ki.Geometry(rows, irows,
+                                    np.ascontiguousarray(soup.holdout, bool) if count else np.zeros(1, bool),
+                                    soup.normals is not None, soup.uvs is not None)
         self.settings = ki.Settings(
             np.uint64(s.seed), self.max_segments, s.rr_depth, float(s.clamp), bool(scene.transparent),
             has_lights, mesh_light,

@@ -33,6 +33,7 @@ from .layered import batch as layered
 from .lights import dispatch as ld
 from .rng import SLOT_BSDF, SLOT_LIGHT, SLOT_LIGHT_PICK, SLOT_RR, bounce_dim, uniform
 from .sampler import get2, pixel_seed
+from .soup import ROW_EMIT, ROW_MAT, ROW_N, ROW_NG, ROW_TAN, ROW_UV, ROW_V
 
 SHADOW_EPS = 1e-4   # shadow rays stop this fraction short of the light (not its own surface)
 # Ray offsets (geometry/accel.py): along the geometric normal by a multiple of the float32
@@ -41,10 +42,10 @@ OFFSET_RELATIVE = 2.0 ** -16
 OFFSET_ABSOLUTE = 1e-7
 INF = np.inf
 
-# Scene geometry for shading. Interpolation tables hold, per triangle, the value at corner 0 then
-# the differences to corners 1 and 2: a(b1, b2) = row[0:k] + b1·row[k:2k] + b2·row[2k:3k].
-Geometry = namedtuple("Geometry", ["position", "normal", "uv", "geo_normal", "tangent",
-                                   "material", "holdout", "emitter", "has_normals", "has_uvs"])
+# Scene geometry for shading: one float32 row per triangle (kernels/soup.py, ``ROW_*``: corners,
+# corner normals and UVs, geometric normal, tangent) and the same memory as int32 (material,
+# emitter); a value at barycentrics (b1, b2) is c0 + b1·(c1 − c0) + b2·(c2 − c0) in float64.
+Geometry = namedtuple("Geometry", ["rows", "irows", "holdout", "has_normals", "has_uvs"])
 # Render settings the kernels read (scalars; one Numba type per field).
 Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", "transparent",
                                    "has_lights", "mesh_light", "hittable", "infinite",
@@ -94,10 +95,14 @@ def _mis_hit(LT, li, pdf_light, prev_pdf, prev_delta, o):
 
 
 @njit(cache=True, _nrt=False, inline="always")
-def _interp3(tab, prim, b1, b2):
-    return (tab[prim, 0] + b1 * tab[prim, 3] + b2 * tab[prim, 6],
-            tab[prim, 1] + b1 * tab[prim, 4] + b2 * tab[prim, 7],
-            tab[prim, 2] + b1 * tab[prim, 5] + b2 * tab[prim, 8])
+def _interp3(rows, prim, c, b1, b2):
+    """The 3-vector at columns c (corner 0), c + 3, c + 6 of a shading row, interpolated."""
+    a0 = np.float64(rows[prim, c])
+    a1 = np.float64(rows[prim, c + 1])
+    a2 = np.float64(rows[prim, c + 2])
+    return (a0 + b1 * (np.float64(rows[prim, c + 3]) - a0) + b2 * (np.float64(rows[prim, c + 6]) - a0),
+            a1 + b1 * (np.float64(rows[prim, c + 4]) - a1) + b2 * (np.float64(rows[prim, c + 7]) - a1),
+            a2 + b1 * (np.float64(rows[prim, c + 5]) - a2) + b2 * (np.float64(rows[prim, c + 8]) - a2))
 
 
 @njit(cache=True, _nrt=False)
@@ -286,28 +291,31 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
         # 2. the surface, in float64 from barycentrics (accurate to the vertex precision)
         b1 = np.float64(b1_32[i])
         b2 = np.float64(b2_32[i])
-        p = _interp3(G.position, pr, b1, b2)
-        ng = (G.geo_normal[pr, 0], G.geo_normal[pr, 1], G.geo_normal[pr, 2])
+        R = G.rows
+        p = _interp3(R, pr, ROW_V, b1, b2)
+        ng = (np.float64(R[pr, ROW_NG]), np.float64(R[pr, ROW_NG + 1]), np.float64(R[pr, ROW_NG + 2]))
         if G.has_normals:
-            ns = _interp3(G.normal, pr, b1, b2)
+            ns = _interp3(R, pr, ROW_N, b1, b2)
             ln = math.sqrt(_dot(ns, ns))
             ns = (ns[0] / ln, ns[1] / ln, ns[2] / ln) if ln > 0.0 else ng
         else:
             ns = ng
         if G.has_uvs:
-            u = G.uv[pr, 0] + b1 * G.uv[pr, 2] + b2 * G.uv[pr, 4]
-            v = G.uv[pr, 1] + b1 * G.uv[pr, 3] + b2 * G.uv[pr, 5]
+            u0 = np.float64(R[pr, ROW_UV])
+            v0 = np.float64(R[pr, ROW_UV + 1])
+            u = u0 + b1 * (np.float64(R[pr, ROW_UV + 2]) - u0) + b2 * (np.float64(R[pr, ROW_UV + 4]) - u0)
+            v = v0 + b1 * (np.float64(R[pr, ROW_UV + 3]) - v0) + b2 * (np.float64(R[pr, ROW_UV + 5]) - v0)
         else:
             u = 0.0
             v = 0.0
-        m = G.material[pr]
+        m = G.irows[pr, ROW_MAT]
         wi = (-rd[0], -rd[1], -rd[2])
         # Both faces emit (as Cycles' emission shader), or the front only (emission_sides).
         if MT.emits[m] and (not MT.emit_front[m] or _dot(wi, ng) > 0.0):
             le = km.emission(MT, TX, m, u, v)
             w = 1.0
             if S.mesh_light >= 0:
-                local = G.emitter[pr]
+                local = G.irows[pr, ROW_EMIT]
                 pdf_l = ld.mesh_pdf_hit(LT, S.mesh_light, ro, rd, t_surf, local) if local >= 0 else 0.0
                 w = _mis_hit(LT, S.mesh_light, pdf_l, pp, pd, ro)
             _add(L, sl, _clamped((bt[0] * le[0] * w, bt[1] * le[1] * w, bt[2] * le[2] * w), S.clamp, segment))
@@ -325,7 +333,7 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
                 ns = ng
         if G.has_normals:
             ns = _valid_reflection_normal(wi, ns, ng)
-        tan = (G.tangent[pr, 0], G.tangent[pr, 1], G.tangent[pr, 2])
+        tan = (np.float64(R[pr, ROW_TAN]), np.float64(R[pr, ROW_TAN + 1]), np.float64(R[pr, ROW_TAN + 2]))
         fs, ft = _frame(ns, tan)
         wi_l = _local(fs, ft, ns, wi)
         # 4a. light sample (shared with layered lanes) from the sampler's 2-D slots of this bounce.
