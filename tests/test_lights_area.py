@@ -18,7 +18,8 @@ def light_down(shape, su, sv, height=1.0, linear=None, profile=None, power=P, no
     return AreaLight(translate(0, 0, height, linear), shape, su, sv, power, COLOR, normalize, profile)
 
 
-@pytest.mark.parametrize("p", [[0.0, 0.0, 0.0], [0.3, -0.2, 0.4], [1.5, 0.9, 0.0]])
+# The last two points see the light nearly uniformly and are area-sampled (AREA_SAMPLING_R2_RATIO).
+@pytest.mark.parametrize("p", [[0.0, 0.0, 0.0], [0.3, -0.2, 0.4], [1.5, 0.9, 0.0], [0.2, 0.1, -5.0], [3.0, -2.0, -9.0]])
 def test_rectangle_irradiance_closed_form(p):
     """Receiver parallel to a 1 × 2 rectangle; scale (1.5, 0.5) on the object is part of the size."""
     light = light_down("rectangle", 1.0, 4.0, 1.0, linear=np.diag([1.5, 0.5, 1.0]))
@@ -130,6 +131,7 @@ def sampled_region(o, half_u, half_v, tan_cutoff):
 @pytest.mark.parametrize("shape, where, profile", [
     ("rectangle", [0.2, 0.1, 0.0], Lambertian()),
     ("rectangle", [2.5, 0.3, 0.7], Lambertian()),            # grazing, off to the side
+    ("rectangle", [0.4, -0.3, -4.0], Lambertian()),          # far: area-sampled, nearly uniform
     ("ellipse", [0.3, -0.2, 0.2], Lambertian()),
     ("rectangle", [0.6, 0.0, 0.2], CyclesSpread(np.radians(40))),   # clipped region
     ("disk", [0.3, 0.2, 0.5], CyclesSpread(np.radians(30))),        # clipped box of a disk
@@ -157,3 +159,27 @@ def test_solid_angle_sampling_of_a_tiny_far_light_stays_consistent():
     expected = rect_irradiance_parallel(-0.005, 0.005, -0.005, 0.005, 100.0, L)
     assert np.allclose(mean, expected, rtol=1e-6)
     check_mis_consistency(light, [0.0, 0.0, 0.0], 200, rng)
+
+
+def test_area_sampling_switch_is_where_the_density_is_nearly_uniform():
+    """The whole-rectangle sampler switches from the spherical rectangle to area sampling where
+    (r_max / r_min)³ ≤ 1.3. Checked against brute force over the rectangle: the ratio of the
+    area density in solid angle (r³/(A h)) between its largest and smallest value on a fine grid."""
+    from backend.kernels.lights.area import AREA_SAMPLING_R2_RATIO, _nearly_uniform
+    rng = np.random.default_rng(21)
+    g = np.linspace(0.0, 1.0, 201)
+    agree = 0
+    for _ in range(300):
+        x0, y0 = rng.uniform(-3, 1, 2)
+        lx, ly = rng.uniform(0.05, 2, 2)
+        z0 = -rng.uniform(0.1, 8)
+        X, Y = np.meshgrid(x0 + g * lx, y0 + g * ly)
+        r2 = X * X + Y * Y + z0 * z0
+        # the nearest point of the rectangle (it may be inside: the foot of the perpendicular)
+        r2_min = min(r2.min(), np.clip(0.0, x0, x0 + lx) ** 2 + np.clip(0.0, y0, y0 + ly) ** 2 + z0 * z0)
+        ratio = r2.max() / r2_min
+        if abs(ratio - AREA_SAMPLING_R2_RATIO) < 1e-3:
+            continue                                            # grid resolution
+        assert _nearly_uniform(x0, y0, z0, lx, ly) == (ratio <= AREA_SAMPLING_R2_RATIO)
+        agree += 1
+    assert agree > 250
