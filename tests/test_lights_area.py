@@ -163,7 +163,7 @@ def test_solid_angle_sampling_of_a_tiny_far_light_stays_consistent():
 
 def test_area_sampling_switch_is_where_the_density_is_nearly_uniform():
     """The whole-rectangle sampler switches from the spherical rectangle to area sampling where
-    (r_max / r_min)³ ≤ 1.3. Checked against brute force over the rectangle: the ratio of the
+    (r_max / r_min)³ ≤ 2. Checked against brute force over the rectangle: the ratio of the
     area density in solid angle (r³/(A h)) between its largest and smallest value on a fine grid."""
     from backend.kernels.lights.area import AREA_SAMPLING_R2_RATIO, _nearly_uniform
     rng = np.random.default_rng(21)
