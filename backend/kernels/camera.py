@@ -90,6 +90,17 @@ def generate(cam, s, t, lens, l0, l1):
     fx = cam[22] + s * (cam[13] - cam[22]) + t * (cam[19] - cam[22])
     fy = cam[23] + s * (cam[14] - cam[23]) + t * (cam[20] - cam[23])
     fz = cam[24] + s * (cam[15] - cam[24]) + t * (cam[21] - cam[24])
+    if cam[0] == 0.0 and not (lens and cam[28] > 0.0 and cam[27] > 0.0):
+        # Pinhole: normalise once, in world space. cos_axis = −fz/|f| and scale = |M f|/|f|, so
+        # the clip distances scale by |M f|/(−fz); the film plane lies at z = −1 (fz < 0).
+        wx = cam[1] * fx + cam[2] * fy + cam[3] * fz
+        wy = cam[5] * fx + cam[6] * fy + cam[7] * fz
+        wz = cam[9] * fx + cam[10] * fy + cam[11] * fz
+        nw = math.sqrt(wx * wx + wy * wy + wz * wz)
+        inv = 1.0 / nw
+        along = nw / max(-fz, 1e-12 * nw)
+        tmax = cam[26] * along if math.isfinite(cam[26]) else np.inf
+        return (cam[4], cam[8], cam[12]), (wx * inv, wy * inv, wz * inv), cam[25] * along, tmax
     if cam[0] == 1.0:
         ox, oy, oz = fx, fy, 0.0
         dx, dy, dz = 0.0, 0.0, -1.0
