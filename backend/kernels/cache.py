@@ -117,6 +117,7 @@ def _lean_cache_loads(numba) -> None:
             return self._load_overload(sig, target_context)
 
     load_overload.lamina_lean = True
+    _STATE["numba_load_overload"] = load          # Numba's own (the tests compare the two)
     caching.Cache.load_overload = load_overload
 
 
