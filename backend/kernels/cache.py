@@ -110,6 +110,11 @@ def _lean_cache_loads(numba) -> None:
             or not hasattr(caching.Cache, "_load_overload"):
         return
     from numba.core.runtime import rtsys
+    # Of the modules the refresh imports, this one also registers machine-code symbols (the
+    # hash secret read by compiled ``hash()``); a kernel referring to an unregistered symbol
+    # would abort the process when loaded, so register it here (≈ 3 ms). The NRT's symbols come
+    # with rtsys.initialize, the C math and helper functions with the target context itself.
+    import numba.cpython.hashing  # noqa: F401
 
     def load_overload(self, sig, target_context):
         rtsys.initialize(target_context)       # idempotent; the part of refresh() loading needs
