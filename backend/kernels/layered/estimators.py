@@ -232,7 +232,9 @@ def _directed(B, FT, W, sx, nx, ty, ny, u, exit_top, pdf_mode, approx, nmax, her
         if kd != EMPTY:
             inv = 1.0 / abs(cz)
             if B[mo + M_DIR] > 0.0:
-                sig_c = S[F_SIGOUT] if s_medium else ph.sigma_scale(B, mo + M_PH, FT, c)
+                sig_c = S[F_SIGOUT]     # NaN: an interface vertex whose walk ended there
+                if not sig_c == sig_c:
+                    sig_c = ph.sigma_scale(B, mo + M_PH, FT, c)
                 inv *= sig_c
             if hero >= 0 and B[mo + M_GREY] <= 0.0 and kd == SCATTERING:
                 rh = B[mo + M_TAU + hero] * inv

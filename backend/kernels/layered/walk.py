@@ -19,7 +19,9 @@ with what the estimators need (directions point away from the vertex, as for BSD
   c1, c2, A, B (the vertex's MIS coefficients for the bidirectional connections),
   gamma, qbg, rev (pdf walks: the walk's weight in the pdf integrand — 1/survival probabilities
   and, for the approximate pdf, slab pass probabilities — and its products with the running pdf
-  ratios), sig_in / sig_out (extinction scales of w_in's and w_out's travel directions),
+  ratios), sig_in / sig_out (extinction scales of w_in's and w_out's travel directions; an
+  interface vertex's sig_out is NaN until its flight into a directional medium computes it, so
+  the connections reuse it instead of recomputing the microflake projected area),
   and the unfolded quantities (pdf_rev, the edge densities, P, Q) tests recompute.
 
 MIS recurrences (the paper's appendix B, folded): with inv_dens = 1/dens_fwd (0 for the first
@@ -262,7 +264,7 @@ def walk(B, FT, w0, W, slot, R, purpose, approx, rr_start, rr_thr, cap, hero):
             v[F_A] = min(ipf * own, BIG)
             v[F_B] = min(ipf * b1, BIG)
             v[F_SIGIN] = sig
-            v[F_SIGOUT] = sig_new
+            v[F_SIGOUT] = math.nan if is_if else sig_new
             v[F_GAMMA] = gamma
             v[F_QBG] = qb * gamma
             v[F_REV] = ipf * pr * qb * gamma
@@ -314,6 +316,8 @@ def walk(B, FT, w0, W, slot, R, purpose, approx, rr_start, rr_thr, cap, hero):
                 # vertex of this slab, computed on entering the slab from an interface.
                 if not prev_medium:
                     sig = ph.sigma_scale(B, mo + M_PH, FT, d)
+                    if record:
+                        W[slot, i - 1, F_SIGOUT] = sig
                 sg = sig
             sc, s1, fac, gfac, r, dens, drev = flight(B, mo, t - slab, d, sg, prev_medium, approx,
                                                      hero_pdf, hero, (r0, r1, r2), R)
