@@ -192,21 +192,27 @@ def _nee(S, segment, slot, beta, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p
 
 
 @njit(cache=True, _nrt=False, inline="always")
+def _roulette(beta):
+    """Survival probability of a path at a surface it reached at depth ≥ ``rr_depth``:
+    min(1, √max throughput) (as Cycles). Decided *after* the emission that ray found (lights it
+    passed, the surface's own), before next-event estimation and the continuation, so emitters
+    hit by BSDF sampling — caustics through glass, glossy reflections of a light — never carry
+    roulette noise; survivors are divided by the probability (unbiased). Measured on the peer
+    Cornell box (64 spp, 8 seeds): variance of an image 1353 with min(1, max throughput)
+    decided before tracing, 895 with the square root, 470 with no roulette at all."""
+    return min(math.sqrt(max(beta[0], max(beta[1], beta[2]))), 1.0)
+
+
+@njit(cache=True, _nrt=False, inline="always")
 def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, delta,
               nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, counts):
-    """The next ray: leak guard, Russian roulette (survivors divided by the survival
-    probability: unbiased), compaction into the next-ray queue."""
+    """The next ray: leak guard, compaction into the next-ray queue (Russian roulette is
+    decided at the surface the ray reaches, ``_roulette``)."""
     # The sampled side must agree for the shading and the geometric normal.
     if not (_dot(d_world, ng) * wo_z > 0.0):
         return
     b = (beta[0] * weight[0], beta[1] * weight[1], beta[2] * weight[2])
     peak = max(b[0], max(b[1], b[2]))
-    if segment + 1 >= S.rr_depth:
-        q = min(peak, 1.0)
-        if not uniform(key, bounce_dim(segment, SLOT_RR)) < q:
-            return
-        b = (b[0] / q, b[1] / q, b[2] / q)
-        peak = peak / q
     if not math.isfinite(peak):
         counts[3] += 1
         return
@@ -311,6 +317,12 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
                 pdf_l = ld.mesh_pdf_hit(LT, S.mesh_light, ro, rd, t_surf, local) if local >= 0 else 0.0
                 w = _mis_hit(LT, S.mesh_light, pdf_l, pp, pd, ro)
             _add(L, sl, _clamped((bt[0] * le[0] * w, bt[1] * le[1] * w, bt[2] * le[2] * w), S.clamp, segment))
+        # Russian roulette at this surface, after the emission the ray found (see _roulette)
+        if segment >= S.rr_depth and not last:
+            q = _roulette(bt)
+            if not uniform(key[i], bounce_dim(segment - 1, SLOT_RR)) < q:
+                continue
+            bt = (bt[0] / q, bt[1] / q, bt[2] / q)
         # 3. shading frame and AOVs
         if camera:
             normal[sl, 0], normal[sl, 1], normal[sl, 2] = ns
