@@ -49,6 +49,7 @@ def main(argv=None) -> int:
     ap.add_argument("--samplers", default="sobol")
     ap.add_argument("--patch", default="", help="JSON deep-merged into Lamina's scene dict only")
     ap.add_argument("--save", type=Path)
+    ap.add_argument("--both-patch", default="", help="JSON deep-merged into the scene dict of both renderers")
     ap.add_argument("--rr-depth", type=int, default=0, help="both renderers' roulette depth (0: the scene's)")
     ap.add_argument("--strat", type=int, default=0, help="override integrator.STRATIFIED_BOUNCES (threads only)")
     args = ap.parse_args(argv)
@@ -58,6 +59,13 @@ def main(argv=None) -> int:
     sc = {s.name: s for s in PEER_SCENES}[args.scene]
     size = args.size or sc.size
     base = sc.build(size)
+    if args.both_patch:
+        import json
+
+        from ..measure import apply_patch
+        patch = json.loads(args.both_patch)
+        base = apply_patch(base, {k: v for k, v in patch.items() if k != "materials"})
+        base["materials"].update(patch.get("materials", {}))      # materials replaced whole
     lab, names = _labels(base)
     groups = [(n, lab == i) for i, n in enumerate(names) if (lab == i).any()]
     cache = Path(__file__).resolve().parent.parent / ".cache" / "diagnose"
