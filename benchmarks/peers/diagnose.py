@@ -50,6 +50,8 @@ def main(argv=None) -> int:
     ap.add_argument("--patch", default="", help="JSON deep-merged into Lamina's scene dict only")
     ap.add_argument("--save", type=Path)
     ap.add_argument("--both-patch", default="", help="JSON deep-merged into the scene dict of both renderers")
+    ap.add_argument("--lights", default="", help="keep only these light indices (both renderers)")
+    ap.add_argument("--means", action="store_true", help="also the agreement check of the seeds' means (per tile)")
     ap.add_argument("--rr-depth", type=int, default=0, help="both renderers' roulette depth (0: the scene's)")
     ap.add_argument("--strat", type=int, default=0, help="override integrator.STRATIFIED_BOUNCES (threads only)")
     args = ap.parse_args(argv)
@@ -66,6 +68,8 @@ def main(argv=None) -> int:
         patch = json.loads(args.both_patch)
         base = apply_patch(base, {k: v for k, v in patch.items() if k != "materials"})
         base["materials"].update(patch.get("materials", {}))      # materials replaced whole
+    if args.lights:
+        base["lights"] = [base["lights"][int(i)] for i in args.lights.split(",")]
     lab, names = _labels(base)
     groups = [(n, lab == i) for i, n in enumerate(names) if (lab == i).any()]
     cache = Path(__file__).resolve().parent.parent / ".cache" / "diagnose"
@@ -88,6 +92,7 @@ def main(argv=None) -> int:
                     d = apply_patch(d, json.loads(args.patch))
                 runs = [render(d, args.spp, 5000 + k, os.cpu_count() or 1, "diag") for k in range(args.seeds)]
                 imgs = [r.image for r in runs]
+                means = {"lamina": imgs}
                 print(f"lamina/{smp}: CPU per render {np.median([r.cpu for r in runs]):.3f} s (median of {len(runs)})")
                 var[f"lamina/{smp}"] = _variance(imgs)
             if cy is not None:
@@ -95,6 +100,14 @@ def main(argv=None) -> int:
                 cy.build(job, os.cpu_count() or 1)
                 imgs = [cy.render(args.spp, 9000 + k)[0] for k in range(args.seeds)]
                 var["cycles"] = _variance(imgs)
+                if args.means:
+                    la, lv = agree.split_variance(means["lamina"])
+                    ca, cv = agree.split_variance(imgs)
+                    for r in agree.check(la, lv, ca, cv, agree.regions(lab, names)):
+                        if r.name.startswith(("whole", "back wall [t")) or not r.ok:
+                            print(f"  {r.name[:24]:24s} Lamina/Cycles − 1 (RGB) "
+                                  + " ".join(f"{x * 100:+6.2f}%" for x in r.rel_diff)
+                                  + "  z " + " ".join(f"{x:+5.2f}" for x in r.z))
             for k, v in var.items():
                 saved[f"{k}/{nb}"] = v
             keys = list(var)
