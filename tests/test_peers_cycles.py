@@ -38,7 +38,7 @@ def test_settings_made_equal(built):
     c = sc.cycles
     assert (c.pixel_filter_type, c.filter_width) == ("BLACKMAN_HARRIS", 1.5)   # the same width
     assert c.max_bounces == c.diffuse_bounces == c.glossy_bounces == c.transmission_bounces == MAX_BOUNCES
-    assert c.min_light_bounces == RR_DEPTH - 1
+    assert c.min_light_bounces == RR_DEPTH - 2      # Cycles' kernel min_bounce = min_light_bounces + 1
     assert c.sample_clamp_direct == 0 and c.sample_clamp_indirect == 0 and c.blur_glossy == 0
     assert not c.use_denoising and not c.use_adaptive_sampling and c.caustics_reflective and c.caustics_refractive
     assert sc.render.threads_mode == "FIXED" and sc.render.threads == 2 and c.device == "CPU"

@@ -26,6 +26,7 @@ import numpy as np
 
 from ..kernels.lights import area as _ka
 from ..kernels.lights import common as _kc
+from ..kernels.lights import profiles as _kp
 from ..mathutil import dot, outer3
 from . import register
 from .base import Light
@@ -99,7 +100,10 @@ class AreaLight(Light):
         g = self.geo
         row = b.light(_kc.AREA, hittable=True, visible_camera=self.visible_camera)
         # Light selection: one-sided, 0 behind the emitter (kernels/lights/selection.py).
-        row.select_one_sided(g.center, g.normal, g.area)
+        # A profile (spread, cutoff) concentrates the power: weighed by it towards the point.
+        k = self.profile.normalization
+        peak = 1.0 / k if self.profile.code != _kp.LAMBERTIAN and k > 0 else 0.0
+        row.select_one_sided(g.center, g.normal, g.area, peak)
         g.pack(row)
         row.put(_ka.A_SCALE, self.radiance_scale)
         row.i[_ka.I_EMITS] = int(self.emits)

@@ -30,8 +30,9 @@ EQUAL = [
      "(the same definition: Cycles' filter_table)"),
     ("max bounces", f"{MAX_BOUNCES} in total", "Cycles' diffuse / glossy / transmission limits raised to the same "
      "(defaults 4 / 4 / 12), volume 0: Lamina has only the total"),
-    ("Russian roulette", f"from the same bounce", f"Lamina `rr_depth` {RR_DEPTH} ↔ Cycles `min_light_bounces` {RR_DEPTH - 1} "
-     "(Cycles: no roulette at bounce ≤ min; Lamina decides for the vertex at bounce s + 1 when s + 1 ≥ rr_depth)"),
+    ("Russian roulette", "from the same surface, survival min(1, √max throughput), decided after the emission found",
+     f"Lamina `rr_depth` {RR_DEPTH} ↔ Cycles `min_light_bounces` {RR_DEPTH - 2} (Cycles' kernel adds 1: no roulette at "
+     "bounce ≤ min + 1, the camera hit being bounce 0; Lamina: at surfaces with index ≥ rr_depth)"),
     ("clamping", "off", "Cycles `sample_clamp_direct` = `sample_clamp_indirect` = 0 (its indirect default is 10)"),
     ("Filter Glossy", "off", "Cycles `blur_glossy` 0 (default 1)"),
     ("caustics", "reflective and refractive on", "Lamina's paths are unbiased"),
@@ -56,9 +57,9 @@ EQUAL = [
 
 #: (what, Lamina, Cycles, why it stays different)
 DIFFERENT = [
-    ("Russian-roulette survival", "min(1, max throughput)", "min(1, √max throughput)",
-     "fixed in each renderer's code; not a setting"),
-    ("sample sequence", "independent pseudo-random numbers (PCG64 per work item)", "tabulated Sobol (QMC, Cycles' default)",
+    ("glass throughput", "radiance-mode BTDF (1/η² entering a denser medium), so roulette sees 1/η² inside glass",
+     "no η² factor", "each renderer's BSDF convention (the same image for closed objects)"),
+    ("sample sequence", "Owen-scrambled Sobol on the camera hit, hashed numbers deeper", "tabulated Sobol at every bounce (Cycles' default)",
      "each renderer's default sampler"),
     ("light selection", "`local`: ∝ power received at the shading point", "light tree (default on)",
      "each renderer's default sampler"),

@@ -23,8 +23,8 @@ from ..scenes import IES_DIR, _m, _quad, perspective
 
 #: Bounces for both renderers (Lamina ``max_bounces`` has Cycles' meaning: 0 = direct light only).
 MAX_BOUNCES = 8
-#: Lamina's default Russian-roulette depth; Cycles gets ``min_light_bounces`` = RR_DEPTH − 1,
-#: which makes the first bounce subject to roulette the same (to_cycles.py explains the indexing).
+#: Lamina's default Russian-roulette depth; Cycles gets ``min_light_bounces`` = RR_DEPTH − 2,
+#: which makes the first surface subject to roulette the same (to_cycles.py explains the indexing).
 RR_DEPTH = 3
 #: Cycles' default pixel filter: Blackman-Harris, ``filter_width`` 1.5, which spans ±1.5 px (Cycles
 #: doubles a Blackman-Harris width in ``filter_table``, scene/film.cpp). Lamina's width means the

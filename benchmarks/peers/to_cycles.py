@@ -11,12 +11,13 @@ i.e. from the Lamina scene dict):
   ``filter_width`` w spans ±w pixels; this benchmark found that Lamina's used to span ±w/2);
 * ``max_bounces`` = the scene's, and the per-type limits (diffuse, glossy, transmission) raised to
   the same number, because Lamina has only the total; volume bounces 0 (no volumes);
-* Russian roulette from the same bounce: Cycles applies roulette at a surface whose bounce count
-  exceeds ``min_light_bounces`` (the camera hit is bounce 0); Lamina decides after sampling the
-  continuation at the vertex ending segment s (segment 0 = the camera ray) when s + 1 ≥ ``rr_depth``,
-  i.e. before reaching the vertex with Cycles' bounce index s + 1. Hence ``min_light_bounces`` =
-  ``rr_depth`` − 1. The survival probability differs and cannot be set in either renderer:
-  Cycles min(1, √max(throughput)), Lamina min(1, max(throughput));
+* Russian roulette from the same surface: Cycles applies roulette at a surface whose bounce count
+  (the camera hit is bounce 0) exceeds its kernel's ``min_bounce``, which is ``min_light_bounces``
+  **+ 1** (src/scene/integrator.cpp: "plus one so that a bounce of 0 indicates no global
+  illumination"); Lamina at a surface whose index (the camera hit is 0) is ≥ ``rr_depth``. Hence
+  ``min_light_bounces`` = ``rr_depth`` − 2 (until issue 17's diagnosis this was ``rr_depth`` − 1,
+  which started Cycles' roulette one surface later than Lamina's). Both use the survival
+  probability min(1, √max(throughput)), decided after the emission the ray found;
 * clamping off (``sample_clamp_direct`` = ``sample_clamp_indirect`` = 0; Cycles' default for
   indirect is 10), Filter Glossy off (``blur_glossy`` = 0; default 1), reflective and refractive
   caustics on (Lamina's paths are unbiased), denoising off, adaptive sampling off;
@@ -230,7 +231,7 @@ def settings(sc, render: dict, threads: int) -> dict:
     c.max_bounces = bounces
     c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = bounces
     c.volume_bounces = 0
-    c.min_light_bounces = max(int(render.get("rr_depth", 3)) - 1, 0)
+    c.min_light_bounces = max(int(render.get("rr_depth", 3)) - 2, 0)
     c.sample_clamp_direct = float(render.get("clamp", 0.0))
     c.sample_clamp_indirect = float(render.get("clamp", 0.0))
     c.blur_glossy = 0.0

@@ -39,6 +39,7 @@ C_SEL_SIZE2 = 4    # squared size [m²] below which the distance stops mattering
 C_SEL_NORMAL = 5   # 5..7: one-sided emitters' normal
 C_SEL_AREA = 8     # one-sided emitters' area [m²]
 C_SEL_INTENSITY = 9  # SEL_PROFILE: luminance of the unit-factor intensity, lum · P/(4π) [W/sr]
+C_SEL_PEAK = 10    # SEL_ONE_SIDED_PROFILE: 1/K, the profile's peak radiance over a Lambertian emitter's
 FIRST = 12
 
 I_SEL = 0          # how selection weighs the light at a point: SEL_*
@@ -47,6 +48,7 @@ I_FIRST = 1
 SEL_UNIFORM = 0    # the same everywhere: power / (π R²) (infinite lights)
 SEL_POINT = 1      # power / (4π max(d², size²))
 SEL_ONE_SIDED = 2  # power · max(cos, 0.05) / (π max(d², area)) in front, 0 behind
+SEL_ONE_SIDED_PROFILE = 4  # area light with spread/cutoff: SEL_ONE_SIDED × its profile towards p
 SEL_PROFILE = 3    # point/spot/IES with a directional factor: I(ω) / max(d², size²), ω towards p,
                    # so no sample goes where the spot cone or the IES table is zero
 

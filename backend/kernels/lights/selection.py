@@ -26,8 +26,10 @@ from numba import njit
 
 from .. import discrete as _d
 from ..vec import dot
-from .common import (C_POWER, C_SEL_AREA, C_SEL_INTENSITY, C_SEL_NORMAL, C_SEL_POS, C_SEL_SIZE2,
-                     I_SEL, SEL_ONE_SIDED, SEL_PROFILE, SEL_UNIFORM)
+from . import area as _ka
+from . import profiles as _prof
+from .common import (C_POWER, C_SEL_AREA, C_SEL_INTENSITY, C_SEL_NORMAL, C_SEL_PEAK, C_SEL_POS, C_SEL_SIZE2,
+                     I_SEL, SEL_ONE_SIDED, SEL_ONE_SIDED_PROFILE, SEL_PROFILE, SEL_UNIFORM)
 from .point import directional_factor
 
 INV_PI = 1.0 / math.pi
@@ -44,13 +46,20 @@ def received_power_row(P, I, aux, j, how, radius, p):
         return power * INV_PI / (radius * radius)
     rel = (p[0] - P[j, C_SEL_POS], p[1] - P[j, C_SEL_POS + 1], p[2] - P[j, C_SEL_POS + 2])
     d2 = dot(rel, rel)
-    if how == SEL_ONE_SIDED:
+    if how == SEL_ONE_SIDED or how == SEL_ONE_SIDED_PROFILE:
         h = rel[0] * P[j, C_SEL_NORMAL] + rel[1] * P[j, C_SEL_NORMAL + 1] + rel[2] * P[j, C_SEL_NORMAL + 2]
         if not h > 0.0:
             return 0.0
         cos_e = min(max(h / math.sqrt(max(d2, 1e-300)), 0.0), 1.0)
+        g = cos_e
+        if how == SEL_ONE_SIDED_PROFILE:
+            # The profile's radiance towards p over a Lambertian emitter's of the same power
+            # (f(θ)/K: up to 1/K ≈ 11× on the axis of a 60° spread, 0 outside it). The floor
+            # below keeps a share for points that only an edge of the emitter reaches.
+            g = cos_e * P[j, C_SEL_PEAK] * _prof.evaluate(I[j, _ka.I_PROFILE], P[j, _ka.A_SPREAD_TAN],
+                                                          P[j, _ka.A_CUTOFF], P[j, _ka.A_BEAM], cos_e)
         # Near the emitter the received scale saturates at its own area (no 1/d² blow-up).
-        return power * max(cos_e, 0.05) * INV_PI / max(d2, P[j, C_SEL_AREA])
+        return power * max(g, 0.05) * INV_PI / max(d2, P[j, C_SEL_AREA])
     if how == SEL_PROFILE:
         # Intensity towards p (spot cone × IES table): zero where the profile is zero, so no
         # sample is spent on a light that cannot reach p.

@@ -39,8 +39,8 @@ from collections import namedtuple
 
 import numpy as np
 
-from .common import (C_POWER, C_SEL_AREA, C_SEL_INTENSITY, C_SEL_NORMAL, C_SEL_POS, C_SEL_SIZE2,
-                     I_SEL, NI, NP, SEL_ONE_SIDED, SEL_POINT, SEL_PROFILE, SEL_UNIFORM)
+from .common import (C_POWER, C_SEL_AREA, C_SEL_INTENSITY, C_SEL_NORMAL, C_SEL_PEAK, C_SEL_POS, C_SEL_SIZE2,
+                     I_SEL, NI, NP, SEL_ONE_SIDED, SEL_ONE_SIDED_PROFILE, SEL_POINT, SEL_PROFILE, SEL_UNIFORM)
 
 LightTable = namedtuple("LightTable", [
     "kind", "is_delta", "is_infinite", "is_hittable", "visible_camera",
@@ -84,11 +84,14 @@ class LightRow:
         self.i[I_SEL] = SEL_PROFILE
         self.f[C_SEL_INTENSITY] = float(intensity)
 
-    def select_one_sided(self, center, normal, area: float):
-        self.i[I_SEL] = SEL_ONE_SIDED
+    def select_one_sided(self, center, normal, area: float, peak: float = 0.0):
+        """``peak`` > 0: an area light with an angular profile (spread, cutoff), weighed by it
+        (its columns in the row, kernels/lights/area.py); ``peak`` = 1/K (profiles.py)."""
+        self.i[I_SEL] = SEL_ONE_SIDED_PROFILE if peak > 0.0 else SEL_ONE_SIDED
         self.put(C_SEL_POS, center)
         self.put(C_SEL_NORMAL, normal)
         self.f[C_SEL_AREA] = float(area)
+        self.f[C_SEL_PEAK] = float(peak)
 
 
 class TableBuilder:
