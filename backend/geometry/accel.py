@@ -96,7 +96,8 @@ class Accelerator:
             z = np.zeros(0, np.float32)
             return np.zeros(0, np.int32), z, z, z
         if self.recorder is not None:
-            self.recorder.append(("intersect", o32, d32, tmax32))
+            # Copies: the integrator's queues are reused between bounces and work items.
+            self.recorder.append(("intersect", o32.copy(), d32.copy(), tmax32.copy()))
         res = self._scene.run(o32, d32, dists=tmax32, output=True)
         self.rays_traced += o32.shape[0]
         return res["primID"], res["tfar"], res["u"], res["v"]
@@ -106,7 +107,7 @@ class Accelerator:
         if o32.shape[0] == 0:
             return np.zeros(0, np.int32)
         if self.recorder is not None:
-            self.recorder.append(("occluded", o32, d32, tmax32))
+            self.recorder.append(("occluded", o32.copy(), d32.copy(), tmax32.copy()))
         res = self._scene.run(o32, d32, dists=tmax32, query="OCCLUDED")
         self.rays_traced += o32.shape[0]
         return np.asarray(res)
