@@ -10,7 +10,9 @@ Per bounce, for every lane whose ray embree has just traced (``shade``):
   3. the shading frame (two-sided materials face the viewer; shading normals bent so the mirror
      direction stays above the geometry), AOVs at the camera hit;
   4. next-event estimation: pick a light (power or local selection), sample it, evaluate the BSDF
-     and the MIS weight (power heuristic), write a shadow ray with its contribution;
+     and the MIS weight (power heuristic), write a shadow ray with its contribution; with 2-4
+     lights (``S.nee_all``) an analytic material samples every light instead (one shadow ray
+     each), and the next ray remembers which (``VIA_*``) for the MIS weight of a light it hits;
   5. continuation: sample the BSDF, Russian roulette, write the next ray (compacted).
 Lanes on multi-interface layered stacks (kind LAYERED) run steps 4b and 5 through one per-lane
 call (``kernels/layered/batch.shade_lane``: the light connection and the continuation sample
@@ -31,7 +33,8 @@ from numba import njit
 from . import materials as km
 from .layered import batch as layered
 from .lights import dispatch as ld
-from .rng import SLOT_BSDF, SLOT_LIGHT, SLOT_LIGHT_PICK, SLOT_RR, bounce_dim, uniform
+from .lights.common import C_POWER
+from .rng import SLOT_BSDF, SLOT_LIGHT, SLOT_LIGHT_PICK, SLOT_RR, SLOT_SPARE, bounce_dim, stream_key, uniform
 from .sampler import get2, pixel_seed
 from .soup import ROW_EMIT, ROW_MAT, ROW_N, ROW_NG, ROW_TAN, ROW_UV, ROW_V
 
@@ -49,7 +52,7 @@ Geometry = namedtuple("Geometry", ["rows", "irows", "holdout", "has_normals", "h
 # Render settings the kernels read (scalars; one Numba type per field).
 Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", "transparent",
                                    "has_lights", "mesh_light", "hittable", "infinite",
-                                   "visible_camera", "sampler", "stratified_bounces"])
+                                   "visible_camera", "sampler", "stratified_bounces", "nee_all"])
 
 
 @njit(cache=True, _nrt=False)
@@ -86,12 +89,23 @@ def _add(L, slot, c):
     L[slot, 2] += c[2]
 
 
+# How the vertex a ray left from was lit (the queue's ``delta`` code): the MIS weight of a light
+# the ray then hits depends on it.
+VIA_SAMPLED = 0      # a non-delta BSDF sample; next-event estimation picked one light
+VIA_DELTA = 1        # a delta lobe (or the camera): no light sampling competes
+VIA_ALL_LIGHTS = 2   # a non-delta BSDF sample; next-event estimation sampled every light
+
+
 @njit(cache=True, _nrt=False, inline="always")
-def _mis_hit(LT, li, pdf_light, prev_pdf, prev_delta, o):
+def _mis_hit(LT, li, pdf_light, prev_pdf, via, o):
     """MIS weight of emission found by BSDF sampling against light sampling from o."""
-    if prev_delta:
+    if via == VIA_DELTA:
         return 1.0
-    return power_heuristic(prev_pdf, ld.select_prob(LT, o, li) * pdf_light)
+    if via == VIA_ALL_LIGHTS:
+        sel = 1.0 if LT.params[li, C_POWER] > 0.0 else 0.0
+    else:
+        sel = ld.select_prob(LT, o, li)
+    return power_heuristic(prev_pdf, sel * pdf_light)
 
 
 @njit(cache=True, _nrt=False, inline="always")
@@ -235,7 +249,7 @@ def _roulette(MT, TX, m, u, v, wi, ng, beta):
 
 
 @njit(cache=True, _nrt=False, inline="always")
-def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, delta,
+def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, via,
               nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, counts):
     """The next ray: leak guard, compaction into the next-ray queue (Russian roulette is
     decided at the surface the ray reaches, ``_roulette``)."""
@@ -260,7 +274,7 @@ def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, de
         nx_d32[k, j] = d_world[j]
         nx_beta[k, j] = b[j]
     nx_pdf[k] = pdf
-    nx_delta[k] = delta
+    nx_delta[k] = via
     counts[0] = k + 1
 
 
@@ -395,7 +409,11 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
         is_delta = True
         live = False
         wo_n = (0.0, 0.0, 1.0)
-        if can_nee:
+        # Few lights (S.nee_all = their number, 2-4): every one is sampled at an analytic
+        # material's vertex (one shadow ray each) instead of picking one; layered stacks connect
+        # to one picked light (their walks serve one direction).
+        all_lights = can_nee and S.nee_all > 0 and kind != km.LAYERED
+        if can_nee and not all_lights:
             li, sel_p = ld.select(LT, p, u_pick)
             if li >= 0 and sel_p > 0.0:
                 ul0, ul1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_LIGHT))
@@ -415,8 +433,8 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
                      sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
             if not last and (weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0):
                 _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
-                          spdf, sdelta, nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta,
-                          nx_pdf, nx_delta, counts)
+                          spdf, VIA_DELTA if sdelta else VIA_SAMPLED, nx_slot, nx_key, nx_o, nx_d,
+                          nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, counts)
             continue
         prm = km.bind(MT, TX, m, u, v)
         dist_code = MT.dist[m]
@@ -425,7 +443,22 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
             a = km.albedo(kind, prm)
             albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = a
         # 4b. next-event estimation
-        if live and not km.is_delta_only(kind, prm):
+        if all_lights and not km.is_delta_only(kind, prm):
+            sub = stream_key(key[i], bounce_dim(segment, SLOT_SPARE))
+            for k in range(S.nee_all):
+                lk = LT.sel_active[k]
+                if k == 0:
+                    ul0, ul1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_LIGHT))
+                else:
+                    ul0 = uniform(sub, 2 * k - 2)
+                    ul1 = uniform(sub, 2 * k - 1)
+                wk, dk, vk, pk, dlk = ld.sample(LT, TX, lk, p, ul0, ul1)
+                wok = _local(fs, ft, ns, wk)
+                if max(vk[0], max(vk[1], vk[2])) > 0.0 and _dot(wk, ng) * wok[2] > 0.0:
+                    f, bpdf = km.eval_pdf(kind, dist_code, mask_code, prm, 0, wi_l, wok)
+                    _nee(S, segment, sl, bt, p, ng, wk, dk, vk, pk, dlk, 1.0, f, bpdf,
+                         sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
+        elif live and not km.is_delta_only(kind, prm):
             f, bpdf = km.eval_pdf(kind, dist_code, mask_code, prm, 0, wi_l, wo_n)
             _nee(S, segment, sl, bt, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p, f, bpdf,
                  sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
@@ -435,8 +468,9 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
             wo, weight, spdf, sdelta = km.sample(kind, dist_code, mask_code, prm, 0, wi_l,
                                                  ub0, ub1, u_lobe)
             if weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0:
+                via = VIA_DELTA if sdelta else (VIA_ALL_LIGHTS if all_lights else VIA_SAMPLED)
                 _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
-                          spdf, sdelta, nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta,
+                          spdf, via, nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta,
                           nx_pdf, nx_delta, counts)
 
 
