@@ -46,38 +46,38 @@ def render(data: dict, workers: int = 1, **options):
     return Renderer(sc, (copy.deepcopy(data), "<test>", None), opts).run()
 
 
+def _blocks(h: int, w: int, blocks: int):
+    """(by, bx, rows, columns) of a blocks × blocks split of an h × w image."""
+    for by in range(blocks):
+        for bx in range(blocks):
+            yield (by, bx, slice(by * h // blocks, (by + 1) * h // blocks),
+                   slice(bx * w // blocks, (bx + 1) * w // blocks))
+
+
 def region_z(a, b, blocks: int) -> np.ndarray:
     """|z| of the difference of two renders' means over blocks × blocks regions, per channel (σ
     from both renders' own per-pixel variance of the mean; pixels are independent)."""
     ia, ib = a.film.combined()[..., :3], b.film.combined()[..., :3]
     va, vb = a.film.variance_of_mean(), b.film.variance_of_mean()
-    h, w = ia.shape[:2]
     out = []
-    for by in range(blocks):
-        for bx in range(blocks):
-            ys = slice(by * h // blocks, (by + 1) * h // blocks)
-            xs = slice(bx * w // blocks, (bx + 1) * w // blocks)
-            diff = ia[ys, xs].mean(axis=(0, 1)) - ib[ys, xs].mean(axis=(0, 1))
-            se = np.sqrt(va[ys, xs].sum(axis=(0, 1)) + vb[ys, xs].sum(axis=(0, 1))) / ia[ys, xs, 0].size
-            assert np.all(se > 0), "a region without noise cannot be compared"
-            out.append(np.abs(diff) / se)
+    for _, _, ys, xs in _blocks(*ia.shape[:2], blocks):
+        diff = ia[ys, xs].mean(axis=(0, 1)) - ib[ys, xs].mean(axis=(0, 1))
+        se = np.sqrt(va[ys, xs].sum(axis=(0, 1)) + vb[ys, xs].sum(axis=(0, 1))) / ia[ys, xs, 0].size
+        assert np.all(se > 0), "a region without noise cannot be compared"
+        out.append(np.abs(diff) / se)
     return np.array(out)
 
 
 def region_means(image: np.ndarray, var_of_mean: np.ndarray, mask: np.ndarray, blocks: int):
     """Split the image into blocks×blocks regions; per region the mean over masked pixels and its
     standard error (pixels are independent, so variances of pixel means add)."""
-    h, w = image.shape[:2]
     out = []
-    for by in range(blocks):
-        for bx in range(blocks):
-            ys = slice(by * h // blocks, (by + 1) * h // blocks)
-            xs = slice(bx * w // blocks, (bx + 1) * w // blocks)
-            m = mask[ys, xs]
-            k = int(m.sum())
-            if k < 4:
-                continue
-            mean = image[ys, xs][m].mean(axis=0)
-            se = np.sqrt(var_of_mean[ys, xs][m].sum(axis=0)) / k
-            out.append((by, bx, mean, se, (ys, xs)))
+    for by, bx, ys, xs in _blocks(*image.shape[:2], blocks):
+        m = mask[ys, xs]
+        k = int(m.sum())
+        if k < 4:
+            continue
+        mean = image[ys, xs][m].mean(axis=0)
+        se = np.sqrt(var_of_mean[ys, xs][m].sum(axis=0)) / k
+        out.append((by, bx, mean, se, (ys, xs)))
     return out
