@@ -11,6 +11,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from . import agree  # noqa: E402
+from .run import REF_SPLIT  # noqa: E402
 from .scenes import FILM_FILTER, MAX_BOUNCES, RR_DEPTH  # noqa: E402
 
 DPI = 110
@@ -265,7 +266,7 @@ def section(results: list, summaries: list, info: dict, link) -> str:
                    f"{_fmt(su['predicted_t0'])} s; the rest, {_fmt(t0 - su['predicted_t0'])} s, is starting the "
                    f"{n} worker threads and the first work items' warm-up (and the fit's scatter)."]
         md += ["", f"References: Lamina {refs['lamina']['spp']} spp ({_fmt(refs['lamina']['cpu'])} s CPU"
-               f"{', cached' if refs['lamina']['cached'] else ''}), Cycles {refs['cycles']['spp']} spp as 4 independent "
+               f"{', cached' if refs['lamina']['cached'] else ''}), Cycles {refs['cycles']['spp']} spp as {REF_SPLIT} independent "
                f"renders ({_fmt(refs['cycles']['cpu'])} s CPU{', cached' if refs['cycles']['cached'] else ''}). "
                f"Pairs run again because the background load moved: {s['retries']}.", ""]
         md += _agreement_md(sr)

@@ -37,7 +37,7 @@ from .cycles_process import CyclesProcess
 from .scenes import PeerScene
 
 HERE = Path(__file__).resolve().parent
-REF_SPLIT = 4            # Cycles reference = this many independent renders (variance from their spread)
+REF_SPLIT = 16           # Cycles reference = this many independent renders (variance from their spread)
 LOAD_MOVED = 0.5         # cores of background load difference that makes a pair run again
 MAX_RETRIES = 2
 MIN_LOAD_WINDOW = 0.5    # seconds of wall time below which a render's background load is too coarse
