@@ -118,13 +118,18 @@ class PathTracer:
         self.geometry = ki.Geometry(rows, irows,
                                     np.ascontiguousarray(soup.holdout, bool) if count else np.zeros(1, bool),
                                     soup.normals is not None, soup.uvs is not None)
+        # How many lights next-event estimation samples at once at an analytic material's vertex
+        # (0: it picks one): every one with local selection (the table's flag: 2 or more lights)
+        # and at most ALL_LIGHTS_MAX of them.
+        n_sampled = int(self.light_table.sel_active.size)
+        nee_all = n_sampled if self.light_table.local_selection and n_sampled <= ALL_LIGHTS_MAX else 0
         self.settings = ki.Settings(
             np.uint64(s.seed), self.max_segments, s.rr_depth, float(s.clamp), bool(scene.transparent),
             has_lights, mesh_light,
             np.array([i for i, l in enumerate(self.lights) if l.is_hittable], np.int64),
             np.array([i for i, l in enumerate(self.lights) if l.is_infinite], np.int64),
             np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights] or [False]),
-            SAMPLERS[s.sampler], STRATIFIED_BOUNCES, self._nee_all(s.light_selection))
+            SAMPLERS[s.sampler], STRATIFIED_BOUNCES, nee_all)
         self.camera = camera_vector(scene.camera)
         self.filter = scene.pixel_filter.tables()
         self.any_hidden = bool(soup.count) and not bool(soup.camera_visible.all())
@@ -135,13 +140,6 @@ class PathTracer:
         if sc is None or sc.n < n:
             sc = self._local.scratch = _Scratch(n, self.walk_capacity, max(1, self.settings.nee_all))
         return sc
-
-    def _nee_all(self, selection: str) -> int:
-        """How many lights next-event estimation samples at once at an analytic material's
-        vertex (0: it picks one). With local selection and 2 to ALL_LIGHTS_MAX lights, every one
-        (measured on the IES + directional-area-light room: see ALL_LIGHTS_MAX)."""
-        n = int(self.light_table.sel_active.size)
-        return n if selection == "local" and 2 <= n <= ALL_LIGHTS_MAX else 0
 
     def set_camera(self, camera) -> None:
         """Render the next work items through another camera (a viewport session's view moved;

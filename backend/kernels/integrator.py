@@ -199,6 +199,16 @@ def _lane_pixel_sample(i, spp, inv_spp):
 
 
 @njit(cache=True, _nrt=False, inline="always")
+def _light_sample(LT, TX, li, p, u0, u1, fs, ft, ns, ng):
+    """A next-event sample of light li from p: (wi world, dist, value, pdf, is_delta, wi in the
+    shading frame, live = it carries light and lies on the same side for both normals)."""
+    wi_w, dist, value, lpdf, is_delta = ld.sample(LT, TX, li, p, u0, u1)
+    wo_n = _local(fs, ft, ns, wi_w)
+    live = max(value[0], max(value[1], value[2])) > 0.0 and _dot(wi_w, ng) * wo_n[2] > 0.0
+    return wi_w, dist, value, lpdf, is_delta, wo_n, live
+
+
+@njit(cache=True, _nrt=False, inline="always")
 def _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, sh_slot, sh_o32, sh_d32, sh_t32,
                  sh_c, counts):
     k = counts[1]
@@ -417,9 +427,8 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
             li, sel_p = ld.select(LT, p, u_pick)
             if li >= 0 and sel_p > 0.0:
                 ul0, ul1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_LIGHT))
-                wi_w, dist, value, lpdf, is_delta = ld.sample(LT, TX, li, p, ul0, ul1)
-                wo_n = _local(fs, ft, ns, wi_w)
-                live = max(value[0], max(value[1], value[2])) > 0.0 and _dot(wi_w, ng) * wo_n[2] > 0.0
+                wi_w, dist, value, lpdf, is_delta, wo_n, live = _light_sample(LT, TX, li, p, ul0, ul1,
+                                                                               fs, ft, ns, ng)
         if kind == km.LAYERED:
             # 4b + 5 for a layered stack: one per-lane call (shared walks).
             counts[2] += 1
@@ -452,9 +461,8 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
                 else:
                     ul0 = uniform(sub, 2 * k - 2)
                     ul1 = uniform(sub, 2 * k - 1)
-                wk, dk, vk, pk, dlk = ld.sample(LT, TX, lk, p, ul0, ul1)
-                wok = _local(fs, ft, ns, wk)
-                if max(vk[0], max(vk[1], vk[2])) > 0.0 and _dot(wk, ng) * wok[2] > 0.0:
+                wk, dk, vk, pk, dlk, wok, live_k = _light_sample(LT, TX, lk, p, ul0, ul1, fs, ft, ns, ng)
+                if live_k:
                     f, bpdf = km.eval_pdf(kind, dist_code, mask_code, prm, 0, wi_l, wok)
                     _nee(S, segment, sl, bt, p, ng, wk, dk, vk, pk, dlk, 1.0, f, bpdf,
                          sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)

@@ -115,10 +115,6 @@ def select(lt, p, u):
     na = lt.sel_active.shape[0]
     if na == 0:
         return -1, 0.0
-    if na == 1:
-        # One light: probability 1 (what either mode gives, exactly), without the ~35 ns of its
-        # received power per lane.
-        return lt.sel_active[0], 1.0
     if lt.local_selection == 0:
         k, prob, _ = _d.sample_1d(lt.sel_dist, 0, na, u)
         return lt.sel_active[k], prob
@@ -130,7 +126,7 @@ def select_prob(lt, p, li):
     """Probability that ``select`` at point p returns light li (for MIS of light hits)."""
     if li < 0 or not lt.params[li, C_POWER] > 0.0:
         return 0.0
-    if lt.local_selection == 0 or lt.sel_active.shape[0] == 1:
+    if lt.local_selection == 0:
         return lt.sel_pmf[li]
     total = _total(lt.params, lt.iparams, lt.aux, lt.sel_active, lt.sel_radius, p)
     if total > 0.0:
