@@ -5,7 +5,8 @@
   (they crash it while the UI or an operator runs; the preset-thumbnail thread did, in CI), and
   rendering belongs to the backend's own process;
 * the add-on imports nothing of the backend's rendering code (only preset files, errors and the
-  LM-63 file reader, for the IES panel's peak intensity)."""
+  LM-63 file reader, for the IES panel's peak intensity);
+* compiled functions use the kernels/jit.py decorators (never Numba's njit directly)."""
 from __future__ import annotations
 
 import ast
@@ -60,3 +61,15 @@ def test_addon_uses_no_threads_and_no_backend_rendering_code(path):
             if parts[:1] == ["backend"]:
                 used = [".".join(parts[1:])] if len(parts) > 1 else names
                 assert set(used) <= BACKEND_MODULES_THE_ADDON_MAY_USE, (path, module, names)
+
+
+@pytest.mark.parametrize("path", sources("backend"), ids=lambda p: str(p.relative_to(ROOT)))
+def test_compiled_functions_use_the_kernel_decorators(path):
+    """Numba's njit only through kernels/jit.py (``@kernel`` / ``@inlined``): a bare njit would
+    inherit ``forceinline`` from an inlined caller (whole call trees forced inline, a 2× slower
+    first compilation) and could forget ``_nrt=False`` or the disk cache."""
+    if path == ROOT / "backend" / "kernels" / "jit.py":
+        return
+    for module, level, names in imports(path):
+        if level == 0 and module.split(".")[0] == "numba":
+            assert "njit" not in names and "jit" not in names, (path, module, names)

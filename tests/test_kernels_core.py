@@ -116,6 +116,13 @@ def test_cache_folder_is_keyed_by_sources_and_versions(tmp_path, monkeypatch):
     src.write_text(src.read_text() + "\n# changed\n")    # a kernel source changed
     k2 = cache.source_key()
     assert k2 != k1
+    helper = fake / "kernels" / "helper.py"              # kernels/jit.py decorators: no "njit"
+    helper.write_text("from .jit import kernel\n@kernel\ndef g(x):\n    return x\n")
+    k3 = cache.source_key()
+    assert k3 != k2
+    helper.write_text(helper.read_text() + "\n# changed\n")
+    assert cache.source_key() != k3
+    k2 = cache.source_key()
     import numba
     monkeypatch.setattr(numba, "__version__", "0.0.0-other")
     assert cache.source_key() != k2                      # another Numba: another folder

@@ -11,13 +11,14 @@ Kernel modules must therefore be imported through this package (``from ..kernels
 never by setting Numba's cache folder elsewhere.
 
 Conventions every kernel follows (measured reasons):
-* ``@njit(cache=True, _nrt=False)``: kernels never allocate, so Numba's reference counting is
-  switched off (``_nrt`` is a Numba option without a public name). With it, every array read
-  from a table inside a lane loop cost an atomic increment and decrement: 40 % of the shading
-  time, 145 → 40 ns per simple light sample.
+* Every compiled function is ``@kernel`` or ``@inlined`` (kernels/jit.py): cached, no reference
+  counting (kernels never allocate; with counting, every array read from a table inside a lane
+  loop cost an atomic increment and decrement: 40 % of the shading time, 145 → 40 ns per simple
+  light sample).
 * Functions that take a whole table (materials, textures, lights, the integrator's queues) are
-  ``inline="always"``: a table is a tuple of arrays passed by value, ~1 kB per non-inlined call
-  (~50 ns). Per-kind functions below them take scalars, 3-tuples and single arrays.
+  ``@inlined`` (LLVM inlines them): a table is a tuple of arrays passed by value, ~1 kB per
+  non-inlined call (~50 ns). Per-kind functions below them take scalars, 3-tuples and single
+  arrays.
 * Lane loops over large batches release the GIL (``nogil=True``), so render threads share one
   process.
 """

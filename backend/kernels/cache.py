@@ -3,9 +3,10 @@
 Numba's ``cache=True`` writes machine code next to a per-function index. Its own staleness check
 looks only at the modification time of the file that defines a function, not at the files of the
 functions it calls, so editing a shared helper would leave stale callers in the cache. Lamina
-therefore keys the whole cache folder by a hash of every source file under ``backend/`` that
-defines kernels, plus the Lamina, Numba, llvmlite and Python versions: any change gives a new,
-empty folder (another version's cache is ignored, not trusted).
+therefore keys the whole cache folder by a hash of every source file of ``backend/kernels/`` (and
+of any other file under ``backend/`` that calls Numba), plus the Lamina, Numba, llvmlite and
+Python versions: any change gives a new, empty folder (another version's cache is ignored, not
+trusted).
 
 Folder (first match):
   1. ``$LAMINA_KERNEL_CACHE`` (the Blender add-on sets it to the extension's user folder);
@@ -46,9 +47,12 @@ def source_key() -> str:
     from .. import __version__
     digest = hashlib.sha256()
     digest.update(f"{__version__}|{numba.__version__}|{llvmlite.__version__}|{sys.version}".encode())
+    kernels = BACKEND / "kernels"
     for path in sorted(BACKEND.rglob("*.py")):
         text = path.read_bytes()
-        if b"njit" in text or b"vectorize" in text:      # files that define compiled code
+        # Files that may define compiled code: the kernels package (its decorators are
+        # kernels/jit.py's), and anything else that calls Numba directly.
+        if kernels in path.parents or b"njit" in text or b"vectorize" in text:
             digest.update(str(path.relative_to(BACKEND)).encode())
             digest.update(text)
     return digest.hexdigest()[:16]

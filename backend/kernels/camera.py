@@ -16,8 +16,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from .jit import kernel
 from .rng import DIM_FILTER, DIM_LENS, path_key
 from .sampler import get2, pixel_seed
 from .warp import disk_concentric
@@ -40,7 +40,7 @@ def camera_vector(camera) -> np.ndarray:
     return c
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def filter_offset(cdf, grid, inverse, kinked, width, u):
     """Offset from the pixel centre [pixels] for u in [0, 1): the inverse of the filter's CDF
     (piecewise linear between table nodes), centred and scaled to the filter's support. A lookup in
@@ -64,7 +64,7 @@ def filter_offset(cdf, grid, inverse, kinked, width, u):
     return (x - 0.5) * width
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _aperture(cam, u0, u1):
     blades = int(cam[29])
     if blades < 3:
@@ -83,7 +83,7 @@ def _aperture(cam, u0, u1):
     return x, y * cam[31]
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def generate(cam, s, t, lens, l0, l1):
     """World ray (o, d unit, tmin, tmax) through film position (s, t); ``lens`` enables the
     thin-lens sample (l0, l1)."""
@@ -136,7 +136,7 @@ def generate(cam, s, t, lens, l0, l1):
     return o, d, tmin, tmax
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def generate_batch(cam, st, lens_u, use_lens, o, d, tmin, tmax):
     """Array form (tests): st (n, 2) film positions, lens_u (n, 2) or unused."""
     for i in range(st.shape[0]):
@@ -149,14 +149,14 @@ def generate_batch(cam, st, lens_u, use_lens, o, d, tmin, tmax):
         tmax[i] = b
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def filter_batch(cdf, grid, inverse, kinked, width, u, out):
     for i in range(u.shape[0]):
         out[i, 0] = filter_offset(cdf, grid, inverse, kinked, width, u[i, 0])
         out[i, 1] = filter_offset(cdf, grid, inverse, kinked, width, u[i, 1])
 
 
-@njit(cache=True, _nrt=False, nogil=True)
+@kernel(nogil=True)
 def camera_rays(cam, cdf, grid, inverse, kinked, fwidth, width, height, seed, sampler, pixels, spp,
                 sample0, key, o, d, o32, d32, tmax32):
     """The primary rays of a work item: lane i is sample ``sample0 + i % spp`` of pixel

@@ -16,22 +16,23 @@ exact ties; the remapped number (u − cdf[i]) / pmf[i] is clamped to [0, 1) and
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from .jit import kernel
 
 ONE_MINUS_EPS = float(np.nextafter(1.0, 0.0))   # largest double below 1
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def block_1d_size(n):
     return 2 * n + 1
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def block_2d_size(h, w):
     return h * w + 2 * h + 1 + h * (w + 1) + h * w
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def upper_bound(a, lo, hi, x):
     """First index i in [lo, hi) with a[i] > x (hi if none); a sorted ascending."""
     while lo < hi:
@@ -43,7 +44,7 @@ def upper_bound(a, lo, hi, x):
     return lo
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def lower_bound(a, lo, hi, x):
     """First index i in [lo, hi) with a[i] ≥ x (hi if none); a sorted ascending."""
     while lo < hi:
@@ -55,7 +56,7 @@ def lower_bound(a, lo, hi, x):
     return lo
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample_1d(a, off, n, u):
     """(bin, its probability, u remapped to [0, 1) within the bin) of the 1-D block at ``off``."""
     k = upper_bound(a, off, off + n + 1, u) - 1 - off
@@ -73,12 +74,12 @@ def sample_1d(a, off, n, u):
     return k, p, r
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def pmf_1d(a, off, n, k):
     return a[off + n + 1 + k]
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample_2d(a, off, h, w, u0, u1):
     """(x, y, pdf): a row from the marginal with u1, a column of that row with u0, then a
     uniform point in the cell; pdf per unit area of [0, 1)²."""
@@ -101,7 +102,7 @@ def sample_2d(a, off, h, w, u0, u1):
     return (col + frac) / w, (row + u_row) / h, a[off + row * w + col]
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def pdf_2d(a, off, h, w, x, y):
     """Density at (x, y) in [0, 1)² (the cell's; points outside are clamped to the border)."""
     xf = x * w

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from .jit import kernel
 
 
-@njit(cache=True, _nrt=False, nogil=True)
+@kernel(nogil=True)
 def accumulate(f_sum, f_sq, f_alb, f_nrm, f_alpha, f_count, pixels, spp, L, albedo, normal, alpha):
     """Lane i is sample i % spp of pixels[i // spp] (lanes of a pixel adjacent, in sample order).
     Returns the number of non-finite samples dropped."""

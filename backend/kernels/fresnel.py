@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from .jit import kernel
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def dielectric_polarized(cos_i, eta):
     """(Rs, Rp, cos_t, eta_ti): amplitude-squared reflectances, the signed cosine of the refracted
     direction (opposite sign to cos_i; 0 under TIR) and eta_ti = n_t / n_i. Rs = Rp = 1 under TIR.
@@ -36,14 +36,14 @@ def dielectric_polarized(cos_i, eta):
     return rs * rs, rp * rp, cos_t, eta_ti
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def dielectric(cos_i, eta):
     """(F, cos_t, eta_ti) with F = (Rs + Rp)/2 (1 under total internal reflection)."""
     Rs, Rp, cos_t, eta_ti = dielectric_polarized(cos_i, eta)
     return 0.5 * (Rs + Rp), cos_t, eta_ti
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def conductor_polarized(cos_i, eta, k):
     """(Rs, Rp) of a conductor, exact (Born & Wolf, optics of metals): with s² = sin²θ,
     a² + b² = |ñ² − s²|, a = Re √(ñ² − s²):
@@ -64,13 +64,13 @@ def conductor_polarized(cos_i, eta, k):
     return min(max(Rs, 0.0), 1.0), min(max(Rp, 0.0), 1.0)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def conductor(cos_i, eta, k):
     Rs, Rp = conductor_polarized(cos_i, eta, k)
     return 0.5 * (Rs + Rp)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def conductor_rgb(cos_i, eta, k):
     """Per RGB channel; eta and k are 3-tuples."""
     return (conductor(cos_i, eta[0], k[0]), conductor(cos_i, eta[1], k[1]),

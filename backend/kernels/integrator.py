@@ -28,9 +28,9 @@ import math
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
 from . import materials as km
+from .jit import inlined, kernel
 from .layered import batch as layered
 from .lights import dispatch as ld
 from .lights.common import C_POWER
@@ -55,7 +55,7 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
                                    "visible_camera", "sampler", "stratified_bounces", "nee_all"])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def power_heuristic(a, b):
     """a²/(a² + b²), 0/0 → 0."""
     a2 = a * a
@@ -63,7 +63,7 @@ def power_heuristic(a, b):
     return a2 / den if den > 0.0 else 0.0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _offset(p, ng, d):
     """p moved off the surface along ±ng, to the side d points to."""
     side = 1.0 if ng[0] * d[0] + ng[1] * d[1] + ng[2] * d[2] >= 0.0 else -1.0
@@ -71,7 +71,7 @@ def _offset(p, ng, d):
     return (p[0] + s * ng[0], p[1] + s * ng[1], p[2] + s * ng[2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _clamped(c, clamp, segment):
     """Cycles-style sample clamping of indirect contributions (off when clamp ≤ 0)."""
     if clamp > 0.0 and segment > 0:
@@ -82,7 +82,7 @@ def _clamped(c, clamp, segment):
     return c
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _add(L, slot, c):
     L[slot, 0] += c[0]
     L[slot, 1] += c[1]
@@ -96,7 +96,7 @@ VIA_DELTA = 1        # a delta lobe (or the camera): no light sampling competes
 VIA_ALL_LIGHTS = 2   # a non-delta BSDF sample; next-event estimation sampled every light
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _mis_hit(LT, li, pdf_light, prev_pdf, via, o):
     """MIS weight of emission found by BSDF sampling against light sampling from o."""
     if via == VIA_DELTA:
@@ -108,7 +108,7 @@ def _mis_hit(LT, li, pdf_light, prev_pdf, via, o):
     return power_heuristic(prev_pdf, sel * pdf_light)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _interp3(rows, prim, c, b1, b2):
     """The 3-vector at columns c (corner 0), c + 3, c + 6 of a shading row, interpolated."""
     a0 = np.float64(rows[prim, c])
@@ -119,18 +119,18 @@ def _interp3(rows, prim, c, b1, b2):
             a2 + b1 * (np.float64(rows[prim, c + 5]) - a2) + b2 * (np.float64(rows[prim, c + 8]) - a2))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _normalize(a):
     n = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
     return (a[0] / n, a[1] / n, a[2] / n) if n > 0.0 else a
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _valid_reflection_normal(wi, ns, ng):
     """Bend an interpolated shading normal so the mirror direction of wi stays above the
     geometric surface (the idea of Cycles' ensure_valid_specular_reflection, own derivation):
@@ -154,7 +154,7 @@ def _valid_reflection_normal(wi, ns, ng):
     return (h[0] * sg, h[1] * sg, h[2] * sg)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _frame(n, tangent):
     """(s, t, n): Gram-Schmidt the UV tangent against n; Duff et al.'s frame where it is
     undefined (no UVs: zero tangent)."""
@@ -171,19 +171,19 @@ def _frame(n, tangent):
     return s, t
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _local(s, t, n, v):
     return (_dot(v, s), _dot(v, t), _dot(v, n))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _world(s, t, n, v):
     return (v[0] * s[0] + v[1] * t[0] + v[2] * n[0],
             v[0] * s[1] + v[1] * t[1] + v[2] * n[1],
             v[0] * s[2] + v[1] * t[2] + v[2] * n[2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _lane_pixel_sample(i, spp, inv_spp):
     """(i // spp, i % spp) for 0 ≤ i < 2^52 without a 64-bit integer division (~40 cycles):
     the float quotient is off by at most one, and the remainder tells which way."""
@@ -198,7 +198,7 @@ def _lane_pixel_sample(i, spp, inv_spp):
     return q, r
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _light_sample(LT, TX, li, p, u0, u1, fs, ft, ns, ng):
     """A next-event sample of light li from p: (wi world, dist, value, pdf, is_delta, wi in the
     shading frame, live = it carries light and lies on the same side for both normals)."""
@@ -208,7 +208,7 @@ def _light_sample(LT, TX, li, p, u0, u1, fs, ft, ns, ng):
     return wi_w, dist, value, lpdf, is_delta, wo_n, live
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, sh_slot, sh_o32, sh_d32, sh_t32,
                  sh_c, counts):
     k = counts[1]
@@ -223,7 +223,7 @@ def _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, sh_slot, sh_o32, sh_d32
     counts[1] = k + 1
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _nee(S, segment, slot, beta, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p, f, bsdf_pdf,
          sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts):
     """Light-sample contribution: MIS (power heuristic) against BSDF sampling, divided by the
@@ -235,7 +235,7 @@ def _nee(S, segment, slot, beta, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p
         _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _roulette(MT, TX, m, u, v, wi, ng, beta):
     """Survival probability of a path at a surface it reached at depth ≥ ``rr_depth``:
     min(1, √(max throughput · s)) (Cycles' √, with s below). Decided *after* the emission that
@@ -258,7 +258,7 @@ def _roulette(MT, TX, m, u, v, wi, ng, beta):
     return min(math.sqrt(max(beta[0], max(beta[1], beta[2])) * s), 1.0)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, via,
               nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, counts):
     """The next ray: leak guard, compaction into the next-ray queue (Russian roulette is
@@ -288,7 +288,7 @@ def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, vi
     counts[0] = k + 1
 
 
-@njit(cache=True, _nrt=False, nogil=True)
+@kernel(nogil=True)
 def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
           slot, key, o, d, beta, prev_pdf, prev_delta, tmax32, prim, t32, b1_32, b2_32,
           L, albedo, normal, alpha,
@@ -482,7 +482,7 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
                           nx_pdf, nx_delta, counts)
 
 
-@njit(cache=True, _nrt=False, nogil=True)
+@kernel(nogil=True)
 def add_unoccluded(sh_slot, sh_c, blocked, L):
     """Shadow-ray contributions of the unblocked rays (embree's OCCLUDED answer: −1 = free)."""
     for k in range(sh_slot.shape[0]):

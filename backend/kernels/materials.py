@@ -23,9 +23,9 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
 from .bsdf import conductor, dielectric, diffuse
+from .jit import inlined, kernel
 from .microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from .params import ParamPacker, param_rgb, param_scalar
 
@@ -87,19 +87,19 @@ def build_material_table(materials: list, packer: ParamPacker, stacks=None) -> M
                          np.stack([r.tex for r in rows]), np.array([r.emit_front for r in rows]))
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _rgb(mt, tx, m, slot, u, v):
     # Elements, not a slice: a view would take a reference (an atomic increment) per call.
     vals = mt.values
     return param_rgb(tx, (vals[m, slot], vals[m, slot + 1], vals[m, slot + 2]), mt.tex[m, slot], u, v)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _scalar(mt, tx, m, slot, u, v):
     return param_scalar(tx, mt.values[m, slot], mt.tex[m, slot], u, v)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def emission(mt, tx, m, u, v):
     """Emitted radiance [W m⁻² sr⁻¹] of material m at (u, v) (the caller checks the side of a
     front-only emitter: ``emit_front``)."""
@@ -108,7 +108,7 @@ def emission(mt, tx, m, u, v):
     return _rgb(mt, tx, m, EMISSION, u, v)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def bind(mt, tx, m, u, v):
     """The 12-tuple of lane parameters (see the module docstring)."""
     kind = mt.kind[m]
@@ -137,7 +137,7 @@ def bind(mt, tx, m, u, v):
     return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def is_delta_only(kind, p):
     """Every lobe is a delta (no light sampling needed): smooth metals and glass, black."""
     if kind == CONDUCTOR:
@@ -147,7 +147,7 @@ def is_delta_only(kind, p):
     return kind == BLACK
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def eval_pdf(kind, dist, masking, p, mode, wi, wo):
     """(f·|cos θo| RGB, pdf) of the non-delta part."""
     if kind == DIFFUSE:
@@ -161,7 +161,7 @@ def eval_pdf(kind, dist, masking, p, mode, wi, wo):
     return (0.0, 0.0, 0.0), 0.0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample(kind, dist, masking, p, mode, wi, u0, u1, u2):
     """(wo, weight RGB, pdf, is_delta); weight 0 ends the path."""
     if kind == DIFFUSE:
@@ -175,7 +175,7 @@ def sample(kind, dist, masking, p, mode, wi, u0, u1, u2):
     return (0.0, 0.0, 1.0 if wi[2] >= 0.0 else -1.0), (0.0, 0.0, 0.0), 0.0, False
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def albedo(kind, p):
     """RGB reflectance estimate for the denoising AOV."""
     if kind == DIFFUSE:

@@ -22,8 +22,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from .jit import kernel
 from .specfun import SQRT_PI, erfc, erfinv_from_uniform
 
 GGX = 0
@@ -38,7 +37,7 @@ _TINY = 1e-300
 INV_PI = 1.0 / math.pi
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def D(dist, au, av, m):
     """Normal distribution (per steradian of m; ∫ D cos θm dm = 1); 0 for m.z ≤ 0."""
     x, y, z = m
@@ -57,14 +56,14 @@ def D(dist, au, av, m):
     return d / zz if zz > 0.0 else 0.0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def alpha2_tan2(au, av, w):
     """α(φ)² tan²θ of direction w (≥ 0, finite for w.z = 0)."""
     num = au * au * w[0] * w[0] + av * av * w[1] * w[1]
     return num / max(w[2] * w[2], _TINY)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def smith_lambda(dist, au, av, w):
     """Smith Λ(w), exact for both distributions."""
     s = alpha2_tan2(au, av, w)
@@ -80,12 +79,12 @@ def smith_lambda(dist, au, av, w):
     return max(lam, 0.0)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def visible_side(w, m):
     return (w[0] * m[0] + w[1] * m[1] + w[2] * m[2]) * w[2] > 0.0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def G1(dist, au, av, w, m):
     """Exact Smith masking χ⁺/(1 + Λ(w))."""
     if not visible_side(w, m):
@@ -93,7 +92,7 @@ def G1(dist, au, av, w, m):
     return 1.0 / (1.0 + smith_lambda(dist, au, av, w))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def G1_separable(dist, au, av, w, m):
     if dist == GGX:
         return G1(dist, au, av, w, m)
@@ -106,7 +105,7 @@ def G1_separable(dist, au, av, w, m):
     return 1.0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def G(dist, masking, au, av, wi, wo, m):
     """Masking-shadowing G2(wi, wo, m) of the chosen form (reflection or transmission)."""
     if masking == SEPARABLE:
@@ -116,7 +115,7 @@ def G(dist, masking, au, av, wi, wo, m):
     return 1.0 / (1.0 + smith_lambda(dist, au, av, wi) + smith_lambda(dist, au, av, wo))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _normalize(x, y, z):
     n = math.sqrt(x * x + y * y + z * z)
     if n > 0.0:
@@ -124,7 +123,7 @@ def _normalize(x, y, z):
     return (x, y, z)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample_ndf(dist, au, av, u0, u1):
     """m with density D(m) cos θm (solid angle)."""
     u0 = min(u0, 1.0 - 2.0 ** -53)
@@ -137,12 +136,12 @@ def sample_ndf(dist, au, av, u0, u1):
     return _normalize(-r * math.cos(phi) * au, -r * math.sin(phi) * av, 1.0)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def pdf_ndf(dist, au, av, m):
     return D(dist, au, av, m) * max(m[2], 0.0)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _beckmann_visible_slopes(ws, u0, u1):
     """Visible slopes of the α = 1 Beckmann distribution seen from unit ws (shading frame)."""
     cos_t = min(max(ws[2], 0.0), 1.0)
@@ -183,7 +182,7 @@ def _beckmann_visible_slopes(ws, u0, u1):
     return cphi * x - sphi * y, sphi * x + cphi * y
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample_visible(dist, au, av, wi, u0, u1):
     """m ∝ G1(wi, m) max(0, wi·m) D(m)/wi.z for wi in the upper hemisphere (wi.z ≥ 0)."""
     ws = _normalize(au * wi[0], av * wi[1], max(wi[2], 0.0))
@@ -207,7 +206,7 @@ def sample_visible(dist, au, av, wi, u0, u1):
     return m
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def pdf_visible(dist, au, av, wi, m):
     """Density of ``sample_visible`` per steradian of m; wi in the upper hemisphere."""
     if wi[2] <= 0.0:

@@ -10,8 +10,8 @@ Scalar params give one value, RGB params three. Per lane the kernel reads
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from .jit import inlined
 from .textures import TextureTable, build_table, lookup
 
 
@@ -43,7 +43,7 @@ class ParamPacker:
         return build_table(self._images)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def param_rgb(tx, values, tex_id, u, v):
     """RGB parameter at (u, v): ``values`` is a 3-tuple (constant or texture factor)."""
     if tex_id >= 0:
@@ -52,7 +52,7 @@ def param_rgb(tx, values, tex_id, u, v):
     return (values[0], values[1], values[2])
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def param_scalar(tx, value, tex_id, u, v):
     if tex_id >= 0:
         return lookup(tx, tex_id, u, v)[0] * value

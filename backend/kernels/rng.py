@@ -17,7 +17,8 @@ roulette takes a hashed number (it gains nothing from stratification).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from .jit import kernel
 
 DIM_FILTER = 0          # 2: pixel-filter offset
 DIM_LENS = 2            # 2: aperture
@@ -42,28 +43,28 @@ _S11 = np.uint64(11)
 _INV53 = 1.0 / 9007199254740992.0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _mix(z):
     z = (z ^ (z >> _S30)) * _C0
     z = (z ^ (z >> _S27)) * _C1
     return z ^ (z >> _S31)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def path_key(seed, pixel, sample):
     """The 64-bit key of one path (all of its dimensions hash from it)."""
     h = _mix(np.uint64(seed) * _M0 + np.uint64(pixel))
     return _mix(h ^ (np.uint64(sample) * _M1))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def uniform(key, dim):
     """A double in [0, 1) for a path key and a dimension."""
     h = _mix(key ^ (np.uint64(dim) * _M2 + _M0))
     return np.float64(h >> _S11) * _INV53
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def stream_key(key, dim):
     """The key of a sub-stream of a path: ``uniform(stream_key(key, dim), k)`` for k = 0, 1, …
     (the layered walks of a bounce draw from ``dim = bounce_dim(b, SLOT_SPARE)``, as many numbers
@@ -71,12 +72,12 @@ def stream_key(key, dim):
     return _mix(key ^ (np.uint64(dim) * _M2 + _M0))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def bounce_dim(bounce, slot):
     return BOUNCE_BASE + bounce * BOUNCE_DIMS + slot
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def fill_uniform(seed, pixels, samples, dim0, out):
     """Batch form (tests, the layered walk seeds): out[i, j] = uniform(key_i, dim0 + j)."""
     for i in range(out.shape[0]):

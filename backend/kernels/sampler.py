@@ -22,8 +22,8 @@ Arithmetic is 32-bit (masks on 64-bit integers, since Numba promotes mixed integ
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from .jit import kernel
 from .rng import path_key, uniform
 
 SOBOL = 0
@@ -34,7 +34,7 @@ _M32 = np.uint64(0xFFFFFFFF)
 _INV32 = 1.0 / 4294967296.0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _reverse32(x):
     x = ((x >> np.uint64(1)) & np.uint64(0x55555555)) | ((x & np.uint64(0x55555555)) << np.uint64(1))
     x = ((x >> np.uint64(2)) & np.uint64(0x33333333)) | ((x & np.uint64(0x33333333)) << np.uint64(2))
@@ -44,7 +44,7 @@ def _reverse32(x):
     return x & _M32
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _lk_permute(x, seed):
     """Burley's improved Laine–Karras hash: bijective on 32 bits, each output bit depends only
     on the input bits at and below it (so, on reversed bits, a nested uniform scramble)."""
@@ -56,13 +56,13 @@ def _lk_permute(x, seed):
     return x
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def owen_scramble(x, seed):
     """Nested uniform (Owen) scramble of a 32-bit fixed-point number."""
     return _reverse32(_lk_permute(_reverse32(x), seed))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _mix32(x):
     """A 32-bit integer hash (Wellons' "lowbias32" constants): well-mixed scramble seeds."""
     x = x & _M32
@@ -74,7 +74,7 @@ def _mix32(x):
     return x
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def pixel_seed(seed, pixel):
     """Per-pixel scramble seed (computed once per lane; every slot derives its own from it)."""
     return _mix32(np.uint64(pixel) ^ _mix32(np.uint64(seed) ^ (np.uint64(seed) >> np.uint64(32))))
@@ -102,7 +102,7 @@ def _sobol1_bytes() -> np.ndarray:
 SOBOL1_BYTES = _sobol1_bytes()
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _sobol1_gen(i):
     """Sobol dimension 1 of a 32-bit index (see ``_sobol1_bytes``)."""
     return (SOBOL1_BYTES[0, i & np.uint64(0xFF)] ^ SOBOL1_BYTES[1, (i >> np.uint64(8)) & np.uint64(0xFF)]
@@ -110,21 +110,21 @@ def _sobol1_gen(i):
             ^ SOBOL1_BYTES[3, (i >> np.uint64(24)) & np.uint64(0xFF)])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _shuffled(pseed, sample, dim):
     """(slot seed, the sample index permuted by a nested uniform scramble of its bits)."""
     s = _mix32(pseed ^ (np.uint64(dim) * np.uint64(0x9E3779B9)))
     return s, owen_scramble(np.uint64(sample) & _M32, s)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sobol1(pseed, sample, dim):
     s, i = _shuffled(pseed, sample, dim)
     # Dimension 0 is van der Corput, reverse(i); Owen-scrambled: reverse(LK(i)).
     return np.float64(_reverse32(_lk_permute(i, _mix32(s + np.uint64(1))))) * _INV32
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sobol2(pseed, sample, dim):
     s, i = _shuffled(pseed, sample, dim)
     x = _reverse32(_lk_permute(i, _mix32(s + np.uint64(1))))
@@ -132,7 +132,7 @@ def sobol2(pseed, sample, dim):
     return np.float64(x) * _INV32, np.float64(y) * _INV32
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def get1(kind, pseed, key, sample, dim):
     """The number of a 1-D slot starting at ``dim`` (``pseed`` = pixel_seed(seed, pixel),
     ``key`` = rng.path_key(seed, pixel, sample))."""
@@ -141,7 +141,7 @@ def get1(kind, pseed, key, sample, dim):
     return sobol1(pseed, sample, dim)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def get2(kind, pseed, key, sample, dim):
     """The two numbers of a 2-D slot starting at ``dim``."""
     if kind == INDEPENDENT:
@@ -149,7 +149,7 @@ def get2(kind, pseed, key, sample, dim):
     return sobol2(pseed, sample, dim)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def fill(kind, seed, pixels, samples, dim, two, out):
     """Batch form (tests): out[i] = the slot's number(s) for (pixels[i], samples[i])."""
     for i in range(out.shape[0]):

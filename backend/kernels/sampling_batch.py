@@ -3,32 +3,31 @@ NumPy callers: ``backend/sampling/*.py`` loop these over lanes, so the warps, di
 the spherical-rectangle map have one implementation."""
 from __future__ import annotations
 
-from numba import njit
-
 from . import discrete as _d
 from . import spherical_rect as _sr
 from . import warp as _w
+from .jit import kernel
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample_1d(block, n, u, idx, p, u_rem):
     for i in range(u.shape[0]):
         idx[i], p[i], u_rem[i] = _d.sample_1d(block, 0, n, u[i])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample_2d(block, h, w, u, xy, pdf):
     for i in range(u.shape[0]):
         xy[i, 0], xy[i, 1], pdf[i] = _d.sample_2d(block, 0, h, w, u[i, 0], u[i, 1])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def pdf_2d(block, h, w, xy, out):
     for i in range(xy.shape[0]):
         out[i] = _d.pdf_2d(block, 0, h, w, xy[i, 0], xy[i, 1])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def spherical_rect(x0, y0, z0, lx, ly, out):
     """out[i] = the 9 numbers of the lane's spherical rectangle (spherical_rect.py)."""
     for i in range(x0.shape[0]):
@@ -37,7 +36,7 @@ def spherical_rect(x0, y0, z0, lx, ly, out):
             out[i, k] = r[k]
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample_spherical_rect(rects, u, xu, yv):
     for i in range(u.shape[0]):
         r = rects[i]
@@ -45,31 +44,31 @@ def sample_spherical_rect(rects, u, xu, yv):
         xu[i], yv[i] = _sr.sample(sr, u[i, 0], u[i, 1])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def disk_concentric(u, out):
     for i in range(u.shape[0]):
         out[i, 0], out[i, 1] = _w.disk_concentric(u[i, 0], u[i, 1])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def cosine_hemisphere(u, out):
     for i in range(u.shape[0]):
         out[i, 0], out[i, 1], out[i, 2] = _w.cosine_hemisphere(u[i, 0], u[i, 1])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def uniform_sphere(u, out):
     for i in range(u.shape[0]):
         out[i, 0], out[i, 1], out[i, 2] = _w.uniform_sphere(u[i, 0], u[i, 1])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def uniform_cone(u, one_minus_cos, out):
     for i in range(u.shape[0]):
         out[i, 0], out[i, 1], out[i, 2] = _w.uniform_cone_local(u[i, 0], u[i, 1], one_minus_cos)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def triangle_barycentric(u, out):
     for i in range(u.shape[0]):
         out[i, 0], out[i, 1] = _w.triangle_barycentric(u[i, 0], u[i, 1])

@@ -13,7 +13,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from .jit import kernel
 
 
 # Shading rows: everything the shading kernel reads of a hit triangle, in one 128-byte float32
@@ -33,7 +34,7 @@ ROW_EMIT = 31        # int32: local triangle index of the mesh light, −1 if it
 ROW_SIZE = 32
 
 
-@njit(cache=True, nogil=True, _nrt=False)
+@kernel(nogil=True)
 def _fill_shading_rows(v, n, has_n, uv, has_uv, ng, tan, material, emitter, rows, irows):
     for t in range(v.shape[0]):
         for c in range(3):
@@ -65,7 +66,7 @@ def shading_rows(vertices, normals, uvs, geo_normal, tangent, material, emitter)
     return rows, irows
 
 
-@njit(cache=True, nogil=True, _nrt=False)
+@kernel(nogil=True)
 def _fill_frames(v, uv, has_uv, geo_normal, tangent, area):
     for t in range(v.shape[0]):
         x0, y0, z0 = np.float64(v[t, 0, 0]), np.float64(v[t, 0, 1]), np.float64(v[t, 0, 2])

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from .jit import kernel
 
 SQRT_PI = math.sqrt(math.pi)
 
@@ -18,7 +18,7 @@ NR = (-1.26551223, 1.00002368, 0.37409196, 0.09678418, -0.18628806,
       0.27886807, -1.13520398, 1.48851587, -0.82215223, 0.17087277)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def erfc(x):
     z = abs(x)
     t = 1.0 / (1.0 + 0.5 * z)
@@ -37,7 +37,7 @@ def erfc(x):
     return ans if x >= 0.0 else 2.0 - ans
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _erfcinv_upper(c):
     """y ≥ 0 with erfc(y) = c, c in (0, 1]."""
     c = min(max(c, 1e-300), 1.0)
@@ -51,7 +51,7 @@ def _erfcinv_upper(c):
     return y
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def erfinv_from_uniform(u):
     """erfinv(2u − 1) for u in [0, 1): a N(0, 1/2) variate."""
     if u < 0.5:

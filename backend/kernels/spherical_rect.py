@@ -19,15 +19,15 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from .jit import kernel
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _asin(x):
     return math.asin(min(max(x, -1.0), 1.0))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def spherical_rect(x0, y0, z0, lx, ly):
     """The spherical rectangle of corner (x0, y0, z0) + [0, lx]·ex + [0, ly]·ey seen from the origin.
 
@@ -50,7 +50,7 @@ def spherical_rect(x0, y0, z0, lx, ly):
     return (x0, x1, y0, y1, z0, nz0, nz2, g23, max(solid, 0.0))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample(sr, u0, u1):
     """In-plane coordinates (xu, yv) of a point uniformly distributed in solid angle (density
     1/solid_angle) on the rectangle ``sr``."""

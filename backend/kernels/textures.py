@@ -12,7 +12,8 @@ import math
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
+
+from .jit import inlined, kernel
 
 TextureTable = namedtuple("TextureTable", ["texels", "offset", "width", "height", "channels"])
 
@@ -37,7 +38,7 @@ def build_table(images: list) -> TextureTable:
                         np.array([img.shape[2] for img in images], np.int32))
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _texel(tx, t, x, y):
     c = tx.channels[t]
     base = tx.offset[t] + (y * tx.width[t] + x) * c
@@ -47,7 +48,7 @@ def _texel(tx, t, x, y):
     return (v0, np.float64(tx.texels[base + 1]), np.float64(tx.texels[base + 2]))
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def lookup(tx, t, u, v):
     """Bilinear, repeating lookup of texture ``t`` at (u, v); texel centres at (i + 0.5)/w."""
     w = tx.width[t]
@@ -75,7 +76,7 @@ def lookup(tx, t, u, v):
             (a[2] * gx + b[2] * fx) * gy + (c[2] * gx + d[2] * fx) * fy)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def lookup_batch(tx, t, uv, out):
     """out[i] = lookup at uv[i] (out has 1 or 3 columns)."""
     for i in range(uv.shape[0]):

@@ -7,61 +7,61 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from .jit import kernel
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def v3(x, y, z):
     return (float(x), float(y), float(z))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def add(a, b):
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sub(a, b):
     return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def mul(a, s):
     return (a[0] * s, a[1] * s, a[2] * s)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def mul3(a, b):
     return (a[0] * b[0], a[1] * b[1], a[2] * b[2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def madd(a, s, b):
     """a + s·b"""
     return (a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def neg(a):
     return (-a[0], -a[1], -a[2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def length(a):
     return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def normalize(a):
     """a/|a|; the zero vector stays zero."""
     n = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
@@ -71,23 +71,23 @@ def normalize(a):
     return a
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def max3(a):
     return max(a[0], max(a[1], a[2]))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def is_zero(a):
     return a[0] == 0.0 and a[1] == 0.0 and a[2] == 0.0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def luminance(a):
     """Rec.709 luminance of linear RGB."""
     return 0.2126 * a[0] + 0.7152 * a[1] + 0.0722 * a[2]
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def coordinate_system(n):
     """Two unit vectors orthogonal to unit n (Duff et al. 2017, branchless form)."""
     sign = 1.0 if n[2] >= 0.0 else -1.0
@@ -98,7 +98,7 @@ def coordinate_system(n):
     return s, t
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def frame_from_normal_tangent(n, tangent):
     """(s, t, n): Gram-Schmidt the tangent against unit n; Duff's tangent where it degenerates
     (meshes without UVs have a zero tangent)."""
@@ -112,32 +112,32 @@ def frame_from_normal_tangent(n, tangent):
     return s, cross(n, s), n
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def to_local(s, t, n, v):
     return (dot(v, s), dot(v, t), dot(v, n))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def to_world(s, t, n, v):
     return (v[0] * s[0] + v[1] * t[0] + v[2] * n[0],
             v[0] * s[1] + v[1] * t[1] + v[2] * n[1],
             v[0] * s[2] + v[1] * t[2] + v[2] * n[2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def row3(a, i):
     """Row i of an (n, 3) array as a tuple."""
     return (a[i, 0], a[i, 1], a[i, 2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def set_row3(a, i, v):
     a[i, 0] = v[0]
     a[i, 1] = v[1]
     a[i, 2] = v[2]
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def safe_div(a, b):
     """a/b, 0 where b == 0."""
     return a / b if b != 0.0 else 0.0

@@ -7,14 +7,14 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from .jit import kernel
 
 PI = math.pi
 INV_PI = 1.0 / math.pi
 INV_4PI = 0.25 / math.pi
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def disk_concentric(u0, u1):
     """Shirley–Chiu concentric map of the square onto the unit disk."""
     a = 2.0 * u0 - 1.0
@@ -30,7 +30,7 @@ def disk_concentric(u0, u1):
     return r * math.cos(phi), r * math.sin(phi)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def cosine_hemisphere(u0, u1):
     """Malley's method with the polar disk map (r = √u0, φ = 2π u1); pdf cos θ / π.
     One cosine call: sin φ = ±√(1 − cos²φ) (sign from the half of the circle u1 falls in)."""
@@ -42,7 +42,7 @@ def cosine_hemisphere(u0, u1):
     return (r * c, r * s, math.sqrt(max(0.0, 1.0 - u0)))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def uniform_sphere(u0, u1):
     z = 1.0 - 2.0 * u0
     r = math.sqrt(max(0.0, 1.0 - z * z))
@@ -50,7 +50,7 @@ def uniform_sphere(u0, u1):
     return (r * math.cos(phi), r * math.sin(phi), z)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def uniform_cone_local(u0, u1, one_minus_cos):
     """Uniform direction within the cone around +z of 1 − cos α = ``one_minus_cos`` (from 1 − cos,
     not cos, so tiny cones such as a 0.5° sun keep their precision); pdf 1/(2π(1 − cos α))."""
@@ -61,12 +61,12 @@ def uniform_cone_local(u0, u1, one_minus_cos):
     return (sin_t * math.cos(phi), sin_t * math.sin(phi), z)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def cone_pdf(one_minus_cos):
     return 1.0 / (2.0 * PI * one_minus_cos) if one_minus_cos > 0.0 else 0.0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def triangle_barycentric(u0, u1):
     """Uniform barycentrics (b0, b1), b0 + b1 ≤ 1 (Heitz 2019's low-distortion map)."""
     if u0 <= u1:

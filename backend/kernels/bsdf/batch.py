@@ -6,28 +6,27 @@ or n (one value per lane): RGB (1|n, 3), scalars (1|n,), smooth flags (1|n,) boo
 """
 from __future__ import annotations
 
-from numba import njit
-
 from . import conductor, dielectric, diffuse
+from ..jit import kernel
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _rgb(a, i):
     j = i if a.shape[0] > 1 else 0
     return (a[j, 0], a[j, 1], a[j, 2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _s(a, i):
     return a[i if a.shape[0] > 1 else 0]
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _dir(a, i):
     return (a[i, 0], a[i, 1], a[i, 2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def diffuse_eval_pdf(color, wi, wo, f, pdf):
     for i in range(wi.shape[0]):
         v, p = diffuse.eval_pdf(_rgb(color, i), _dir(wi, i), _dir(wo, i))
@@ -35,7 +34,7 @@ def diffuse_eval_pdf(color, wi, wo, f, pdf):
         pdf[i] = p
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def diffuse_sample(color, wi, u, wo, weight, pdf, delta):
     for i in range(wi.shape[0]):
         w, v, p, d = diffuse.sample(_rgb(color, i), _dir(wi, i), u[i, 0], u[i, 1])
@@ -45,7 +44,7 @@ def diffuse_sample(color, wi, u, wo, weight, pdf, delta):
         delta[i] = d
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def conductor_eval_pdf(eta, k, tint, au, av, smooth, dist, masking, wi, wo, f, pdf):
     for i in range(wi.shape[0]):
         v, p = conductor.eval_pdf(_rgb(eta, i), _rgb(k, i), _rgb(tint, i), _s(au, i), _s(av, i),
@@ -54,7 +53,7 @@ def conductor_eval_pdf(eta, k, tint, au, av, smooth, dist, masking, wi, wo, f, p
         pdf[i] = p
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def conductor_sample(eta, k, tint, au, av, smooth, dist, masking, wi, u, wo, weight, pdf, delta):
     for i in range(wi.shape[0]):
         w, v, p, d = conductor.sample(_rgb(eta, i), _rgb(k, i), _rgb(tint, i), _s(au, i), _s(av, i),
@@ -65,13 +64,13 @@ def conductor_sample(eta, k, tint, au, av, smooth, dist, masking, wi, u, wo, wei
         delta[i] = d
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def conductor_albedo(eta, k, tint, out):
     for i in range(out.shape[0]):
         out[i, 0], out[i, 1], out[i, 2] = conductor.albedo(_rgb(eta, i), _rgb(k, i), _rgb(tint, i))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def dielectric_eval_pdf(eta, tint, au, av, smooth, dist, masking, mode, wi, wo, f, pdf):
     for i in range(wi.shape[0]):
         v, p = dielectric.eval_pdf(_s(eta, i), _rgb(tint, i), _s(au, i), _s(av, i), _s(smooth, i),
@@ -80,7 +79,7 @@ def dielectric_eval_pdf(eta, tint, au, av, smooth, dist, masking, mode, wi, wo, 
         pdf[i] = p
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def dielectric_sample(eta, tint, au, av, smooth, dist, masking, mode, wi, u, wo, weight, pdf, delta):
     for i in range(wi.shape[0]):
         w, v, p, d = dielectric.sample(_s(eta, i), _rgb(tint, i), _s(au, i), _s(av, i), _s(smooth, i),

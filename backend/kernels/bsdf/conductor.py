@@ -8,21 +8,20 @@ mirror with weight F(cos θi) and eval = pdf = 0.
 """
 from __future__ import annotations
 
-from numba import njit
-
 from .. import microfacet as mf
 from ..fresnel import conductor_rgb
+from ..jit import kernel
 from ..vec import normalize
 
 ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _upper(w, s):
     return (w[0], w[1], w[2] * s)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def eval_pdf(eta, k, tint, au, av, smooth, dist, masking, wi, wo):
     if smooth:
         return ZERO3, 0.0
@@ -41,7 +40,7 @@ def eval_pdf(eta, k, tint, au, av, smooth, dist, masking, wi, wo):
     return (F[0] * tint[0] * val, F[1] * tint[1] * val, F[2] * tint[2] * val), pdf
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample(eta, k, tint, au, av, smooth, dist, masking, wi, u0, u1):
     s = -1.0 if wi[2] < 0.0 else 1.0
     wi_u = _upper(wi, s)
@@ -65,7 +64,7 @@ def sample(eta, k, tint, au, av, smooth, dist, masking, wi, u0, u1):
     return _upper(wo, s), (F[0] * tint[0] * ratio, F[1] * tint[1] * ratio, F[2] * tint[2] * ratio), pdf, False
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def albedo(eta, k, tint):
     """Normal-incidence reflectance: the metal's colour, what a denoiser wants as albedo."""
     F = conductor_rgb(1.0, eta, k)

@@ -16,21 +16,20 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from .. import microfacet as mf
 from ..fresnel import dielectric as fresnel
 from . import RADIANCE
+from ..jit import kernel
 
 ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _div(a, b):
     return a / b if b != 0.0 else 0.0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def eval_pdf(eta, tint, au, av, smooth, dist, masking, mode, wi, wo):
     if smooth:
         return ZERO3, 0.0
@@ -76,7 +75,7 @@ def eval_pdf(eta, tint, au, av, smooth, dist, masking, mode, wi, wo):
     return (ft * tint[0], ft * tint[1], ft * tint[2]), pt
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample(eta, tint, au, av, smooth, dist, masking, mode, wi, u0, u1, u2):
     ci = wi[2]
     if ci == 0.0:

@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from ..jit import kernel
 from ..warp import cosine_hemisphere
 
 INV_PI = 1.0 / math.pi
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def eval_pdf(color, wi, wo):
     if wi[2] * wo[2] > 0.0:
         c = abs(wo[2]) * INV_PI
@@ -20,7 +19,7 @@ def eval_pdf(color, wi, wo):
     return (0.0, 0.0, 0.0), 0.0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample(color, wi, u0, u1):
     wo = cosine_hemisphere(u0, u1)
     if wi[2] < 0.0:

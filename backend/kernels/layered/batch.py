@@ -14,8 +14,8 @@ Random numbers: the integrator's lane draws from ``hash(path key, bounce dimensi
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..jit import kernel
 from ..rng import SLOT_SPARE, bounce_dim, path_key, stream_key
 from . import estimators as es
 from .table import BSIZE, H_EST, H_PDF, bind_into
@@ -31,7 +31,7 @@ def scratch(max_vertices: int = 1024):
     return (np.zeros((2, cap, NF)), np.zeros(BSIZE), np.zeros(2, np.uint64), np.zeros(4, np.int64))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def shade_lane(ST, TX, s, u, v, wi, wo, nee, nee_pdf, do_continue, camera, key, segment, W, Bs, R, C):
     """The layered part of one bounce of one lane (RADIANCE transport): (f, pdf of the light
     direction, continuation wo, weight, pdf, delta, albedo AOV estimate). At a camera hit the AOV
@@ -56,7 +56,7 @@ def shade_lane(ST, TX, s, u, v, wi, wo, nee, nee_pdf, do_continue, camera, key, 
     return f, p_nee, wo_s, w_s, p_s, d_s, alb
 
 
-@njit(cache=True, _nrt=False, nogil=True)
+@kernel(nogil=True)
 def run(op, ST, TX, s, uv, wi, wo, nee, mode, est, kind, want_pdf, nee_pdf, want_sample, seed,
         W, Bs, R, C, f, p, wo_s, w_s, p_s, d_s):
     """One query per lane i (``uv``, ``wi``, ``wo``, ``nee``: (1 | n) rows; outputs (n, ·)):

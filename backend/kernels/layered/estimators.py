@@ -47,11 +47,10 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from . import iface as ki
 from . import phase as ph
 from . import walk as wk
+from ..jit import inlined, kernel
 from .table import (ABSORBING, APPROX, BI, EMPTY, STOCHASTIC, H_ETA_BOTTOM, H_ETA_SLAB, H_ETA_TOP, H_EST,
                     H_MAXV, H_MIS, H_N, H_NESTED, H_PDF, H_PDFC, H_TRANS, HEAD, M_DIR, M_GREY, M_KIND, M_PH,
                     M_TAU, MED0, MSTRIDE, SCATTERING)
@@ -66,29 +65,29 @@ APPROX_BI = 3           # bidirectional estimator everywhere
 C_WALKS, C_VERTICES, C_CAPS = 0, 1, 2
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _ifo(l):
     return HEAD + l * ki.STRIDE
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _mdo(k):
     return MED0 + k * MSTRIDE
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _evaluate(B, o, wi, wo, ti, to, pdf_only):
     """iface.evaluate with runtime flags (one compiled specialisation; see walk.run)."""
     return ki.evaluate(B, o + 0, wi, wo, ti * 1.0, to * 1.0, pdf_only == True)  # noqa: E712
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _sample(B, o, wi, u0, u1, u2, dens):
     """iface.sample with runtime flags (see walk.run)."""
     return ki.sample(B, o + 0, wi, u0, u1, u2, dens == True)  # noqa: E712
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _exit_side(B, N, wo, R):
     """Where the path leaves the stack towards wo: (exit through the top, the exit interface E, the
     slab next to E, the interface across that slab, E's block offset) and the three numbers that
@@ -103,28 +102,28 @@ def _exit_side(B, N, wo, R):
     return exit_top, E, slab_E, face, _ifo(E), u0, u1, u2
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def power(a, b):
     a2 = a * a
     den = a2 + b * b
     return a2 / den if den > 0.0 else 0.0
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def valid(B, wi, wo):
     if B[H_TRANS] > 0.0:
         return wi[2] != 0.0 and wo[2] != 0.0
     return wi[2] > 0.0 and wo[2] > 0.0
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def valid_in(B, wi):
     if B[H_TRANS] > 0.0:
         return wi[2] != 0.0
     return wi[2] > 0.0
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def mode_factor(B, wi, wo, mode):
     if mode != RADIANCE or B[H_TRANS] <= 0.0:
         return 1.0
@@ -134,7 +133,7 @@ def mode_factor(B, wi, wo, mode):
     return r * r
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def eta_corr(B, k, exit_top):
     """(η_exit side/η_slab k)²: converts subpaths sampled from the exit direction (importance
     transport) into the adjoint transport they stand for."""
@@ -142,14 +141,14 @@ def eta_corr(B, k, exit_top):
     return e * e
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _count(C, n, capped):
     C[C_WALKS] += 1
     C[C_VERTICES] += n
     C[C_CAPS] += capped
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def single(B, a, b, pdf):
     """The one-vertex path: reflection at the entry interface (exact). (value RGB, pdf)."""
     zero = (0.0, 0.0, 0.0)
@@ -167,7 +166,7 @@ def single(B, a, b, pdf):
     return (v[0] * arr, v[1] * arr, v[2] * arr), 0.0
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def transmittance(B, FT, k, d, t0, t1):
     """Transmittance in slab k from depth t0 to t1 along d (0 if d does not lead there; 1 over
     zero length)."""
@@ -189,7 +188,7 @@ def transmittance(B, FT, k, d, t0, t1):
 
 
 # ----------------------------------------------------------------------------- bidirectional
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _directed(B, FT, W, sx, nx, ty, ny, u, exit_top, pdf_mode, approx, nmax, hero):
     """Connections whose direction was sampled by walk ``sx`` (strategy u) to the vertices of
     walk ``ty``: (value sum RGB, pdf sum)."""
@@ -342,7 +341,7 @@ def _directed(B, FT, W, sx, nx, ty, ny, u, exit_top, pdf_mode, approx, nmax, her
     return (o0, o1, o2), op
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@inlined(error_model="numpy")
 def bidirectional(B, FT, W, nL, nR, exit_top, pdf_mode, approx, nmax, hero):
     """Sum over all connections of walk 0 (L, from wi) and walk 1 (R, from wo): f·|cos θo|/|cos θo|
     (RGB; without the single-interface term and any transport-mode factor), or the pdf."""
@@ -362,7 +361,7 @@ def bidirectional(B, FT, W, nL, nR, exit_top, pdf_mode, approx, nmax, hero):
 
 
 # ----------------------------------------------------------------------------- unidirectional
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def unidirectional(B, FT, W, nL, wo, R, mis):
     """NEE through the exit interface plus the continuation half of the MIS pair, over walk 0."""
     N = int(B[H_N])
@@ -424,7 +423,7 @@ def unidirectional(B, FT, W, nL, wo, R, mis):
     return (o0, o1, o2)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _pass(B, FT, k, d, t0, t1, approx, hero):
     """The probability that the pdf walks' sampler gets from depth t0 to t1 along d in slab k:
     the free flight's pass probability (hero channel, or channel 0 if grey), 1 through slabs
@@ -436,7 +435,7 @@ def _pass(B, FT, k, d, t0, t1, approx, hero):
     return (T[0] + T[1] + T[2]) / 3.0
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def pdf_nee(B, FT, W, nL, wo, R, hero, approx, kmax):
     """The sampler's density of ``wo`` by next-event estimation through the exit interface E
     (the unidirectional estimator, applied to densities): walk 0 is the sampler itself (weight
@@ -490,7 +489,7 @@ def pdf_nee(B, FT, W, nL, wo, R, hero, approx, kmax):
     return out
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _uni_blind(B, exit_top):
     N = int(B[H_N])
     if exit_top:
@@ -499,12 +498,12 @@ def _uni_blind(B, exit_top):
 
 
 # ----------------------------------------------------------------------------- queries
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _cap(B, W):
     return min(int(B[H_MAXV]), W.shape[1])
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@inlined(error_model="numpy")
 def value(B, FT, W, R, a, b, est, C):
     """f(a → b)·|cos θb| (importance transport) of a valid query; walk L is W[0]."""
     f, _ = single(B, a, b, False)
@@ -528,14 +527,14 @@ def value(B, FT, W, R, a, b, est, C):
     return (f[0] + g[0] * az, f[1] + g[1] * az, f[2] + g[2] * az)
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@inlined(error_model="numpy")
 def pdf(B, FT, W, R, a, b, kind, C):
     """The sampler's density of b given a (a valid query): ``pdf_pair`` for one direction."""
     p, _ = pdf_pair(B, FT, W, R, a, b, True, b, False, kind, C)
     return p
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@inlined(error_model="numpy")
 def pdf_pair(B, FT, W, R, a, b1, need1, b2, need2, kind, C):
     """The pdf estimates of (a, b1) and (a, b2) (each only if needed), sharing one walk from a
     (as the reference implementation's evalAndSample: the two pdfs of a path vertex share their
@@ -596,7 +595,7 @@ def pdf_pair(B, FT, W, R, a, b1, need1, b2, need2, kind, C):
     return p1, p2
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@inlined(error_model="numpy")
 def eval_query(B, FT, W, R, wi, wo, mode, est, C):
     if not valid(B, wi, wo):
         return (0.0, 0.0, 0.0)
@@ -605,14 +604,14 @@ def eval_query(B, FT, W, R, wi, wo, mode, est, C):
     return (f[0] * m, f[1] * m, f[2] * m)
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@inlined(error_model="numpy")
 def pdf_query(B, FT, W, R, wi, wo, kind, C):
     if not valid(B, wi, wo):
         return 0.0
     return pdf(B, FT, W, R, wi, wo, kind, C)
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@inlined(error_model="numpy")
 def sample_query(B, FT, W, R, wi, mode, want_pdf, kind, C):
     """(wo, weight, pdf, delta): a forward walk from wi (the sample's roulette); ``want_pdf``
     adds the MIS pdf estimate of the sampled direction (0 for delta exits)."""
@@ -632,7 +631,7 @@ def sample_query(B, FT, W, R, wi, mode, want_pdf, kind, C):
     return wo, w, p, delta
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@inlined(error_model="numpy")
 def nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, want_sample, C):
     """One scattering event of a camera path (RADIANCE transport): f and the MIS pdf of the
     light direction ``wo`` (if ``nee``), and the continuation sample. With the bidirectional
@@ -686,7 +685,7 @@ def nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, want_sample, C):
     return f, p_nee, wo_s, w_s, p_s, d_s
 
 
-@njit(cache=True, _nrt=False, inline="always", error_model="numpy")
+@inlined(error_model="numpy")
 def albedo(B, FT, W, R, C):
     """A one-sample estimate of the normal-incidence albedo (for the denoising AOV: averaged over
     a pixel's samples it converges to the directional albedo): a sample walk, importance

@@ -27,11 +27,10 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from .. import microfacet as mf
 from ..fresnel import conductor as fresnel_conductor
 from ..fresnel import dielectric as fresnel_dielectric
+from ..jit import kernel
 from ..materials import CONDUCTOR, DIELECTRIC, DIFFUSE
 
 NULL = 5
@@ -43,12 +42,12 @@ INV_PI = 1.0 / math.pi
 NAN = math.nan
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def is_delta(B, o):
     return B[o + IF_DELTA] > 0.0
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _local(B, o, w):
     s, t, n = o + IF_S, o + IF_T, o + IF_N
     return (w[0] * B[s] + w[1] * B[s + 1] + w[2] * B[s + 2],
@@ -56,7 +55,7 @@ def _local(B, o, w):
             w[0] * B[n] + w[1] * B[n + 1] + w[2] * B[n + 2])
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _world(B, o, w):
     s, t, n = o + IF_S, o + IF_T, o + IF_N
     return (w[0] * B[s] + w[1] * B[t] + w[2] * B[n],
@@ -64,7 +63,7 @@ def _world(B, o, w):
             w[0] * B[s + 2] + w[1] * B[t + 2] + w[2] * B[n + 2])
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def arrival(B, o, w):
     """|⟨n, w⟩|/|w_z| for a normal-mapped interface reached along −w (0 across the normals), 1
     without a normal map."""
@@ -76,7 +75,7 @@ def arrival(B, o, w):
     return abs(c) / abs(w[2])
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def frame_of_normal(n):
     """(s, t) of a shading normal: the tangent x projected off n (y where x is parallel to n)."""
     x = (1.0 - n[0] * n[0], -n[0] * n[1], -n[0] * n[2])
@@ -89,7 +88,7 @@ def frame_of_normal(n):
 
 
 # ----------------------------------------------------------------------------- microfacets
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _term(dist, masking, au, av, w):
     if masking == mf.SEPARABLE and dist == mf.BECKMANN:
         a = 1.0 / math.sqrt(max(mf.alpha2_tan2(au, av, w), 1e-200))
@@ -99,7 +98,7 @@ def _term(dist, masking, au, av, w):
     return mf.smith_lambda(dist, au, av, w)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _g2(dist, masking, ti, to, chi):
     if not chi:
         return 0.0
@@ -110,14 +109,14 @@ def _g2(dist, masking, ti, to, chi):
     return 1.0 / (1.0 + ti + to)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _normal(dist, au, av, ws, u0, u1):
     if dist == mf.BECKMANN:
         return mf.sample_ndf(dist, au, av, u0, u1)
     return mf.sample_visible(dist, au, av, ws, u0, u1)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _alphas(B, o):
     kind = B[o + IF_KIND]
     if kind == CONDUCTOR:
@@ -125,7 +124,7 @@ def _alphas(B, o):
     return B[o + IF_P + 4], B[o + IF_P + 5]
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def term(B, o, w):
     """The masking term of direction w at a rough interface (in its shading frame); 0 else."""
     kind = B[o + IF_KIND]
@@ -138,7 +137,7 @@ def term(B, o, w):
 
 
 # ----------------------------------------------------------------------------- per kind
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _conductor_sample(B, o, wi, u0, u1, dens):
     p = o + IF_P
     s = -1.0 if wi[2] < 0.0 else 1.0
@@ -187,7 +186,7 @@ def _conductor_sample(B, o, wi, u0, u1, dens):
     return wo, w, pf, pr, False
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _conductor_eval(B, o, wi, wo, ti, to, pdf_only):
     p = o + IF_P
     zero = (0.0, 0.0, 0.0)
@@ -232,7 +231,7 @@ def _conductor_eval(B, o, wi, wo, ti, to, pdf_only):
              fresnel_conductor(cih, eta[2], k[2]) * B[p + 8] * v), pf, pr)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _dielectric_sample(B, o, wi, u0, u1, u2, dens):
     p = o + IF_P
     zero = (0.0, 0.0, 0.0)
@@ -306,7 +305,7 @@ def _dielectric_sample(B, o, wi, u0, u1, u2, dens):
     return wo, (w1 * tint[0], w1 * tint[1], w1 * tint[2]), pf, pr, False
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _dielectric_eval(B, o, wi, wo, ti, to, pdf_only):
     """Walter et al. 2007 (importance transport) with the densities of the sampler from each side.
     With e = n(wo side)/n(wi side), h ∝ wi + e'·wo (e' = 1 for a reflection) and
@@ -382,7 +381,7 @@ def _dielectric_eval(B, o, wi, wo, ti, to, pdf_only):
 
 
 # ----------------------------------------------------------------------------- dispatch
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _sample_local(B, o, wi, u0, u1, u2, dens):
     kind = B[o + IF_KIND]
     if kind == DIELECTRIC:
@@ -409,7 +408,7 @@ def _sample_local(B, o, wi, u0, u1, u2, dens):
     return (-wi[0], -wi[1], -wi[2]), (B[p], B[p + 1], B[p + 2]), 1.0, 1.0, True
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def sample(B, o, wi, u0, u1, u2, dens):
     """(wo, weight f·|cos θo|/p (RGB), pf, pr, delta): importance transport. ``dens``: compute
     the densities (walks whose vertices feed MIS weights); otherwise pf = pr = 1 placeholders.
@@ -424,7 +423,7 @@ def sample(B, o, wi, u0, u1, u2, dens):
     return wo, w, pf, pr, delta
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def evaluate(B, o, wi, wo, ti, to, pdf_only):
     """(f(wi → wo)·|cos θo| RGB (importance transport), pf = p(wo | wi), pr = p(wi | wo)) of the
     non-delta part. ``ti``/``to``: the masking terms of wi and wo if known (``term``), else NaN.

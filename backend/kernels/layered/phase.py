@@ -27,8 +27,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from ..jit import kernel
 from ..rng import uniform
 
 ISOTROPIC, HG, VMF, FIBER, SGGX = 0, 1, 2, 3, 4
@@ -60,7 +60,7 @@ MAX_CANDIDATES = 509      # 1 + 127 rounds × 4 candidates: the NumPy sampler's 
 SGGX_ROUGHNESS_MIN = 1e-3
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def rnd(R):
     """The next number of a lane's walk stream: R = [stream key, counter] (uint64)."""
     c = R[1]
@@ -68,7 +68,7 @@ def rnd(R):
     return uniform(R[0], c)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def around(ax, cos_t, sin_t, phi):
     """The direction at polar angle (cos_t, sin_t), azimuth phi about unit ``ax`` (Duff et al.'s
     frame, as backend/layered/phase/base.around)."""
@@ -83,7 +83,7 @@ def around(ax, cos_t, sin_t, phi):
             -sc * (sign * x) - ss * y + cos_t * z)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def frame_of(ax):
     """(e1, e2) completing unit ``ax`` to an orthonormal frame (Duff et al.)."""
     x, y, z = ax
@@ -93,7 +93,7 @@ def frame_of(ax):
     return (1.0 + sign * x * x * a, sign * b, -sign * x), (b, sign + y * y * a, -y)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def unit_or(v, fb):
     n = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
     if n > 1e-12:
@@ -102,7 +102,7 @@ def unit_or(v, fb):
 
 
 # ----------------------------------------------------------------------------- binding
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def lagrange4(t):
     tm1 = t - 1.0
     tm2 = t - 2.0
@@ -110,13 +110,13 @@ def lagrange4(t):
     return (-t * tm1 * tm2 / 6.0, tp1 * tm1 * tm2 / 2.0, -tp1 * t * tm2 / 2.0, tp1 * t * tm1 / 6.0)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def bind_hg(P, o, g):
     P[o + PK] = HG
     P[o + HG_G] = min(max(g, -G_MAX), G_MAX)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def bind_vmf(P, o, kappa):
     k = max(kappa, 0.0)
     P[o + PK] = VMF
@@ -124,7 +124,7 @@ def bind_vmf(P, o, kappa):
     P[o + VMF_NORM] = (0.5 if k < 1e-8 else k / -math.expm1(-2.0 * k)) * INV_2PI
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def bind_fiber(P, o, stddev, orientation, FT, row):
     """``row`` ≥ 0: the FT row precomputed for this (constant) stddev; −1: interpolate."""
     s = min(max(stddev, S_MIN), S_MAX)
@@ -151,7 +151,7 @@ def bind_fiber(P, o, stddev, orientation, FT, row):
         P[o + FB_W + k] = w[k]
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def fill_fiber_row(FT, r, stddev):
     """FT[r] = σ over the (ghosted) q columns for one stddev, interpolated across the rows."""
     s = min(max(stddev, S_MIN), S_MAX)
@@ -163,7 +163,7 @@ def fill_fiber_row(FT, r, stddev):
         FT[r, j] = w[0] * FT[ii, j] + w[1] * FT[ii + 1, j] + w[2] * FT[ii + 2, j] + w[3] * FT[ii + 3, j]
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def sggx_preset(flake, axis, roughness):
     """S = (Sxx, Syy, Szz, Sxy, Sxz, Syz) of the fiber (flake = False) or flake preset."""
     a = unit_or(axis, (0.0, 0.0, 1.0))
@@ -177,7 +177,7 @@ def sggx_preset(flake, axis, roughness):
             outer * a[0] * a[1], outer * a[0] * a[2], outer * a[1] * a[2])
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def bind_sggx(P, o, s6):
     """Cholesky factor B (S = B Bᵀ, lower triangular; pivots floored at 1e-300)."""
     tiny = 1e-300
@@ -203,7 +203,7 @@ _ATAN = (0.9999999973285276, -0.3333330535980118, 0.19999183184538558, -0.142748
          0.020537157414089083, -0.006421636830539827, 0.0009420393014584832)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _atan2_q1(y, x):
     """atan2(y, x) for x, y ≥ 0: an odd polynomial of degree 21 on [0, 1] (least squares at
     Chebyshev nodes; |error| < 2e-10 rad), 4× cheaper than libm's atan2 and far below the σ
@@ -224,7 +224,7 @@ def _atan2_q1(y, x):
     return 0.5 * math.pi - r if flip else r
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def fiber_sigma(P, o, FT, c, sn):
     """σ_fiber of the bound fiber for a direction with |cos| = c, |sin| = sn to the axis."""
     x = _atan2_q1(sn, c) * P[o + FB_INV_S]
@@ -243,7 +243,7 @@ def fiber_sigma(P, o, FT, c, sn):
     return out
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _fiber_scale(P, o, FT, d):
     tx, ty, tz = P[o + FB_AXIS], P[o + FB_AXIS + 1], P[o + FB_AXIS + 2]
     c = d[0] * tx + d[1] * ty + d[2] * tz
@@ -253,13 +253,13 @@ def _fiber_scale(P, o, FT, d):
     return 2.0 * fiber_sigma(P, o, FT, abs(c), math.sqrt(x * x + y * y + z * z))
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _fiber_D(P, o, x):
     s = P[o + FB_S]
     return math.exp(-x * x / (2.0 * s * s) - P[o + FB_LNNORM]) * INV_2PI
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _fiber_sample(P, o, FT, d_in, s_in, R, max_candidates):
     """Rejection sampling of the visible flake normal (backend/layered/phase/fiber.py):
     (d_out, weight, pdf, reverse pdf, σ-scale of d_out, candidates used)."""
@@ -324,7 +324,7 @@ def _fiber_sample(P, o, FT, d_in, s_in, R, max_candidates):
 
 
 # ----------------------------------------------------------------------------- SGGX
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _sggx_bt(P, o, w):
     b = o + SG_B
     return (P[b] * w[0] + P[b + 1] * w[1] + P[b + 3] * w[2],
@@ -332,7 +332,7 @@ def _sggx_bt(P, o, w):
             P[b + 5] * w[2])
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _sggx_b(P, o, u):
     b = o + SG_B
     return (P[b] * u[0],
@@ -340,7 +340,7 @@ def _sggx_b(P, o, u):
             P[b + 3] * u[0] + P[b + 4] * u[1] + P[b + 5] * u[2])
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _sggx_q(P, o, h):
     """hᵀ S⁻¹ h = |B⁻¹ h|² (forward substitution)."""
     b = o + SG_B
@@ -350,20 +350,20 @@ def _sggx_q(P, o, h):
     return y0 * y0 + y1 * y1 + y2 * y2
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _sggx_scale(P, o, d):
     v = _sggx_bt(P, o, d)
     return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def sggx_distribution(P, o, m):
     """Heitz's D(m) for unit m (integrates to 4 over the sphere)."""
     q = _sggx_q(P, o, m)
     return 1.0 / (math.pi * P[o + SG_DET] * q * q)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _sggx_d4(P, o, h):
     """D(ĥ)/4 for an unnormalised h; 0 where h vanishes (exact forward scattering)."""
     l2 = h[0] * h[0] + h[1] * h[1] + h[2] * h[2]
@@ -374,7 +374,7 @@ def _sggx_d4(P, o, h):
 
 
 # ----------------------------------------------------------------------------- dispatch
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def sigma_scale(P, o, FT, d):
     """Direction-dependent extinction factor σt(d)/σt: 1 except for microflake phases."""
     kind = P[o + PK]
@@ -385,7 +385,7 @@ def sigma_scale(P, o, FT, d):
     return 1.0
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _hg_value(g, omc, opc):
     # 1 + g² − 2g cos θ in the form that does not cancel: (1 − g)² + 2g(1 − cos) for g ≥ 0,
     # (1 + g)² − 2g(1 + cos) for g < 0; ≥ (1 − |g|)² ≥ 1e-6 by the clamp.
@@ -396,7 +396,7 @@ def _hg_value(g, omc, opc):
     return (1.0 - g * g) * INV_4PI / (den * math.sqrt(den))
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def connect(P, o, FT, a, b, s_a, s_b):
     """(p(−a → b), p(−b → a)) for a, b pointing away from the scattering point. ``s_a``, ``s_b``:
     sigma_scale of a and b (read only by microflake phases)."""
@@ -428,7 +428,7 @@ def connect(P, o, FT, a, b, s_a, s_b):
     return d / max(s_a, 1e-300), d / max(s_b, 1e-300)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def evaluate(P, o, FT, d_in, d_out):
     """p(d_in → d_out) (= its sampling density)."""
     a = (-d_in[0], -d_in[1], -d_in[2])
@@ -439,7 +439,7 @@ def evaluate(P, o, FT, d_in, d_out):
     return connect(P, o, FT, a, d_out, s_a, 1.0)[0]
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def sample(P, o, FT, d_in, s_in, R, max_candidates):
     """(d_out, weight, pdf, reverse pdf p(−d_out → −d_in), sigma_scale(d_out), candidates).
     ``s_in`` = sigma_scale(d_in) (microflake phases). Weight 1, or 0 for a failed fiber sample."""

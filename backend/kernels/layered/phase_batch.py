@@ -6,25 +6,24 @@ Random numbers: counter-based, lane i of a call with ``seed`` draws from the str
 ``path_key(seed, i, 0)`` (the callers draw the seed from their NumPy generator)."""
 from __future__ import annotations
 
-from numba import njit
-
+from ..jit import kernel
 from ..rng import path_key
 from . import phase as ph
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def bind_hg_rows(g, P):
     for i in range(P.shape[0]):
         ph.bind_hg(P[i], 0, g[i])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def bind_vmf_rows(kappa, P):
     for i in range(P.shape[0]):
         ph.bind_vmf(P[i], 0, kappa[i])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def bind_fiber_rows(stddev, axis, FT, P):
     for i in range(P.shape[0]):
         ph.bind_fiber(P[i], 0, stddev[i if stddev.shape[0] > 1 else 0],
@@ -32,31 +31,31 @@ def bind_fiber_rows(stddev, axis, FT, P):
                        axis[i if axis.shape[0] > 1 else 0, 2]), FT, -1)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def bind_sggx_rows(s6, P):
     for i in range(P.shape[0]):
         ph.bind_sggx(P[i], 0, (s6[i, 0], s6[i, 1], s6[i, 2], s6[i, 3], s6[i, 4], s6[i, 5]))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _ri(P, i):
     return i if P.shape[0] > 1 else 0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def eval_batch(P, FT, d_in, d_out, out):
     for i in range(d_in.shape[0]):
         out[i] = ph.evaluate(P[_ri(P, i)], 0, FT, (d_in[i, 0], d_in[i, 1], d_in[i, 2]),
                              (d_out[i, 0], d_out[i, 1], d_out[i, 2]))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def scale_batch(P, FT, d, out):
     for i in range(d.shape[0]):
         out[i] = ph.sigma_scale(P[_ri(P, i)], 0, FT, (d[i, 0], d[i, 1], d[i, 2]))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample_batch(P, FT, d_in, seed, max_candidates, R, d_out, weight, pdf, counts):
     """counts: [failed samples, largest number of candidates a lane drew]; R: uint64[2] scratch
     (the lane's stream state)."""

@@ -7,8 +7,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from ..jit import kernel
 from ..rng import path_key
 from . import estimators as es
 from . import iface as ki
@@ -17,19 +16,19 @@ from . import walk as wk
 from .table import HEAD, M_DIR, M_PH, MED0, MSTRIDE, bind_iface, bind_into
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def bind_iface_rows(kind, dist, mask, values, tex, nmode, nval, ntex, TX, uv, B):
     for i in range(B.shape[0]):
         bind_iface(kind, dist, mask, values, tex, 0, nmode, (nval[0], nval[1], nval[2]), ntex, TX,
                    uv[i, 0], uv[i, 1], B[i], 0)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _ri(a, i):
     return i if a.shape[0] > 1 else 0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def iface_eval(Bk, wi, wo, val, pf, pr):
     for i in range(wi.shape[0]):
         v, f, r = ki.evaluate(Bk[_ri(Bk, i)], 0, (wi[i, 0], wi[i, 1], wi[i, 2]),
@@ -39,7 +38,7 @@ def iface_eval(Bk, wi, wo, val, pf, pr):
         pr[i] = r
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def iface_sample(Bk, wi, seed, R, wo, w, pf, pr, delta):
     for i in range(wi.shape[0]):
         R[0] = path_key(seed, i, 0)
@@ -53,27 +52,27 @@ def iface_sample(Bk, wi, seed, R, wo, w, pf, pr, delta):
         delta[i] = dl
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def bound_blocks(ST, TX, s, uv, out):
     for i in range(out.shape[0]):
         bind_into(ST, TX, s, uv[i, 0], uv[i, 1], out[i])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def slab_transmittance(Bs, FT, k, d, t0, t1, out):
     for i in range(d.shape[0]):
         out[i, 0], out[i, 1], out[i, 2] = es.transmittance(Bs[_ri(Bs, i)], FT, k, (d[i, 0], d[i, 1], d[i, 2]),
                                                            t0[i], t1[i])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def slab_depth_density(Bs, FT, k, d, t0, t1, to_medium, hero, out):
     for i in range(d.shape[0]):
         out[i] = wk.depth_density(Bs[_ri(Bs, i)], FT, k, (d[i, 0], d[i, 1], d[i, 2]), t0[i], t1[i],
                                   to_medium[i], hero[i])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def walks(Bs, FT, w0, seed, purpose, approx, rr_start, rr_thr, cap, hero, W1, R, C,
           count, exit_dir, exit_w, exit_delta, hero_out, records):
     """One walk per lane; lane i's records are copied to records[i, :count[i]]."""
@@ -94,7 +93,7 @@ def walks(Bs, FT, w0, seed, purpose, approx, rr_start, rr_thr, cap, hero, W1, R,
                     records[i, j, f] = W1[0, j, f]
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def connect(Bs, FT, recL, nL, recR, nR, wo, pdf_mode, approx, nmax, hero, W2, out3, outp):
     """The bidirectional sums of given walk pairs (records as ``walks`` returns them)."""
     for i in range(wo.shape[0]):
@@ -110,7 +109,7 @@ def connect(Bs, FT, recL, nL, recR, nR, wo, pdf_mode, approx, nmax, hero, W2, ou
         outp[i] = p
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def vertex_eval(Bs, FT, kind, layer, lane, w_in, w, pdf_only, val, pf, pr):
     """The vertex function of recorded walk vertices for an outgoing direction w: interface
     f(w_in → w)·|cos w| (importance) or the phase p(−w_in → w), with the forward density of w
@@ -132,7 +131,7 @@ def vertex_eval(Bs, FT, kind, layer, lane, w_in, w, pdf_only, val, pf, pr):
         pr[i] = r
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def slab_flights(Bs, FT, k, s0, d, hero, seed, R, new_s, scattered, weight, dens):
     """One free flight per lane in slab k from normalised depth s0 along d (the walk's
     ``flight``: chromatic slabs with the lane's hero channel and fresh spectral ratios)."""

@@ -40,9 +40,9 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
 from .. import materials as km
+from ..jit import inlined, kernel
 from ..microfacet import ALPHA_MIN
 from ..params import param_rgb, param_scalar
 from . import iface as ki
@@ -85,27 +85,27 @@ def md_offset(k: int) -> int:
 # ----------------------------------------------------------------------------- per lane
 # Texture lookups through two small non-inlined functions: bind_into evaluates ~20 parameters,
 # and inlining a bilinear lookup at each of them made it the slowest kernel to compile (35 s).
-@njit(cache=True, _nrt=False)
+@kernel
 def _p3(TX, values, tex_id, u, v):
     return param_rgb(TX, values, tex_id, u, v)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _p1(TX, value, tex_id, u, v):
     return param_scalar(TX, value, tex_id, u, v)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _rgb(values, tex, r, slot, TX, u, v):
     return _p3(TX, (values[r, slot], values[r, slot + 1], values[r, slot + 2]), tex[r, slot], u, v)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def _scalar(values, tex, r, slot, TX, u, v):
     return _p1(TX, values[r, slot], tex[r, slot], u, v)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _iface_params(values, tex, kind, r, TX, u, v):
     """The 12 lane parameters of interface row r (kernels/materials.bind_row's layout)."""
     if kind == km.DIFFUSE:
@@ -129,7 +129,7 @@ def _iface_params(values, tex, kind, r, TX, u, v):
             0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def bind_iface(kind, dist, mask, iv, it, r, mode, nval, ntex, TX, u, v, B, o):
     """Interface row r of the slot arrays (iv, it) at (u, v) into B[o:o + iface.STRIDE]."""
     B[o + ki.IF_KIND] = kind
@@ -164,7 +164,7 @@ def bind_iface(kind, dist, mask, iv, it, r, mode, nval, ntex, TX, u, v, B, o):
             B[o + ki.IF_T + j] = st[1][j]
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def bind_into(ST, TX, s, u, v, B):
     """Evaluate stack ``s`` at (u, v) into the block B (see the module docstring)."""
     for j in range(HEAD):
@@ -217,14 +217,14 @@ def bind_into(ST, TX, s, u, v, B):
                 ph.bind_sggx(B, po, ph.sggx_preset((flags & F_FLAKE) != 0, ori, a))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def bind_constant_rows(ST, TX):
     for s in range(ST.head.shape[0]):
         if not ST.textured[s]:
             bind_into(ST, TX, s, 0.0, 0.0, ST.bound[s])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def fill_rows(FT, rows, stddev):
     for i in range(rows.shape[0]):
         ph.fill_fiber_row(FT, rows[i], stddev[i])

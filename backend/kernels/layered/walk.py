@@ -46,10 +46,9 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from . import iface as ki
 from . import phase as ph
+from ..jit import inlined, kernel
 from .table import (ABSORBING, EMPTY, H_CHROM, H_N, HEAD, M_ALB, M_DIR, M_GREY, M_KIND, M_PH,
                     M_TAU, MED0, MSTRIDE)
 
@@ -70,17 +69,17 @@ F_PR, F_DF, F_DR, F_P, F_Q = 27, 28, 29, 30, 31
 NF = 32
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _inv(x):
     return 1.0 / x if x > 0.0 else 0.0
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def _max3(a):
     return max(a[0], max(a[1], a[2]))
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def flight(B, mo, s0, d, sig, prev_medium, approx, hero_pdf, hero, r, R):
     """A free flight from normalised depth s0 along d through the (non-empty) slab block ``mo``:
     a scattering depth inside it, or its boundary. Returns (scattered, new normalised depth,
@@ -150,7 +149,7 @@ def flight(B, mo, s0, d, sig, prev_medium, approx, hero_pdf, hero, r, R):
     return False, bound, fac, 1.0, r, dens, drev
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def depth_density(B, FT, k, d, t0, t1, to_medium, hero):
     """Density with which a free flight in slab k along d from depth t0 produces depth t1: per
     unit depth if ``to_medium`` (a scattering vertex), else the probability of reaching the
@@ -175,7 +174,7 @@ def depth_density(B, FT, k, d, t0, t1, to_medium, hero):
     return out / 3.0
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def run(B, FT, w0, W, slot, R, purpose, approx, rr_start, rr_thr, cap, hero):
     """``walk`` with every flag turned into a runtime value. Numba types constant arguments as
     literals and compiles a specialisation of the callee per combination of them (the walk was
@@ -185,7 +184,7 @@ def run(B, FT, w0, W, slot, R, purpose, approx, rr_start, rr_thr, cap, hero):
                 rr_thr * 1.0, cap + 0, hero + 0)
 
 
-@njit(cache=True, _nrt=False, error_model="numpy")
+@kernel(error_model="numpy")
 def walk(B, FT, w0, W, slot, R, purpose, approx, rr_start, rr_thr, cap, hero):
     """Walk from direction ``w0`` (pointing away from the surface): enter at the top if w0_z > 0,
     else at the bottom. ``approx``: media do not scatter (crossing a slab multiplies ``gamma`` by

@@ -32,9 +32,8 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from .. import spherical_rect as _sr
+from ..jit import kernel
 from ..vec import dot
 from ..warp import disk_concentric
 from . import profiles as _prof
@@ -82,14 +81,14 @@ I_CONE_BINS = I_FIRST + 4    # 0: no cone table (no cutoff)
 _NO_RECT = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _local(P, li, x):
     c = get3(P, li, A_CENTER)
     r = (x[0] - c[0], x[1] - c[1], x[2] - c[2])
     return dot(r, get3(P, li, A_U)), dot(r, get3(P, li, A_V)), dot(r, get3(P, li, A_N))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _point(P, li, lu, lv):
     c = get3(P, li, A_CENTER)
     u = get3(P, li, A_U)
@@ -97,7 +96,7 @@ def _point(P, li, lu, lv):
     return (c[0] + lu * u[0] + lv * v[0], c[1] + lu * u[1] + lv * v[1], c[2] + lu * u[2] + lv * v[2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def inside(P, I, li, lu, lv):
     hu = P[li, A_HALF_U]
     hv = P[li, A_HALF_V]
@@ -108,14 +107,14 @@ def inside(P, I, li, lu, lv):
     return abs(lu) <= hu and abs(lv) <= hv
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def radiance(P, I, li, cos_out):
     """Radiance leaving the emitter at cos θ to its normal."""
     f = _prof.evaluate(I[li, I_PROFILE], P[li, A_SPREAD_TAN], P[li, A_CUTOFF], P[li, A_BEAM], cos_out)
     return (P[li, A_SCALE] * f, P[li, A_SCALE + 1] * f, P[li, A_SCALE + 2] * f)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def plan(P, I, li, p):
     """The sampling choice at point p: (mode, pu, pv, h, region u0, u1, v0, v1 in emitter
     coordinates, spherical rectangle (MODE_SPHRECT), its solid angle [sr] or 0)."""
@@ -158,14 +157,14 @@ def plan(P, I, li, p):
     return mode, pu, pv, h, u0, u1, v0, v1, sr, solid
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _whole_rect(P, I, li):
     """The common case, a rectangle with no cutoff cone: every point in front of it samples
     the whole emitter (plan() would choose MODE_SPHRECT or MODE_AREA_RECT on the full box)."""
     return I[li, I_ELLIPSE] == 0 and not P[li, A_TAN_MAX] < INF
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _rect_frame(P, li, p):
     """Coordinates (x0, y0, z0) of the corner (−hu, −hv) relative to p in the frame
     (u, v, w = u × v), the emission normal in that frame, and w."""
@@ -181,7 +180,7 @@ def _rect_frame(P, li, p):
     return x0, y0, z0, (dot(N, U), dot(N, V), dot(N, W)), U, V, W
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _nearly_uniform(x0, y0, z0, lx, ly):
     """True where area sampling of the rectangle [x0, x0 + lx] × [y0, y0 + ly] at height z0 (seen
     from the origin) is within AREA_SAMPLING_R2_RATIO of uniform in solid angle."""
@@ -195,7 +194,7 @@ def _nearly_uniform(x0, y0, z0, lx, ly):
     return fx * fx + fy * fy + z2 <= AREA_SAMPLING_R2_RATIO * (cx * cx + cy * cy + z2)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _sample_whole_rect(P, I, li, p, u0, u1):
     """``sample`` for ``_whole_rect`` lights, all in the spherical-rectangle frame: no region
     plan, no round trip through emitter and world coordinates (measured 214 → see
@@ -234,7 +233,7 @@ def _sample_whole_rect(P, I, li, p, u0, u1):
     return wi, t, (le[0] * inv, le[1] * inv, le[2] * inv), pdf
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample(P, I, li, aux, p, u0, u1):
     """(wi, dist, value = radiance/pdf, solid-angle pdf); value and pdf 0 where p gets nothing."""
     if _whole_rect(P, I, li):
@@ -296,7 +295,7 @@ def sample(P, I, li, aux, p, u0, u1):
     return wi, t, (le[0] * inv, le[1] * inv, le[2] * inv), pdf
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def intersect(P, I, li, o, d, tmax):
     ou, ov, h = _local(P, li, o)
     denom = dot(d, get3(P, li, A_N))
@@ -310,12 +309,12 @@ def intersect(P, I, li, o, d, tmax):
     return INF
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def eval_hit(P, I, li, o, d, t):
     return radiance(P, I, li, -dot(d, get3(P, li, A_N)))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def pdf_hit(P, I, li, aux, o, d, t):
     """Solid-angle density of ``sample(o)`` for direction d hitting the emitter at o + t d."""
     cos_out = -dot(d, get3(P, li, A_N))
@@ -352,7 +351,7 @@ def pdf_hit(P, I, li, aux, o, d, t):
     return t * t / (ra * cos_out) if ra != 0.0 else 0.0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample_collimated(P, I, li, p):
     """Spread 0: irradiance ``A_SCALE`` along −n where p's projection falls on the emitter."""
     pu, pv, h = _local(P, li, p)

@@ -14,8 +14,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from ..jit import kernel
 from ..vec import coordinate_system, dot, length
 from ..warp import uniform_cone_local
 
@@ -56,13 +55,13 @@ ZERO3 = (0.0, 0.0, 0.0)
 INF = math.inf
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def get3(P, li, c):
     """Columns c..c+2 of light li's row of the parameter matrix P."""
     return (P[li, c], P[li, c + 1], P[li, c + 2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def mat3(P, li, c, v):
     """The row-major 3×3 matrix stored at columns c..c+8 of light li's row, applied to v."""
     return (P[li, c] * v[0] + P[li, c + 1] * v[1] + P[li, c + 2] * v[2],
@@ -70,20 +69,20 @@ def mat3(P, li, c, v):
             P[li, c + 6] * v[0] + P[li, c + 7] * v[1] + P[li, c + 8] * v[2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def aux3(a, i):
     """a[i:i+3] of a 1-D array as a tuple."""
     return (a[i], a[i + 1], a[i + 2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sin2_to_one_minus_cos(s2):
     """1 − cos α from sin²α without cancellation for small angles (α ≤ 90°)."""
     s2 = min(max(s2, 0.0), 1.0)
     return s2 / (1.0 + math.sqrt(1.0 - s2))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample_cone(axis, one_minus_cos, u0, u1):
     """Uniform direction within the cone of 1 − cos α = ``one_minus_cos`` around unit ``axis``;
     pdf 1/(2π(1 − cos α)) (warp.cone_pdf)."""
@@ -94,7 +93,7 @@ def sample_cone(axis, one_minus_cos, u0, u1):
             loc[0] * s[2] + loc[1] * t[2] + loc[2] * axis[2])
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def ray_sphere(o, d, center, radius, tmax):
     """First t in (0, tmax) where o + t d meets the sphere (from outside or inside); inf if none."""
     oc = (o[0] - center[0], o[1] - center[1], o[2] - center[2])
@@ -115,7 +114,7 @@ def ray_sphere(o, d, center, radius, tmax):
     return INF
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def unit_or_zero(v):
     """(v/|v|, |v|); the zero vector stays zero."""
     n = length(v)

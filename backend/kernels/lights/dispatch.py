@@ -18,13 +18,13 @@ unit 3-tuples pointing away from the shading point.
   ``local_tri`` of mesh light li (``emitter_of_prim`` maps a scene primitive to both).
 * ``select(lt, p, u) -> (li, prob)``, ``select_prob(lt, p, li)``: light selection (selection.py).
 
-All of these are inlined into the calling kernel (``inline="always"``) and call the kind's own
+All of these are inlined into the calling kernel (``@inlined``, kernels/jit.py) and call the kind's own
 function with the table's arrays and the light's row index (common.py: no row views). Reading an
 array out of the table (``lt.params``) inside a lane is a new reference for Numba: an atomic
 increment and a decrement call per array, which LLVM cannot remove around calls that are not
 inlined. Measured on 1M lanes (benchmarks/light_kernels.py, one point light): 145 ns per sample
 with reference counting, 40 ns without. A lane loop should therefore be compiled with
-``_nrt=False`` (it allocates nothing; batch.py's ``LANE_LOOP``), or read the table's arrays into
+``_nrt=False`` (it allocates nothing; every ``@kernel`` is), or read the table's arrays into
 locals once, outside the loop, and call the kind modules directly.
 
 Units and conventions of each kind are in its module (point.py, spot.py, ies.py, area.py,
@@ -32,8 +32,7 @@ profiles.py, sun.py, environment.py, mesh.py).
 """
 from __future__ import annotations
 
-from numba import njit
-
+from ..jit import inlined
 from ..warp import INV_4PI
 from . import area as _area
 from . import environment as _env
@@ -44,7 +43,7 @@ from . import sun as _sun
 from .common import AREA, COLLIMATED, CONSTANT, ENVIRONMENT, INF, MESH, POINT, SUN, ZERO3
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def sample(lt, tx, li, p, u0, u1):
     k = lt.kind[li]
     P = lt.params
@@ -68,7 +67,7 @@ def sample(lt, tx, li, p, u0, u1):
     return wi, dist, value, pdf, lt.is_delta[li]
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def intersect(lt, li, o, d, tmax):
     k = lt.kind[li]
     if k == AREA:
@@ -78,7 +77,7 @@ def intersect(lt, li, o, d, tmax):
     return INF
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def eval_hit(lt, li, o, d, t):
     k = lt.kind[li]
     if k == AREA:
@@ -88,7 +87,7 @@ def eval_hit(lt, li, o, d, t):
     return ZERO3
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def pdf_hit(lt, li, o, d, t):
     k = lt.kind[li]
     if k == AREA:
@@ -98,7 +97,7 @@ def pdf_hit(lt, li, o, d, t):
     return 0.0
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def eval_escaped(lt, li, d):
     k = lt.kind[li]
     if k == ENVIRONMENT:
@@ -110,7 +109,7 @@ def eval_escaped(lt, li, d):
     return ZERO3
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def pdf_escaped(lt, li, d):
     k = lt.kind[li]
     if k == ENVIRONMENT:
@@ -122,14 +121,14 @@ def pdf_escaped(lt, li, d):
     return 0.0
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def mesh_pdf_hit(lt, li, o, d, t, local_tri):
     if lt.kind[li] != MESH:
         return 0.0
     return _mesh.pdf_hit_triangle(lt.iparams, li, lt.aux, o, d, t, local_tri)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def mesh_eval(lt, li, d, local_tri):
     """Per-triangle radiance of an emitter triangle (its value at the UV centroid if textured)."""
     if lt.kind[li] != MESH:
@@ -137,7 +136,7 @@ def mesh_eval(lt, li, d, local_tri):
     return _mesh.eval_triangle(lt.iparams, li, lt.aux, d, local_tri)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def emitter_of_prim(lt, prim):
     """(mesh light index, local triangle index) of scene primitive ``prim``; (−1, −1) if it emits
     nothing."""
@@ -146,11 +145,11 @@ def emitter_of_prim(lt, prim):
     return lt.prim_light[prim], lt.prim_local[prim]
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def select(lt, p, u):
     return _sel.select(lt, p, u)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def select_prob(lt, p, li):
     return _sel.select_prob(lt, p, li)

@@ -24,9 +24,8 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from .. import discrete as _d
+from ..jit import kernel
 from ..warp import INV_4PI, uniform_sphere
 from .common import FIRST, I_FIRST, INF, get3, mat3, unit_or_zero
 
@@ -43,20 +42,20 @@ TWO_PI_SQ = 2.0 * math.pi * math.pi
 
 
 # ---------------------------------------------------------------- constant world
-@njit(cache=True, _nrt=False)
+@kernel
 def constant_sample(P, li, u0, u1):
     wi = uniform_sphere(u0, u1)
     inv = 1.0 / INV_4PI
     return wi, INF, (P[li, W_RADIANCE] * inv, P[li, W_RADIANCE + 1] * inv, P[li, W_RADIANCE + 2] * inv), INV_4PI
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def constant_eval(P, li):
     return get3(P, li, W_RADIANCE)
 
 
 # ---------------------------------------------------------------- environment map
-@njit(cache=True, _nrt=False)
+@kernel
 def lookup(aux, I, li, x, y):
     """Bilinear radiance at image coordinates x (column, wraps) and y (row from top, clamps)."""
     h = I[li, I_H]
@@ -85,7 +84,7 @@ def lookup(aux, I, li, x, y):
             (aux[a + 2] * gx + aux[b + 2] * ax) * gy + (aux[c + 2] * gx + aux[d + 2] * ax) * ay)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def direction_to_xy(P, li, d):
     """World direction → (x, y) in [0, 1]², x = u, y = θ/π, and the unit map-frame direction."""
     loc, _ = unit_or_zero(mat3(P, li, E_TO_LOCAL, d))
@@ -95,7 +94,7 @@ def direction_to_xy(P, li, d):
     return u, y, loc
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def xy_to_direction(P, li, x, y):
     """(world direction, sin θ) of image coordinates (x, y)."""
     theta = math.pi * y
@@ -106,7 +105,7 @@ def xy_to_direction(P, li, x, y):
     return wi, s
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def env_sample(P, I, li, aux, u0, u1):
     x, y, pdf_xy = _d.sample_2d(aux, I[li, I_DIST_OFF], I[li, I_H], I[li, I_W], u0, u1)
     wi, sin_t = xy_to_direction(P, li, x, y)
@@ -119,13 +118,13 @@ def env_sample(P, I, li, aux, u0, u1):
     return wi, INF, (le[0] * inv, le[1] * inv, le[2] * inv), pdf
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def env_eval(P, I, li, aux, d):
     x, y, _ = direction_to_xy(P, li, d)
     return lookup(aux, I, li, x, y)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def env_pdf(P, I, li, aux, d):
     x, y, loc = direction_to_xy(P, li, d)
     sin_t = math.hypot(loc[0], loc[1])      # precise near the poles, unlike √(1 − z²)

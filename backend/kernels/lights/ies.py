@@ -23,9 +23,8 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from ..discrete import lower_bound
+from ..jit import kernel
 
 WRAP_H = 1        # the table covers 0..360°
 WRAP_VLOW = 2     # it starts at the pole v = 0
@@ -33,13 +32,13 @@ WRAP_VHIGH = 4    # it ends at the pole v = 180°
 TWO_PI = 2.0 * math.pi
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def catmull_rom(a, b, c, d, x):
     """Uniform Catmull-Rom spline between b (x = 0) and c (x = 1); a, d are the outer neighbours."""
     return 0.5 * (((d + 3.0 * (b - c) - a) * x + (2.0 * a - 5.0 * b + 4.0 * c - d)) * x + (c - a)) * x + b
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def directions_to_angles(d):
     """(h, v) in radians for a local direction d (need not be unit; zero → v = π/2)."""
     n = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
@@ -51,13 +50,13 @@ def directions_to_angles(d):
     return h, v
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _column(a, t, nv, col, ra, r0, r1, rd, x):
     base = t + col * nv
     return catmull_rom(a[base + ra], a[base + r0], a[base + r1], a[base + rd], x)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def intensity_angles(a, off, nh, nv, flags, h, v):
     """Candela at horizontal/vertical angles (radians, h in [0, 2π))."""
     H = off
@@ -97,7 +96,7 @@ def intensity_angles(a, off, nh, nv, flags, h, v):
     return max(catmull_rom(c0, c1, c2, c3, hf), 0.0)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def intensity(a, off, nh, nv, flags, d):
     """Candela along a direction d in the light's local frame (from the light outwards)."""
     if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > 0.0:

@@ -26,9 +26,8 @@ texture id (−1: constant) in ``iaux`` at ``I_EMIT_TEX_OFF``.
 """
 from __future__ import annotations
 
-from numba import njit
-
 from .. import discrete as _d
+from ..jit import kernel
 from ..params import param_rgb
 from ..vec import dot
 from ..warp import triangle_barycentric
@@ -48,14 +47,14 @@ I_EMIT_OFF = I_FIRST + 7
 I_EMIT_TEX_OFF = I_FIRST + 8
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _cos_light(I, li, aux, r, d):
     """Cosine between the emitter's front and the direction back from it (|·| if two-sided)."""
     c = -dot(d, aux3(aux, r + T_N))
     return abs(c) if aux[r + T_TWO_SIDED] != 0.0 else c
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def emitted(I, li, aux, iaux, tx, tri, b0, b1, b2):
     """Radiance of triangle ``tri`` at barycentrics (b0, b1, b2) of (v0, v1, v2)."""
     if I[li, I_TEXTURED] == 0:
@@ -68,7 +67,7 @@ def emitted(I, li, aux, iaux, tx, tri, b0, b1, b2):
     return param_rgb(tx, aux[e:e + 3], iaux[I[li, I_EMIT_TEX_OFF] + slot], u, v)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample(I, li, aux, iaux, tx, p, u0, u1):
     if I[li, I_DIST_OFF] < 0:
         return ZERO3, 0.0, ZERO3, 0.0
@@ -91,7 +90,7 @@ def sample(I, li, aux, iaux, tx, p, u0, u1):
     return wi, t, (le[0] * inv, le[1] * inv, le[2] * inv), pdf
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def pdf_hit_triangle(I, li, aux, o, d, t, tri):
     """Solid-angle pdf of ``sample(o)`` for the point o + t d on emitter triangle ``tri``."""
     if I[li, I_DIST_OFF] < 0 or tri < 0 or tri >= I[li, I_COUNT]:
@@ -104,7 +103,7 @@ def pdf_hit_triangle(I, li, aux, o, d, t, tri):
     return _d.pmf_1d(aux, I[li, I_DIST_OFF], I[li, I_COUNT], tri) * t * t / den
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def eval_triangle(I, li, aux, d, tri):
     """Per-triangle radiance of ``tri`` seen along ray direction d (0 from behind a one-sided one)."""
     r = I[li, I_TRI_OFF] + tri * TRI_STRIDE

@@ -30,8 +30,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from ..jit import kernel
 from ..vec import coordinate_system, cross, dot
 from ..warp import INV_4PI, cone_pdf, disk_concentric, uniform_sphere
 from . import ies as _ies
@@ -64,7 +63,7 @@ SHAPE_SPHERE = 1
 SHAPE_DISK = 2
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def directional_factor(P, I, li, aux, w_out):
     """Factor on the emission travelling along world direction ``w_out`` (1 without spot/IES)."""
     spot = I[li, I_SPOT] != 0
@@ -80,12 +79,12 @@ def directional_factor(P, I, li, aux, w_out):
     return f
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _scaled(c, s):
     return (c[0] * s, c[1] * s, c[2] * s)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _cones(P, li, d2):
     """(outside the sphere?, 1 − cos of the sphere's cone, use the spread cone?)."""
     r = P[li, P_RADIUS]
@@ -97,7 +96,7 @@ def _cones(P, li, d2):
     return outside, omc_sphere, use_spread
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _sphere_distance(oc, wi, r2, outside, must_hit):
     """Distance along unit wi from o (oc = o − centre) to the sphere; inf on a miss.
 
@@ -113,7 +112,7 @@ def _sphere_distance(oc, wi, r2, outside, must_hit):
     return t if t > 0.0 else INF
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample(P, I, li, aux, p, u0, u1):
     """(wi, dist, value, pdf); value = radiance/pdf, or I/d² for the delta light (pdf 0)."""
     pos = get3(P, li, P_POS)
@@ -164,7 +163,7 @@ def sample(P, I, li, aux, p, u0, u1):
     return wi, t, _scaled(rad, f / pdf), pdf
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def intersect(P, I, li, o, d, tmax):
     shape = I[li, I_SHAPE]
     if shape == SHAPE_DELTA:
@@ -185,7 +184,7 @@ def intersect(P, I, li, o, d, tmax):
     return INF
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def eval_hit(P, I, li, aux, o, d, t):
     """Radiance arriving at o from direction d (emitted at o + t d)."""
     shape = I[li, I_SHAPE]
@@ -201,7 +200,7 @@ def eval_hit(P, I, li, aux, o, d, t):
     return _scaled(rad, directional_factor(P, I, li, aux, (-d[0], -d[1], -d[2])))
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def pdf_hit(P, I, li, o, d, t):
     """Solid-angle density with which ``sample(o)`` produces direction d."""
     shape = I[li, I_SHAPE]

@@ -26,16 +26,15 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from ..discrete import block_1d_size, sample_1d
+from ..jit import kernel
 
 LAMBERTIAN = 0
 SPREAD = 1
 SMOOTH_CONE = 2
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def evaluate(kind, tan_max, cutoff, beam, cos_theta):
     """f(θ) for cos θ (0 behind the emitter). ``tan_max`` = tan(spread/2) (SPREAD); ``cutoff`` and
     ``beam`` in radians (SMOOTH_CONE)."""
@@ -56,7 +55,7 @@ def evaluate(kind, tan_max, cutoff, beam, cos_theta):
     return 1.0 if theta <= cutoff else 0.0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def cone_sample(aux, off, bins, mu_lo, width, u0, u1):
     """(μ = cos θ of the emission direction, φ, solid-angle pdf)."""
     k, _, rem = sample_1d(aux, off, bins, u0)
@@ -64,7 +63,7 @@ def cone_sample(aux, off, bins, mu_lo, width, u0, u1):
     return mu, 2.0 * math.pi * u1, aux[off + block_1d_size(bins) + k]
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def cone_pdf(aux, off, bins, mu_lo, width, mu):
     if not (mu >= mu_lo and mu <= 1.0):
         return 0.0

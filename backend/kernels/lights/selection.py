@@ -22,9 +22,8 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from .. import discrete as _d
+from ..jit import inlined, kernel
 from ..vec import dot
 from . import area as _ka
 from . import profiles as _prof
@@ -35,7 +34,7 @@ from .point import directional_factor
 INV_PI = 1.0 / math.pi
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def received_power_row(P, I, aux, j, how, radius, p):
     """Power of light j (parameter matrices P, I, selection kind ``how``) as received at point
     p (W/m² scale; see the module docstring); ``radius`` = the scene radius R [m]."""
@@ -69,13 +68,13 @@ def received_power_row(P, I, aux, j, how, radius, p):
     return power * 0.25 * INV_PI / max(d2, P[j, C_SEL_SIZE2])
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def received_power(lt, j, p):
     """Power of light j as received at point p (W/m² scale)."""
     return received_power_row(lt.params, lt.iparams, lt.aux, j, lt.iparams[j, I_SEL], lt.sel_radius, p)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _total(params, iparams, aux, active, radius, p):
     total = 0.0
     for k in range(active.shape[0]):
@@ -84,7 +83,7 @@ def _total(params, iparams, aux, active, radius, p):
     return total
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _select_local(params, iparams, aux, active, radius, p, u):
     total = _total(params, iparams, aux, active, radius, p)
     by_power = not total > 0.0
@@ -109,7 +108,7 @@ def _select_local(params, iparams, aux, active, radius, p, u):
     return -1, 0.0
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def select(lt, p, u):
     """(light index, its probability) for a uniform u in [0, 1); (−1, 0) if nothing emits."""
     na = lt.sel_active.shape[0]
@@ -121,7 +120,7 @@ def select(lt, p, u):
     return _select_local(lt.params, lt.iparams, lt.aux, lt.sel_active, lt.sel_radius, p, u)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@inlined
 def select_prob(lt, p, li):
     """Probability that ``select`` at point p returns light li (for MIS of light hits)."""
     if li < 0 or not lt.params[li, C_POWER] > 0.0:

@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from ..jit import kernel
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def attenuation(cos_axis, cos_half_angle, spot_smooth):
     """Cycles' spot falloff of the local cosine to the cone axis.
 

@@ -15,8 +15,7 @@ digits of the cone's size; sampling draws 1 − cos θ directly (warp.uniform_co
 """
 from __future__ import annotations
 
-from numba import njit
-
+from ..jit import kernel
 from ..vec import dot
 from .common import FIRST, I_FIRST, INF, ZERO3, get3, sample_cone
 
@@ -28,7 +27,7 @@ S_PDF = FIRST + 10       # 1/(2π(1 − cos a)) [1/sr]
 I_DELTA = I_FIRST        # 1: angle 0
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def sample(P, I, li, u0, u1):
     axis = get3(P, li, S_DIR)
     if I[li, I_DELTA] != 0:
@@ -39,19 +38,19 @@ def sample(P, I, li, u0, u1):
     return wi, INF, (P[li, S_RADIANCE] * inv, P[li, S_RADIANCE + 1] * inv, P[li, S_RADIANCE + 2] * inv), pdf
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def _inside(P, li, d):
     return (1.0 - dot(d, get3(P, li, S_DIR))) <= P[li, S_OMC]
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def eval_escaped(P, I, li, d):
     if I[li, I_DELTA] != 0 or not _inside(P, li, d):
         return ZERO3
     return get3(P, li, S_RADIANCE)
 
 
-@njit(cache=True, _nrt=False)
+@kernel
 def pdf_escaped(P, I, li, d):
     if I[li, I_DELTA] != 0 or not _inside(P, li, d):
         return 0.0
