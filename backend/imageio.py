@@ -138,12 +138,14 @@ def check_writable(path: str | Path, what: str = "output") -> None:
             raise LaminaError(f"the {what} {path}: OpenImageIO cannot write '{path.suffix}' files")
 
 
-def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = False) -> int:
+def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = False,
+              letters: dict[str, str] | None = None) -> int:
     """layers: channel-group name → (H, W, C) float array, in order. '' = the main RGBA group.
 
-    Channel names: the main group gets R, G, B, A; others '<name>.<X>' with X from the name's
-    convention (RGB for colours, XYZ for 'normal', Y for single channels). Returns the number of
-    values that were not finite or beyond the format's range (written as 0 / clamped).
+    Channel names: the main group gets R, G, B, A; others '<name>.<X>' with X from ``letters``
+    (group → channel letters, e.g. the data passes' Blender names: 'Depth' → 'Z') or from the
+    name's convention (RGB for colours, XYZ for 'normal', Y for single channels). Returns the
+    number of values that were not finite or beyond the format's range (written as 0 / clamped).
     """
     import OpenImageIO as oiio
 
@@ -155,15 +157,17 @@ def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = Fals
         if image.ndim == 2:
             image = image[:, :, None]
         c = image.shape[2]
-        if group == "":
-            letters = "RGBA"[:c]
+        if letters and group in letters:
+            letters_of = letters[group][:c]
+        elif group == "":
+            letters_of = "RGBA"[:c]
         elif group == "normal":
-            letters = "XYZ"[:c]
+            letters_of = "XYZ"[:c]
         elif c == 1:
-            letters = "Y"
+            letters_of = "Y"
         else:
-            letters = "RGBA"[:c]
-        names += [f"{group}.{ch}" if group else ch for ch in letters]
+            letters_of = "RGBA"[:c]
+        names += [f"{group}.{ch}" if group else ch for ch in letters_of]
         planes.append(image)
     data = np.ascontiguousarray(np.concatenate(planes, axis=2))
     data, changed = finite_values(data, HALF_MAX if half else FLOAT_MAX)
