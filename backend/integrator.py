@@ -156,8 +156,8 @@ class PathTracer:
         """The data passes' kernel table (backend/passes.py); an inactive one when none is asked
         for (the kernel then never touches the pass columns)."""
         layout = self.passes if self.passes is not None else _no_passes()
-        return layout.params(camera, self.soup, self.scene.materials, getattr(self.scene, "object_pass", []),
-                             getattr(self.scene, "origin", (0.0, 0.0, 0.0)))
+        return layout.params(camera, self.soup, self.scene.materials, self.soup.object_pass,
+                             getattr(self.scene, "origin", (0.0, 0.0, 0.0)), self.soup.object_uv)
 
     # ------------------------------------------------------------------ work item
     def render(self, pixels: np.ndarray, spp: int, rng: np.random.Generator, sample0: int = 0) -> dict:

@@ -4,12 +4,14 @@ film turns its sums into images. Cycles' conventions, measured with Blender 5.0.
 tests/blender/test_passes_parity.py):
 
 * written at the first surface a camera ray hits (holdouts and the world write nothing);
-* **first-sample passes** — Depth, Object Index, Material Index — hold the value of the pixel's
-  sample 0 (never averaged: an index at an object's edge is one index, not a mix);
-  Depth of a pixel whose sample 0 hit nothing is 1e10;
-* **averaged passes** — Mist, Normal, Position, UV — are the mean over the pixel's samples,
-  escaped samples counting as Mist 1 and as 0 for the others (so an edge pixel's Normal is
-  shorter than 1, and UV's third channel is the fraction of samples that hit a UV-mapped mesh);
+* **first-sample passes** — Depth, Position, Object Index, Material Index — hold the value of
+  the pixel's sample 0 (never averaged: an index at an object's edge is one index, not a mix,
+  and a Position lies on a surface; measured: Cycles' Depth, Position and indices are the same
+  at 1, 2 and 16 samples per pixel); Depth of a pixel whose sample 0 hit nothing is 1e10,
+  Position 0;
+* **averaged passes** — Mist, Normal, UV — are the mean over the pixel's samples, escaped
+  samples counting as Mist 1 and as 0 for the others (so an edge pixel's Normal is shorter than
+  1, and UV's third channel is the fraction of samples that hit a UV-mapped mesh);
 * Depth is the distance along the camera's view axis (perspective and orthographic), Mist's
   distance is the Euclidean distance to the camera (perspective) or along the view axis
   (orthographic), mapped to clamp((d − start) / depth, 0, 1) ^ falloff; Normal (the shading
@@ -32,11 +34,11 @@ MAX_PASS_INDEX = 65535     # Blender's pass indices are 16-bit (0 … 32767 in i
 #: Canonical order: first-sample passes first (the film keeps them apart from the sums).
 PASSES = {
     "depth": (1, True, "Depth", "Z"),
+    "position": (3, True, "Position", "XYZ"),
     "object_index": (1, True, "Object Index", "X"),
     "material_index": (1, True, "Material Index", "X"),
     "mist": (1, False, "Mist", "Z"),
     "normal": (3, False, "Normal", "XYZ"),
-    "position": (3, False, "Position", "XYZ"),
     "uv": (3, False, "UV", "UVA"),
 }
 
@@ -50,7 +52,7 @@ FALLOFF = {"linear": 1.0, "quadratic": 2.0, "inverse_quadratic": 0.5}   # Blende
 PassParams = namedtuple("PassParams", [
     "active", "depth", "object_index", "material_index", "mist", "normal", "position", "uv",
     "mist_start", "mist_inv_depth", "mist_falloff", "ortho", "cam_pos", "cam_axis", "origin",
-    "tri_object", "object_pass", "material_pass"])
+    "tri_object", "object_pass", "material_pass", "object_uv"])
 
 
 class PassLayout:
@@ -84,7 +86,7 @@ class PassLayout:
             a[:, self.columns["mist"]] = MIST_ESCAPED
         return a
 
-    def params(self, camera, soup, materials, object_pass, origin) -> PassParams:
+    def params(self, camera, soup, materials, object_pass, origin, object_uv=()) -> PassParams:
         """The kernel's table for this scene and camera."""
         col = {n: self.columns.get(n, -1) for n in PASSES}
         rot = np.asarray(camera.to_world, np.float64)[:3, :3]
@@ -93,6 +95,7 @@ class PassLayout:
         tri_object = soup.object_id if soup.count else np.zeros(1, np.int32)
         mat_pass = np.array([float(getattr(m, "pass_index", 0)) for m in materials] or [0.0])
         obj_pass = np.asarray(list(object_pass or []) or [0.0], np.float64)
+        obj_uv = np.asarray(list(object_uv or []) or [False], np.bool_)
         return PassParams(
             self.active, col["depth"], col["object_index"], col["material_index"], col["mist"],
             col["normal"], col["position"], col["uv"],
@@ -100,7 +103,7 @@ class PassLayout:
             FALLOFF[self.mist_falloff], camera.kind == "orthographic",
             (float(pos[0]), float(pos[1]), float(pos[2])), (float(axis[0]), float(axis[1]), float(axis[2])),
             tuple(float(v) for v in origin), np.ascontiguousarray(tri_object, np.int32), obj_pass,
-            np.ascontiguousarray(mat_pass, np.float64))
+            np.ascontiguousarray(mat_pass, np.float64), obj_uv)
 
     def images(self, first: np.ndarray, sums: np.ndarray, count: np.ndarray, height: int, width: int) -> dict:
         """Film arrays → {EXR pass name: (H, W, C) image} in canonical order."""

@@ -2,8 +2,8 @@
 
 Cycles' conventions (measured with Blender 5.0.1; the Blender-side comparison is
 tests/blender/test_passes_parity.py): Depth = distance along the view axis, 1e10 where sample 0
-hit nothing; Object/Material Index from sample 0 (never a mix); Mist, Normal, Position, UV
-averaged over the samples (escaped: Mist 1, the others 0); Normal turned towards the camera.
+hit nothing; Position and Object/Material Index from sample 0 too (never a mix); Mist, Normal,
+UV averaged over the samples (escaped: Mist 1, the others 0); Normal turned towards the camera.
 """
 from __future__ import annotations
 
@@ -54,7 +54,7 @@ def _pixel_rays(width, height, cam):
 def test_every_pass_matches_closed_forms():
     res = render(_scene(ALL, spp=16))
     img = res.film.pass_images()
-    assert list(img) == ["Depth", "Object Index", "Material Index", "Mist", "Normal", "Position", "UV"]
+    assert list(img) == ["Depth", "Position", "Object Index", "Material Index", "Mist", "Normal", "UV"]
     w = h = 24
     x, z = _pixel_rays(w, h, None)
     # The wall covers |x|, |z| ≤ 1 m; the view ±1.5 m: pixels whose whole filter footprint
@@ -77,10 +77,9 @@ def test_every_pass_matches_closed_forms():
     # Normal towards the camera, world space; Position on the wall; UV with its third channel 1.
     np.testing.assert_allclose(img["Normal"][inside], np.broadcast_to([0, -1, 0], img["Normal"][inside].shape), atol=1e-6)
     pos = img["Position"]
-    # The mean of the samples' positions: the pixel centre's ray within the filter's spread
-    # (zero-mean offsets: the mean's error is the sampled offsets' mean, < 0.5 px here).
-    assert np.all(np.abs(pos[..., 0][inside] - x[inside]) < 0.5 * px)
-    assert np.all(np.abs(pos[..., 2][inside] - z[inside]) < 0.5 * px)
+    # Sample 0's hit: within the filter's support (±1.5 px) of the pixel centre's ray.
+    assert np.all(np.abs(pos[..., 0][inside] - x[inside]) < 1.5 * px)
+    assert np.all(np.abs(pos[..., 2][inside] - z[inside]) < 1.5 * px)
     np.testing.assert_allclose(pos[..., 1][inside], 0.0, atol=1e-6)
     uv = img["UV"]
     assert np.all(np.abs(uv[..., 0][inside] - (x[inside] + 1) / 2) < 0.5 * px / 2)
@@ -91,22 +90,24 @@ def test_every_pass_matches_closed_forms():
 
 
 def test_first_sample_passes_never_mix_and_averaged_passes_do():
-    """Two walls at different depths and indices meet in the middle of the image: Depth and the
-    indices of an edge pixel are one wall's (sample 0), Normal and Position are averages."""
+    """Two walls at different depths and indices meet in the middle of the image: Depth,
+    Position and the indices of an edge pixel are one wall's (sample 0); UV (only the far wall
+    has a UV map) is an average: its third channel is the UV-mapped fraction of the samples."""
     near = {"mesh": "near", "materials": ["grey"], "pass_index": 1}
     far = {"mesh": "far", "materials": ["grey"], "pass_index": 2}
-    data = _scene({"depth": {}, "object_index": {}, "position": {}}, objects=[near, far], spp=32)
+    data = _scene({"depth": {}, "object_index": {}, "position": {}, "uv": {}}, objects=[near, far], spp=32)
     data["meshes"] = {"near": {"positions": [[-3, -1, -3], [0, -1, -3], [0, -1, 3], [-3, -1, 3]],
                                "indices": [[0, 2, 1], [0, 3, 2]]},
                       "far": {"positions": [[0, 0, -3], [3, 0, -3], [3, 0, 3], [0, 0, 3]],
-                              "indices": [[0, 2, 1], [0, 3, 2]]}}
+                              "indices": [[0, 2, 1], [0, 3, 2]], "uvs": [[0, 0], [1, 0], [1, 1], [0, 1]]}}
     img = render(data).film.pass_images()
     depth, index = img["Depth"][..., 0], img["Object Index"][..., 0]
     assert set(np.unique(depth)) <= {4.0, 5.0} and set(np.unique(index)) == {1.0, 2.0}
     assert np.all((depth == 4.0) == (index == 1.0))          # one sample's hit, both passes
-    # Position y averages −1 and 0 over the samples at the seam: some pixels strictly between.
     y = img["Position"][..., 1]
-    assert np.any((y > -0.99) & (y < -0.01))
+    assert np.all((y == -1.0) == (index == 1.0)) and np.all((y == 0.0) == (index == 2.0))
+    a = img["UV"][..., 2]
+    assert np.any((a > 0.01) & (a < 0.99))
 
 
 def test_back_face_normal_faces_the_camera_and_orthographic_depth():
@@ -194,3 +195,26 @@ def test_named_view_renders_its_own_camera():
     with pytest.raises(LaminaError, match="no such view"):
         render(data, view="right")
     assert math.isfinite(render(data).film.pass_images()["Depth"][12, 12, 0])
+
+
+def _addon_module(name):
+    """An add-on module without bpy, loaded from its file (its package imports bpy)."""
+    import importlib.util
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[1] / "addon" / "export" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(f"_lamina_addon_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_add_on_renders_exactly_the_backend_passes_and_warns_about_the_rest():
+    from backend.passes import PASSES
+    rendered = _addon_module("passes").RENDERED
+    unsupported = _addon_module("unsupported").PASSES
+    assert sorted(name for _, name, _, _, _ in rendered) == sorted(PASSES)
+    # Blender names and channels as the backend writes them (one definition each side).
+    assert {label: chans for _, _, label, chans, _ in rendered} == {v[2]: v[3] for v in PASSES.values()}
+    switches = {prop for prop, *_ in rendered}
+    assert not switches & {prop for prop, _ in unsupported}, "a rendered pass is still warned about"
+    assert {"use_pass_vector", "use_pass_ambient_occlusion", "use_pass_emit"} <= {p for p, _ in unsupported}

@@ -321,7 +321,7 @@ def _write_passes(PS, aux, sl, p, ng, ns, wi, u, v, has_uvs, m, pr):
         aux[sl, PS.position] = p[0] + PS.origin[0]
         aux[sl, PS.position + 1] = p[1] + PS.origin[1]
         aux[sl, PS.position + 2] = p[2] + PS.origin[2]
-    if PS.uv >= 0 and has_uvs:
+    if PS.uv >= 0 and has_uvs and PS.object_uv[PS.tri_object[pr]]:
         aux[sl, PS.uv] = u
         aux[sl, PS.uv + 1] = v
         aux[sl, PS.uv + 2] = 1.0            # UV's third channel: this sample hit a UV map

@@ -58,10 +58,9 @@ class Scene:
     # The files and preset names the load read (scene/inputs.py): what a cluster render sends
     # to its workers. {"files": [absolute path, ...], "presets": {name: path}}.
     inputs: dict = field(default_factory=dict)
-    # Data passes (backend/passes.py): the requested ones, each object's pass index, and the
-    # offset the load subtracted from every position (``rebased``; Position adds it back).
+    # Data passes (backend/passes.py): the requested ones, and the offset the load subtracted
+    # from every position (``rebased``; Position adds it back).
     passes: object = None
-    object_pass: list = field(default_factory=list)
     origin: tuple = (0.0, 0.0, 0.0)
     # Cameras of named views (stereo / multi-view): the CLI's --view renders one of them.
     views: dict = field(default_factory=dict)
@@ -194,7 +193,6 @@ def _load_scene_data(data, where: str, base_dir: Path | None) -> Scene:
     scene = assemble_scene(ctx, width, height, pixel_filter, crop, transparent, camera, settings,
                            materials, names, soup, lights, world, light_nodes=light_nodes, root=root)
     scene.passes = passes
-    scene.object_pass = soup.object_pass
     scene.origin = tuple(float(v) for v in offset) if offset is not None else (0.0, 0.0, 0.0)
     scene.views = views
     return scene
@@ -381,6 +379,7 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
                     ctx: LoadContext) -> TriangleSoup:
     verts, norms, uvs, mats, objs, cam, hold = [], [], [], [], [], [], []
     object_pass: list[float] = []          # each object's pass index (Object Index pass)
+    object_uv: list[bool] = []             # whether its mesh has a UV map (UV pass)
     any_normals = any_uvs = False
     default_index = None
     items = node.items() if node is not None else []
@@ -443,6 +442,7 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
             nrm /= np.maximum(np.linalg.norm(nrm, axis=2, keepdims=True), 1e-30)
             any_normals = True
         uv = mesh.uvs
+        object_uv.append(uv is not None)
         if uv is not None:
             any_uvs = True
         if np.linalg.det(m[:3, :3]) < 0:
@@ -460,7 +460,7 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
     if not verts:
         empty = np.zeros((0, 3, 3), np.float32)
         soup = TriangleSoup(empty, None, None, np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, bool))
-        soup.object_pass = object_pass
+        soup.object_pass, soup.object_uv = object_pass, object_uv
         return soup
     vertices = np.concatenate(verts).astype(np.float32)
     normals = None
@@ -472,7 +472,7 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
                                  for u, v in zip(uvs, verts)]).astype(np.float32)
     soup = TriangleSoup(vertices, normals, uv_all, np.concatenate(mats), np.concatenate(objs), np.concatenate(cam),
                         np.concatenate(hold))
-    soup.object_pass = object_pass
+    soup.object_pass, soup.object_uv = object_pass, object_uv
     return soup
 
 
