@@ -138,16 +138,18 @@ def check_writable(path: str | Path, what: str = "output") -> None:
             raise LaminaError(f"the {what} {path}: OpenImageIO cannot write '{path.suffix}' files")
 
 
-def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = False,
-              letters: dict[str, str] | None = None) -> int:
+def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = False) -> int:
     """layers: channel-group name → (H, W, C) float array, in order. '' = the main RGBA group.
 
-    Channel names: the main group gets R, G, B, A; others '<name>.<X>' with X from ``letters``
-    (group → channel letters, e.g. the data passes' Blender names: 'Depth' → 'Z') or from the
-    name's convention (RGB for colours, XYZ for 'normal', Y for single channels). Returns the
-    number of values that were not finite or beyond the format's range (written as 0 / clamped).
+    Channel names: the main group gets R, G, B, A; the data passes their Blender channel names
+    (backend/passes.py: 'Depth' → Z, 'UV' → U, V, A); others '<name>.<X>' with X from the name's
+    convention (RGB for colours, XYZ for 'normal', Y for single channels). Returns the number of
+    values that were not finite or beyond the format's range (written as 0 / clamped).
     """
     import OpenImageIO as oiio
+
+    from .passes import channel_letters
+    letters = channel_letters()
 
     path = Path(path)
     names, planes = [], []
@@ -157,7 +159,7 @@ def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = Fals
         if image.ndim == 2:
             image = image[:, :, None]
         c = image.shape[2]
-        if letters and group in letters:
+        if group in letters:
             letters_of = letters[group][:c]
         elif group == "":
             letters_of = "RGBA"[:c]

@@ -265,8 +265,7 @@ def write_outputs(result, output: Path, png: str | None, half: bool = False) -> 
                   "normal": film.normal_image(), "variance": film.variance_of_mean(),
                   "samples": film.counts()[:, :, None].astype(np.float32)}
         layers.update(film.pass_images())        # the requested data passes (docs/cli.md)
-        from .passes import channel_letters
-        changed = write_exr(output, layers, half=half, letters=channel_letters())
+        changed = write_exr(output, layers, half=half)
         if png:
             write_preview(png, rgb)
     return changed

@@ -8,7 +8,9 @@ filter, width 1.5 px, importance sampled). Hence:
   the other passes' region means agree within 4 standard errors of the per-pixel difference
   (the samples' jitter), plus 1e-4 of the pass's range for float32 storage;
 * Depth and the indices are sample-0 values in both: never fractional at edges;
-* every stereo eye / multi-view camera matches Cycles' view of it, and the two views differ.
+* every stereo eye (off-axis, toe-in, parallel convergence; pivot at the centre) and multi-view
+  camera matches Cycles' view of it (index passes equal away from edges, Depth and Position
+  region means within 4σ), and the two views differ.
 """
 from __future__ import annotations
 
@@ -32,7 +34,7 @@ MATERIALS = {0.0, 5.0, 9.0}
 
 @pytest.fixture(scope="module")
 def renders(tmp_path_factory):
-    r = run_cases("passes_cases", ["data_passes", "stereo", "multiview"],
+    r = run_cases("passes_cases", ["data_passes", "stereo", "stereo_toe", "stereo_parallel", "multiview"],
                   tmp=tmp_path_factory.mktemp("passes"), timeout=900)
     return r
 
@@ -122,7 +124,7 @@ def _eyes(r):
     return [(f"{stem_c}_{s}.exr", f"{stem_l}_{s}.exr") for s in ("L", "R")]
 
 
-@pytest.mark.parametrize("case", ["stereo", "multiview"])
+@pytest.mark.parametrize("case", ["stereo", "stereo_toe", "stereo_parallel", "multiview"])
 def test_each_view_renders_its_own_camera(renders, case):
     r = result_of(renders, case)
     assert r["cycles_error"] is None and r["lamina_error"] is None, r

@@ -88,3 +88,11 @@ def multiview(tmp, spp=4):
     right.rotation_euler.z -= math.radians(12)
     bpy.context.view_layer.update()
     return _render_pair(sc, tmp, "multiview", spp)
+
+
+def stereo_toe(tmp, spp=4):
+    return stereo(tmp, spp, "TOE")
+
+
+def stereo_parallel(tmp, spp=4):
+    return stereo(tmp, spp, "PARALLEL")
