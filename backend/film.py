@@ -79,9 +79,14 @@ def parse_filter(node: Node | None) -> PixelFilter:
 class FilmAccumulator:
     """Per-pixel float64 sums, merged from work items in a fixed order (bit-reproducible)."""
 
-    def __init__(self, width: int, height: int):
+    def __init__(self, width: int, height: int, passes=None):
         self.width, self.height = width, height
         n = width * height
+        # Data passes (backend/passes.py): sample-0 values and sums; zero columns when none.
+        self.passes = passes if passes is not None and passes.active else None
+        nf = self.passes.first if self.passes else 0
+        self.first = np.zeros((n, nf))
+        self.pass_sum = np.zeros((n, (self.passes.width - nf) if self.passes else 0))
         self.sum = np.zeros((n, 3))
         self.sum_sq = np.zeros((n, 3))
         self.albedo = np.zeros((n, 3))
@@ -97,9 +102,12 @@ class FilmAccumulator:
         work was cut (kernels/film.py)."""
         from .kernels.film import accumulate
         L, albedo, normal, alpha = result["lanes"]
+        aux = result.get("passes")
+        if aux is None or self.passes is None:
+            aux = _NO_PASSES
         return int(accumulate(self.sum, self.sum_sq, self.albedo, self.normal, self.alpha, self.count,
-                              np.ascontiguousarray(pixels, np.int64), int(result["spp"]),
-                              L, albedo, normal, alpha))
+                              self.first, self.pass_sum, np.ascontiguousarray(pixels, np.int64),
+                              int(result["spp"]), L, albedo, normal, alpha, aux))
 
     def _mean(self, a: np.ndarray) -> np.ndarray:
         c = np.maximum(self.count, 1)[:, None]
@@ -130,3 +138,12 @@ class FilmAccumulator:
 
     def counts(self) -> np.ndarray:
         return self.count.reshape(self.height, self.width)
+
+    def pass_images(self) -> dict:
+        """The requested data passes: {EXR pass name: (H, W, C)} (empty when none)."""
+        if self.passes is None:
+            return {}
+        return self.passes.images(self.first, self.pass_sum, self.count, self.height, self.width)
+
+
+_NO_PASSES = np.zeros((0, 0))   # a work item's lanes when no data pass is requested

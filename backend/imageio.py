@@ -141,11 +141,15 @@ def check_writable(path: str | Path, what: str = "output") -> None:
 def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = False) -> int:
     """layers: channel-group name → (H, W, C) float array, in order. '' = the main RGBA group.
 
-    Channel names: the main group gets R, G, B, A; others '<name>.<X>' with X from the name's
+    Channel names: the main group gets R, G, B, A; the data passes their Blender channel names
+    (backend/passes.py: 'Depth' → Z, 'UV' → U, V, A); others '<name>.<X>' with X from the name's
     convention (RGB for colours, XYZ for 'normal', Y for single channels). Returns the number of
     values that were not finite or beyond the format's range (written as 0 / clamped).
     """
     import OpenImageIO as oiio
+
+    from .passes import channel_letters
+    letters = channel_letters()
 
     path = Path(path)
     names, planes = [], []
@@ -155,15 +159,17 @@ def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = Fals
         if image.ndim == 2:
             image = image[:, :, None]
         c = image.shape[2]
-        if group == "":
-            letters = "RGBA"[:c]
+        if group in letters:
+            letters_of = letters[group][:c]
+        elif group == "":
+            letters_of = "RGBA"[:c]
         elif group == "normal":
-            letters = "XYZ"[:c]
+            letters_of = "XYZ"[:c]
         elif c == 1:
-            letters = "Y"
+            letters_of = "Y"
         else:
-            letters = "RGBA"[:c]
-        names += [f"{group}.{ch}" if group else ch for ch in letters]
+            letters_of = "RGBA"[:c]
+        names += [f"{group}.{ch}" if group else ch for ch in letters_of]
         planes.append(image)
     data = np.ascontiguousarray(np.concatenate(planes, axis=2))
     data, changed = finite_values(data, HALF_MAX if half else FLOAT_MAX)

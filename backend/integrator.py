@@ -131,6 +131,10 @@ class PathTracer:
             np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights] or [False]),
             SAMPLERS[s.sampler], STRATIFIED_BOUNCES, nee_all)
         self.camera = camera_vector(scene.camera)
+        self.passes = getattr(scene, "passes", None)
+        if self.passes is not None and not self.passes.active:
+            self.passes = None
+        self.pass_params = self._pass_params(scene.camera)
         self.filter = scene.pixel_filter.tables()
         self.any_hidden = bool(soup.count) and not bool(soup.camera_visible.all())
         self._local = threading.local()      # per-thread _Scratch (threads share one tracer)
@@ -146,6 +150,14 @@ class PathTracer:
         nothing else depends on the camera)."""
         self.scene.camera = camera
         self.camera = camera_vector(camera)
+        self.pass_params = self._pass_params(camera)
+
+    def _pass_params(self, camera):
+        """The data passes' kernel table (backend/passes.py); an inactive one when none is asked
+        for (the kernel then never touches the pass columns)."""
+        layout = self.passes if self.passes is not None else _no_passes()
+        return layout.params(camera, self.soup, self.scene.materials, self.soup.object_pass,
+                             getattr(self.scene, "origin", (0.0, 0.0, 0.0)), self.soup.object_uv)
 
     # ------------------------------------------------------------------ work item
     def render(self, pixels: np.ndarray, spp: int, rng: np.random.Generator, sample0: int = 0) -> dict:
@@ -161,6 +173,8 @@ class PathTracer:
         albedo = np.zeros((n, 3))
         normal = np.zeros((n, 3))
         alpha = np.zeros(n)
+        # Data passes: a column per requested channel, none (and no allocation) otherwise.
+        aux = self.passes.lane_array(n) if self.passes is not None else _NO_LANES
         sc = self._scratch(n)
         cur, nxt = sc.queues
         tmax32 = sc.tmax32
@@ -191,11 +205,11 @@ class PathTracer:
             if segment == 0 and self.any_hidden:
                 prim, t, b1, b2 = self._skip_hidden(o32, d32, t_in, prim, t, b1, b2)
             counts[:] = 0
-            ki.shade(self.geometry, self.materials, self.textures, self.light_table, self.settings, segment,
-                     pixels, spp, sample0,
+            ki.shade(self.geometry, self.materials, self.textures, self.light_table, self.settings,
+                     self.pass_params, segment, pixels, spp, sample0,
                      cur.slot[:active], cur.key[:active], cur.o[:active], cur.d[:active], cur.beta[:active],
                      cur.pdf[:active], cur.delta[:active], t_in, prim, t, b1, b2,
-                     L, albedo, normal, alpha, *nxt.outputs(),
+                     L, albedo, normal, alpha, aux, *nxt.outputs(),
                      sh_slot, sh_o32, sh_d32, sh_t32, sh_c, self.stacks, lw, lb, lr, lc, counts)
             ns = int(counts[1])
             if ns:
@@ -210,7 +224,10 @@ class PathTracer:
         if lc[2]:
             stats.add("layered_walk_cap_hits", int(lc[2]))
         # Per-lane samples: the film adds them in sample order (kernels/film.py).
-        return {"lanes": (L, albedo, normal, alpha), "spp": spp, "rays": rays}
+        out = {"lanes": (L, albedo, normal, alpha), "spp": spp, "rays": rays}
+        if self.passes is not None:
+            out["passes"] = aux
+        return out
 
     # ------------------------------------------------------------------ geometry
     def _skip_hidden(self, o32, d32, t_in, prim, t, b1, b2, max_layers: int = 16):
@@ -235,6 +252,14 @@ class PathTracer:
             prim[idx], t[idx], b1[idx], b2[idx] = p2, t2, u2, v2
             t_base[idx] = adv
         return prim, (t + t_base).astype(np.float32), b1, b2
+
+
+_NO_LANES = np.zeros((0, 0))     # the pass columns of a work item when no pass is requested
+
+
+def _no_passes():
+    from .passes import PassLayout
+    return PassLayout()
 
 
 def build_material_table(materials, packer, stacks=None):

@@ -76,8 +76,11 @@ class RenderOptions:
     cluster_files: str = "send"          # "send": content-hashed copies; "shared": same paths
     cluster_timeout: float | None = None  # s to reach the scheduler (None: cluster.CONNECT_TIMEOUT)
     cluster_priority: int = 0            # higher first: frames of an animation in order
+    view: str | None = None              # render the camera of this named view (scene "views")
 
     def apply(self, scene) -> None:
+        if self.view is not None:
+            select_view(scene, self.view)
         s = scene.settings
         for name in ("spp", "seed", "time_limit", "noise_target", "min_spp", "max_bounces", "sampler"):
             value = getattr(self, name)
@@ -91,6 +94,15 @@ class RenderOptions:
                 x0, y0, x1, y1 = scene.crop
                 scene.crop = (int(x0 * sx), int(y0 * sy), max(int(x1 * sx), int(x0 * sx) + 1),
                               max(int(y1 * sy), int(y0 * sy) + 1))
+
+
+def select_view(scene, view: str) -> None:
+    """Render through the camera of a named view (the scene's ``views``: stereo eyes, multi-view
+    cameras); LaminaError if the scene has no such view."""
+    if view not in scene.views:
+        known = ", ".join(sorted(scene.views)[:12]) or "none"
+        raise LaminaError(f"--view {view[:60]!r}: the scene has no such view (its views: {known})")
+    scene.camera = scene.views[view]
 
 
 @dataclass
@@ -500,7 +512,7 @@ class Renderer:
         x0, y0, x1, y1 = scene.crop or (0, 0, W, H)
         ys, xs = np.mgrid[y0:y1, x0:x1]
         all_pixels = (ys * W + xs).ravel().astype(np.int64)
-        film = FilmAccumulator(W, H)
+        film = FilmAccumulator(W, H, getattr(scene, "passes", None))
         film.transparent = scene.transparent
         spp = s.spp
         block = choose_spp_block(all_pixels.size, spp)

@@ -45,6 +45,9 @@ def register(sub) -> None:
     p.add_argument("--partial", help="write partial results to this .npy path (add-on protocol)")
     p.add_argument("--partial-interval", type=_number(0.0), default=2.0, help="seconds between partial results")
     p.add_argument("--half", action="store_true", help="write half-float EXR")
+    p.add_argument("--view", metavar="NAME",
+                   help="render the camera of this view of the scene's 'views' (a stereo eye, a "
+                        "multi-view camera) instead of 'camera'")
     p.set_defaults(func=cmd_render)
 
     v = sub.add_parser("validate", help="load and check a scene, print warnings and a summary")
@@ -174,7 +177,7 @@ def options_from_args(args):
                          min_spp=args.min_spp, max_bounces=args.max_bounces, sampler=args.sampler,
                          resolution=args.resolution, parallel=args.parallel,
                          cluster=args.cluster, cluster_files=args.cluster_files,
-                         cluster_timeout=args.cluster_timeout)
+                         cluster_timeout=args.cluster_timeout, view=getattr(args, "view", None))
 
 
 def check_outputs(output: Path, png: str | None, partial: str | None) -> None:
@@ -261,6 +264,7 @@ def write_outputs(result, output: Path, png: str | None, half: bool = False) -> 
         layers = {"": np.concatenate([rgb, alpha], axis=2), "albedo": film.albedo_image(),
                   "normal": film.normal_image(), "variance": film.variance_of_mean(),
                   "samples": film.counts()[:, :, None].astype(np.float32)}
+        layers.update(film.pass_images())        # the requested data passes (docs/cli.md)
         changed = write_exr(output, layers, half=half)
         if png:
             write_preview(png, rgb)
@@ -296,6 +300,15 @@ def _write_partial(path: Path, film, aovs: bool = False) -> None:
         write_npy(path, np.concatenate([rgb, alpha], axis=2))
         if aovs:
             write_npy(path.with_suffix(".aovs.npy"), np.concatenate([film.albedo_image(), film.normal_image()], axis=2))
+            for name, image in film.pass_images().items():
+                write_npy(pass_npy_path(path, name), image)
+
+
+def pass_npy_path(partial: Path, pass_name: str) -> Path:
+    """Where the final data pass ``pass_name`` (its EXR name, e.g. 'Object Index') goes next to
+    the partial result: ``partial.pass-object-index.npy`` (add-on protocol, docs/cli.md)."""
+    slug = pass_name.lower().replace(" ", "-")
+    return partial.with_suffix(f".pass-{slug}.npy")
 
 
 def summarise(result) -> dict:

@@ -18,10 +18,11 @@ import bpy
 
 from .. import preferences
 from ..export import export_scene
-from ..export.camera import border_rect, film_size
+from ..export.camera import CameraError, border_rect, eye_camera_json, film_size, view_camera_object
+from ..export.passes import requested as requested_passes
 from ..export.scene import ExportError
 from .job import BackendJob, child_environment, render_command
-from .pixels import ALBEDO_PASS, NORMAL_PASS, fill_passes, load_npy
+from .pixels import ALBEDO_PASS, NORMAL_PASS, fill_passes, load_npy, pass_npy_path
 from . import viewport
 
 PREVIEW_WORKERS = 1          # worker processes cost ~1 s to start; thumbnails are small
@@ -120,6 +121,8 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
         self.register_pass(scene, renderlayer, ALBEDO_PASS, 3, "RGB", "COLOR")
         self.register_pass(scene, renderlayer, NORMAL_PASS, 3, "XYZ", "VECTOR")
+        for _, label, chans, kind in requested_passes(renderlayer):
+            self.register_pass(scene, renderlayer, label, len(chans), chans, kind)
 
     # ------------------------------------------------------------------ render
 
@@ -180,31 +183,74 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         self.update_stats("", "Lamina | Exporting scene")
         t0 = time.perf_counter()
         seed_offset = scene.frame_current if settings.use_animated_seed else 0
+        camera_object = self.camera_override or scene.camera
+        view_names, views = self._views(depsgraph, camera_object, rect) if not preview else ([None], None)
         exported = export_scene(depsgraph, workdir / "scene",
-                                camera_object=self.camera_override or scene.camera,
+                                camera_object=camera_object,
                                 samples=_preview_samples() if preview else None,
-                                seed_offset=seed_offset, preview=preview)
+                                seed_offset=seed_offset, preview=preview, views=views)
         self._exported = exported                # its notes are reported with the renderer's, once
         if not preview:
             print(f"Lamina: exported {exported.stats['triangles']} triangles "
                   f"({exported.stats['meshes']} meshes, {exported.stats['instances']} instances) "
                   f"in {time.perf_counter() - t0:.2f} s")
-        if self.cancel_requested():
-            return
-
-        partial = workdir / "partial.npy"
-        # Material previews always render here; F12 and animation frames go to the cluster
-        # when one is set (the backend child process is its client: no Dask in Blender).
-        cluster = "" if preview else settings.cluster.strip()
-        cmd = render_command(_python(), exported.path, workdir / "render.exr", partial,
-                             workers=0 if cluster else (PREVIEW_WORKERS if preview else settings.workers),
-                             partial_interval=0.5 if preview else settings.update_interval,
-                             extra=["--cluster", cluster] if cluster else None)
         if not preview:
             self.add_pass(ALBEDO_PASS, 3, "RGB")
             self.add_pass(NORMAL_PASS, 3, "XYZ")
-        # One view layer per render() call: write into that layer of the result.
-        result = self.begin_result(0, 0, rect[2], rect[3], layer=depsgraph.view_layer.name)
+        # One backend run per view (stereo eyes, multi-view cameras: the scene's "views"), each
+        # into its view of the result; a single run without multi-view.
+        for index, view in enumerate(view_names):
+            if self.cancel_requested():
+                return
+            if self._render_view(depsgraph, exported, workdir, index, view, rect, width, height) == "cancelled":
+                return
+
+    def _views(self, depsgraph, camera_object, rect):
+        """([view name, ...], {view name: camera}) of a multi-view render, each view's camera
+        as Blender places it (its eye: ``camera_model_matrix``, ``camera_shift_x``); ([None],
+        None) without multi-view."""
+        scene = depsgraph.scene
+        if not scene.render.use_multiview or camera_object is None:
+            return [None], None
+        # The result knows which views Blender renders (Stereo 3D: left and right; Multi-View:
+        # the views switched on).
+        probe = self.begin_result(0, 0, rect[2], rect[3], layer=depsgraph.view_layer.name)
+        names = [v.name for v in probe.views]
+        self.end_result(probe, cancel=True)
+        if len(names) < 2:
+            return [None], None
+        views = {}
+        for name in names:
+            self.active_view_set(name)
+            obj = view_camera_object(scene, camera_object, name)
+            matrix = self.camera_model_matrix(obj, use_spherical_stereo=False)
+            shift = self.camera_shift_x(obj, use_spherical_stereo=False)
+            try:
+                views[name] = eye_camera_json(obj, scene, matrix, shift)
+            except CameraError as exc:               # a panoramic camera
+                raise ExportError(f"view '{name}': {exc}") from None
+        return names, views
+
+    def _render_view(self, depsgraph, exported, workdir: Path, index: int, view, rect, width: int,
+                     height: int) -> str:
+        """Render one view (None: the scene's camera) into the result; "cancelled" or "done"."""
+        scene = depsgraph.scene
+        settings = scene.lamina
+        preview = self.is_preview
+        if view is not None:
+            self.active_view_set(view)
+        partial = workdir / f"partial-{index}.npy"
+        # Material previews always render here; F12 and animation frames go to the cluster
+        # when one is set (the backend child process is its client: no Dask in Blender).
+        cluster = "" if preview else settings.cluster.strip()
+        extra = (["--cluster", cluster] if cluster else []) + (["--view", view] if view is not None else [])
+        cmd = render_command(_python(), exported.path, workdir / f"render-{index}.exr", partial,
+                             workers=0 if cluster else (PREVIEW_WORKERS if preview else settings.workers),
+                             partial_interval=0.5 if preview else settings.update_interval,
+                             extra=extra or None)
+        # One view layer per render() call: write into that layer (and view) of the result.
+        result = self.begin_result(0, 0, rect[2], rect[3], layer=depsgraph.view_layer.name,
+                                   view=view or "")
         try:
             status = self._run(cmd, result, partial, rect, height, exported)
         except BaseException:
@@ -212,7 +258,7 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
             raise
         if status == "cancelled":
             self.end_result(result)
-            return
+            return status
         combined = load_npy(partial)
         if combined is None or combined.shape[:2] != (height, width):
             self.end_result(result, cancel=True)
@@ -220,8 +266,14 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         aovs = load_npy(partial.with_suffix(".aovs.npy"))
         if aovs is not None and aovs.shape[:2] != (height, width):
             aovs = None
-        fill_passes(result, combined, aovs, rect, height)
+        data_passes = {}
+        for _, label, _, _ in ([] if preview else requested_passes(depsgraph.view_layer)):
+            image = load_npy(pass_npy_path(partial, label))
+            if image is not None and image.shape[:2] == (height, width):
+                data_passes[label] = image
+        fill_passes(result, combined, aovs, rect, height, data_passes)
         self.end_result(result)
+        return "done"
 
     def _run(self, cmd, result, partial: Path, rect, height: int, exported=None) -> str:
         env = child_environment(_user_env())

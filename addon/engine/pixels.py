@@ -25,8 +25,17 @@ def region(image: np.ndarray, rect, full_height: int) -> np.ndarray:
     return np.ascontiguousarray(image[top:top + h, x:x + w][::-1], dtype=np.float32)
 
 
-def fill_passes(result, combined: np.ndarray, aovs: np.ndarray | None, rect, full_height: int) -> None:
-    """Write combined RGBA (+ albedo, normal) into the first layer of a RenderResult.
+def pass_npy_path(partial: Path, pass_name: str) -> Path:
+    """Where the backend writes the final data pass ``pass_name`` (Blender's name, e.g. 'Object
+    Index') next to the partial result (docs/cli.md, add-on protocol)."""
+    slug = pass_name.lower().replace(" ", "-")
+    return partial.with_suffix(f".pass-{slug}.npy")
+
+
+def fill_passes(result, combined: np.ndarray, aovs: np.ndarray | None, rect, full_height: int,
+                data_passes: dict | None = None) -> None:
+    """Write combined RGBA (+ albedo, normal, and ``data_passes``: Blender pass name → image)
+    into the first layer of a RenderResult.
 
     Passes that Lamina does not produce (enabled by the user for other engines) are zero."""
     layer = result.layers[0]
@@ -39,6 +48,8 @@ def fill_passes(result, combined: np.ndarray, aovs: np.ndarray | None, rect, ful
             data = region(aovs[:, :, 0:3], rect, full_height)
         elif render_pass.name == NORMAL_PASS and aovs is not None:
             data = region(aovs[:, :, 3:6], rect, full_height)
+        elif data_passes and render_pass.name in data_passes:
+            data = region(data_passes[render_pass.name], rect, full_height)
         else:
             data = np.zeros((h, w, channels), np.float32)
         if data.shape[2] != channels:

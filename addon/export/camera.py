@@ -77,3 +77,48 @@ def camera_json(camera_object, scene) -> dict:
                       "rotation": degrees(dof.aperture_rotation),
                       "ratio": min(float(dof.aperture_ratio), 1000.0)}  # the format's range
     return out
+
+
+def view_camera_object(scene, camera_object, view_name: str):
+    """The camera of a view (Blender's rule for the *Multi-View* format): the camera whose name is
+    the active camera's with its view suffix replaced by this view's suffix (``Cam_L`` →
+    ``Cam_R``), if such an object exists; otherwise (and for *Stereo 3D*) the active camera."""
+    render = scene.render
+    if not render.use_multiview or render.views_format != "MULTIVIEW" or camera_object is None:
+        return camera_object
+    view = render.views.get(view_name)
+    if view is None:
+        return camera_object
+    name = camera_object.name
+    base = None
+    longest = -1
+    for other in render.views:           # the longest suffix that ends the camera's name
+        suffix = other.camera_suffix
+        if len(suffix) >= longest and len(suffix) <= len(name) and name.endswith(suffix):
+            base, longest = name[:len(name) - len(suffix)], len(suffix)
+    if base is None:
+        return camera_object
+    found = scene.objects.get(base + view.camera_suffix)
+    return found if found is not None and found.type == "CAMERA" else camera_object
+
+
+def eye_camera_json(camera_object, scene, matrix, shift_x: float) -> dict:
+    """``camera_json`` of one view: ``matrix`` and ``shift_x`` are what Blender gives the view
+    (``RenderEngine.camera_model_matrix`` / ``camera_shift_x``: the eye's position and, for
+    off-axis stereo, its extra lens shift). The frame moves sideways by the shift difference in
+    units of the sensor-fitted frame side (Blender's shift unit)."""
+    out = camera_json(camera_object, scene)
+    out["to_world"] = matrix_rows(without_scale(matrix))
+    cam = camera_object.data
+    delta = float(shift_x) - float(cam.shift_x)
+    if delta != 0.0:
+        tr, br, bl, tl = out["frame"]
+        fit = cam.sensor_fit
+        if fit == "AUTO":
+            render = scene.render
+            sx = render.resolution_x * render.pixel_aspect_x
+            sy = render.resolution_y * render.pixel_aspect_y
+            fit = "HORIZONTAL" if sx >= sy else "VERTICAL"
+        side = (tr[0] - tl[0]) if fit == "HORIZONTAL" else (tl[1] - bl[1])
+        out["frame"] = [[c[0] + delta * side, c[1], c[2]] for c in out["frame"]]
+    return out

@@ -19,6 +19,7 @@ from .lights import light_json
 from .mesh import mesh_arrays, sanitise, write_npz
 from .names import FieldNames
 from .nodes import DEFAULT_MATERIAL, NodeTranslator, volume_note
+from .passes import passes_json
 from .preset_link import edited_note
 from .stack import StackError, stack_json
 from .unsupported import light_data_notes, object_notes, scene_notes
@@ -139,6 +140,8 @@ class SceneExporter:
         emits = out.get("type") == "emission" or "emission" in out
         if settings is not None and getattr(settings, "emission_sides", "BOTH") == "FRONT" and emits:
             out = dict(out, emission_sides="front")
+        if int(getattr(mat, "pass_index", 0)) > 0 and isinstance(out, dict):
+            out = dict(out, pass_index=int(mat.pass_index))      # the Material Index pass
         return out
 
     def _material_json(self, mat) -> dict:
@@ -239,6 +242,8 @@ class SceneExporter:
                  "materials": slots}
         if holdout:
             entry["holdout"] = True
+        if int(getattr(original, "pass_index", 0)) > 0:
+            entry["pass_index"] = int(original.pass_index)      # the Object Index pass
         hidden_floor = self.preview and any(
             slot.material is not None and slot.material.name.startswith(PREVIEW_FLOOR) for slot in obj.material_slots)
         if not getattr(obj, "visible_camera", True) or hidden_floor:
@@ -251,9 +256,10 @@ class SceneExporter:
     # ---------------------------------------------------------------- whole scene
 
     def build(self, camera_object, *, samples=None, seed_offset=0, camera: dict | None = None,
-              film: dict | None = None) -> dict:
+              film: dict | None = None, views: dict | None = None) -> dict:
         """The scene document. ``camera``/``film`` given (a viewport's view): used instead of
-        the scene camera's and the render resolution's."""
+        the scene camera's and the render resolution's. ``views``: view name → camera (stereo /
+        multi-view, made by the engine, which knows each view's eye)."""
         scene = self.scene
         if camera is None:
             if camera_object is None:
@@ -279,6 +285,12 @@ class SceneExporter:
                "objects": self.objects,
                "lights": self.lights,
                "world": world_json(scene.world, self.images, self.notes)}
+        if views:
+            doc["views"] = views
+        if not self.preview:
+            passes = passes_json(getattr(self.depsgraph, "view_layer", None), scene.world)
+            if passes:
+                doc["passes"] = passes
         self.names = FieldNames().collect(doc, self.images.labels, DEFAULT_SLOT,
                                           scene.world.name if scene.world is not None else None)
         return doc
@@ -296,7 +308,7 @@ def dumps(doc: dict) -> str:
 def export_scene(depsgraph, directory, *, camera_object=None, samples: int | None = None,
                  copy_textures: bool = False, seed_offset: int = 0,
                  filename: str = "scene.json", mesh_folder: str = "meshes",
-                 preview: bool = False) -> ExportResult:
+                 preview: bool = False, views: dict | None = None) -> ExportResult:
     """Write the scene of ``depsgraph`` into ``directory``; raises ExportError for fatal problems."""
     t0 = time.perf_counter()
     directory = Path(directory)
@@ -304,7 +316,7 @@ def export_scene(depsgraph, directory, *, camera_object=None, samples: int | Non
     exporter = SceneExporter(depsgraph, directory, copy_textures=copy_textures, mesh_folder=mesh_folder,
                              preview=preview)
     camera_object = camera_object if camera_object is not None else depsgraph.scene.camera
-    doc = exporter.build(camera_object, samples=samples, seed_offset=seed_offset)
+    doc = exporter.build(camera_object, samples=samples, seed_offset=seed_offset, views=views)
     path = directory / filename
     tmp = path.with_suffix(".json.tmp")
     tmp.write_text(dumps(doc), encoding="utf-8")

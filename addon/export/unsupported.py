@@ -2,19 +2,19 @@
 
 Every note is ``"<kind> '<name>': <what> (<what Lamina does instead>)"``, so the render's one
 warning (``scene.warning_text``) groups them by object, material, light, view layer or scene.
-Checked here: motion blur, stereo / multi-view, ray visibility other than camera rays, light
-and shadow linking, light groups, shadow catchers, a light's shadow/contribution switches, and
-render passes other than Combined and the denoising passes. (Shader nodes are checked by
-nodes.py, geometry types by scene.py, textures by images.py.)
+Checked here: motion blur, ray visibility other than camera rays, light and shadow linking,
+light groups, shadow catchers, a light's shadow/contribution switches, and render passes other
+than Combined, the denoising passes and the data passes of passes.py. (Shader nodes are checked
+by nodes.py, geometry types by scene.py, textures by images.py.) Stereo / multi-view renders
+every view from its own camera (engine.py).
 """
 from __future__ import annotations
 
 # View-layer pass switches Lamina does not write: (property, label). Combined and the denoising
-# passes (Denoising Albedo, Denoising Normal) are always written.
+# passes (Denoising Albedo, Denoising Normal) are always written; Depth, Mist, Normal, Position,
+# UV, Object Index and Material Index when switched on (passes.RENDERED).
 PASSES = (
-    ("use_pass_z", "Depth"), ("use_pass_mist", "Mist"), ("use_pass_normal", "Normal"),
-    ("use_pass_position", "Position"), ("use_pass_uv", "UV"), ("use_pass_vector", "Vector"),
-    ("use_pass_object_index", "Object Index"), ("use_pass_material_index", "Material Index"),
+    ("use_pass_vector", "Vector"),
     ("use_pass_shadow", "Shadow"), ("use_pass_ambient_occlusion", "Ambient Occlusion"),
     ("use_pass_emit", "Emission"), ("use_pass_environment", "Environment"),
     ("use_pass_diffuse_direct", "Diffuse Direct"), ("use_pass_diffuse_indirect", "Diffuse Indirect"),
@@ -44,10 +44,6 @@ def scene_notes(scene, view_layer) -> list[str]:
     if getattr(render, "use_motion_blur", False):
         notes.append(f"scene '{scene.name}': motion blur (not rendered: every object and the camera "
                      f"are rendered at the frame's instant)")
-    if getattr(render, "use_multiview", False):
-        views = [v.name for v in getattr(render, "views", []) if getattr(v, "use", True)]
-        notes.append(f"scene '{scene.name}': stereo / multi-view ({', '.join(views) or 'views'}: "
-                     f"every view shows the active camera's image)")
     if view_layer is not None:
         on = [label for prop, label in PASSES if getattr(view_layer, prop, False)]
         cycles = getattr(view_layer, "cycles", None)

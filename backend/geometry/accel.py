@@ -37,6 +37,8 @@ class TriangleSoup:
     geo_normal: np.ndarray = None   # (T, 3) float64 unit geometric normal (CCW winding)
     tangent: np.ndarray = None      # (T, 3) float64 unit dP/du (UV tangent), zeros where undefined
     area: np.ndarray = None         # (T,) float64
+    object_pass: list = None        # each object's pass index (the Object Index pass)
+    object_uv: list = None          # whether each object's mesh has a UV map (the UV pass)
 
     def __post_init__(self):
         if self.holdout is None:

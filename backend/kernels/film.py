@@ -15,9 +15,15 @@ from .jit import kernel
 
 
 @kernel(nogil=True)
-def accumulate(f_sum, f_sq, f_alb, f_nrm, f_alpha, f_count, pixels, spp, L, albedo, normal, alpha):
+def accumulate(f_sum, f_sq, f_alb, f_nrm, f_alpha, f_count, f_first, f_pass, pixels, spp, L, albedo,
+               normal, alpha, aux):
     """Lane i is sample i % spp of pixels[i // spp] (lanes of a pixel adjacent, in sample order).
-    Returns the number of non-finite samples dropped."""
+    Data passes (``aux``, backend/passes.py): its first ``f_first.shape[1]`` columns are kept
+    from the pixel's sample 0 (the first sample ever added to it), the others summed into
+    ``f_pass``; no columns when no pass was asked for. Returns the number of non-finite samples
+    dropped."""
+    nf = f_first.shape[1]
+    ns = f_pass.shape[1]
     bad = 0
     # Nested over pixels and samples: a 64-bit integer division per lane (i // spp) cost more
     # than the additions.
@@ -37,6 +43,11 @@ def accumulate(f_sum, f_sq, f_alb, f_nrm, f_alpha, f_count, pixels, spp, L, albe
             for c in range(3):
                 f_alb[pix, c] += albedo[i, c]
                 f_nrm[pix, c] += normal[i, c]
+            if f_count[pix] == 0:
+                for c in range(nf):
+                    f_first[pix, c] = aux[i, c]
+            for c in range(ns):
+                f_pass[pix, c] += aux[i, nf + c]
             f_alpha[pix] += alpha[i]
             f_count[pix] += 1
     return bad

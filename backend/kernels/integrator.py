@@ -288,16 +288,57 @@ def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, vi
     counts[0] = k + 1
 
 
+@inlined
+def _write_passes(PS, aux, sl, p, ng, ns, wi, u, v, has_uvs, m, pr):
+    """The data passes of a camera ray's first hit (backend/passes.py: Cycles' conventions).
+    Columns < 0 are passes nobody asked for."""
+    rel = (p[0] - PS.cam_pos[0], p[1] - PS.cam_pos[1], p[2] - PS.cam_pos[2])
+    along = _dot(rel, PS.cam_axis)          # distance along the view axis [m]
+    if PS.depth >= 0:
+        aux[sl, PS.depth] = along
+    if PS.object_index >= 0:
+        aux[sl, PS.object_index] = PS.object_pass[PS.tri_object[pr]]
+    if PS.material_index >= 0:
+        aux[sl, PS.material_index] = PS.material_pass[m]
+    if PS.mist >= 0:
+        dist = abs(along) if PS.ortho else math.sqrt(_dot(rel, rel))
+        x = min(max((dist - PS.mist_start) * PS.mist_inv_depth, 0.0), 1.0)
+        if PS.mist_falloff == 2.0:
+            x = x * x
+        elif PS.mist_falloff == 0.5:
+            x = math.sqrt(x)
+        elif PS.mist_falloff != 1.0:
+            x = x ** PS.mist_falloff
+        aux[sl, PS.mist] = x
+    if PS.normal >= 0:
+        # The shading normal on the camera's side of the surface (Cycles turns N towards the
+        # incoming ray on back faces, whatever the material).
+        side = 1.0 if _dot(wi, ng) >= 0.0 else -1.0
+        aux[sl, PS.normal] = side * ns[0]
+        aux[sl, PS.normal + 1] = side * ns[1]
+        aux[sl, PS.normal + 2] = side * ns[2]
+    if PS.position >= 0:
+        aux[sl, PS.position] = p[0] + PS.origin[0]
+        aux[sl, PS.position + 1] = p[1] + PS.origin[1]
+        aux[sl, PS.position + 2] = p[2] + PS.origin[2]
+    if PS.uv >= 0 and has_uvs and PS.object_uv[PS.tri_object[pr]]:
+        aux[sl, PS.uv] = u
+        aux[sl, PS.uv + 1] = v
+        aux[sl, PS.uv + 2] = 1.0            # UV's third channel: this sample hit a UV map
+
+
 @kernel(nogil=True)
-def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
+def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
           slot, key, o, d, beta, prev_pdf, prev_delta, tmax32, prim, t32, b1_32, b2_32,
-          L, albedo, normal, alpha,
+          L, albedo, normal, alpha, aux,
           nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta,
           sh_slot, sh_o32, sh_d32, sh_t32, sh_c,
           ST, LW, LB, LR, LC, counts):
     """One bounce for every traced lane (see the module docstring). Lane slot ``sl`` is sample
     ``sample0 + sl % spp`` of pixel ``pixels[sl // spp]`` (for the path sampler). ``counts``
     (int64[5]) gets [next rays, shadow rays, layered lanes, non-finite paths killed, 0].
+    ``PS``, ``aux``: the data passes' table and per-lane columns (backend/passes.py; untouched
+    when ``PS.active`` is false).
     ``ST``: the layered stack table; ``LW``, ``LB``, ``LR``, ``LC``: the layered walks' scratch
     and counters (kernels/layered/batch.py)."""
     camera = segment == 0
@@ -367,6 +408,8 @@ def shade(G, MT, TX, LT, S, segment, pixels, spp, sample0,
             v = 0.0
         m = G.irows[pr, ROW_MAT]
         wi = (-rd[0], -rd[1], -rd[2])
+        if camera and PS.active:
+            _write_passes(PS, aux, sl, p, ng, ns, wi, u, v, G.has_uvs, m, pr)
         # Both faces emit (as Cycles' emission shader), or the front only (emission_sides).
         if MT.emits[m] and (not MT.emit_front[m] or _dot(wi, ng) > 0.0):
             le = km.emission(MT, TX, m, u, v)

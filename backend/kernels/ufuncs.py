@@ -4,8 +4,16 @@ walks. The maths is the per-lane code in ``fresnel.py`` / ``specfun.py``: one im
 from __future__ import annotations
 
 from numba import guvectorize, vectorize
+from numba.core.registry import cpu_target
 
 from . import fresnel, specfun
+
+# Building a ufunc's wrapper lowers code in the CPU target context even when its kernel comes from
+# the cache, and the lean cache loader (cache._lean_cache_loads) leaves that context unrefreshed:
+# importing this module first in a process, with the ufuncs cached, failed with
+# NumbaNotImplementedError (get_constant of intp), e.g. collecting tests/test_bsdf_cli.py in a
+# second test run. Refreshing here costs what the lean loader saves, only where ufuncs are used.
+cpu_target.target_context.refresh()
 
 
 @vectorize(["float64(float64)"], cache=True)

@@ -58,6 +58,12 @@ class Scene:
     # The files and preset names the load read (scene/inputs.py): what a cluster render sends
     # to its workers. {"files": [absolute path, ...], "presets": {name: path}}.
     inputs: dict = field(default_factory=dict)
+    # Data passes (backend/passes.py): the requested ones, and the offset the load subtracted
+    # from every position (``rebased``; Position adds it back).
+    passes: object = None
+    origin: tuple = (0.0, 0.0, 0.0)
+    # Cameras of named views (stereo / multi-view): the CLI's --view renders one of them.
+    views: dict = field(default_factory=dict)
 
 
 def load_scene(path: str | Path) -> Scene:
@@ -161,7 +167,8 @@ def load_scene_data(data, where: str = "<scene>", base_dir: Path | None = None) 
 
 
 def _load_scene_data(data, where: str, base_dir: Path | None) -> Scene:
-    data = rebased(data)
+    offset = rebase_offset(data)
+    data = rebased(data, offset) if offset is not None else data
     ctx = LoadContext(where, base_dir)
     root = Node(data, "", ctx)
     root.require_object()
@@ -171,6 +178,9 @@ def _load_scene_data(data, where: str, base_dir: Path | None) -> Scene:
     width, height, pixel_filter, crop, transparent = parse_film(root.child("film"))
     from ..camera import parse_camera
     camera = parse_camera(root.child("camera"))
+    views = parse_views(root.optional_child("views"), offset)
+    from ..passes import parse_passes
+    passes = parse_passes(root.optional_child("passes"))
 
     materials, names = parse_materials(root.optional_child("materials"))
     meshes = parse_meshes(root.optional_child("meshes"))
@@ -180,8 +190,28 @@ def _load_scene_data(data, where: str, base_dir: Path | None) -> Scene:
     light_nodes = lights_node.items() if lights_node is not None else []   # for the warnings
     world = parse_world(root.optional_child("world"))
     root.finish()
-    return assemble_scene(ctx, width, height, pixel_filter, crop, transparent, camera, settings,
-                          materials, names, soup, lights, world, light_nodes=light_nodes, root=root)
+    scene = assemble_scene(ctx, width, height, pixel_filter, crop, transparent, camera, settings,
+                           materials, names, soup, lights, world, light_nodes=light_nodes, root=root)
+    scene.passes = passes
+    scene.origin = tuple(float(v) for v in offset) if offset is not None else (0.0, 0.0, 0.0)
+    scene.views = views
+    return scene
+
+
+def parse_views(node: Node | None, offset) -> dict:
+    """``views``: view name → camera (stereo eyes, multi-view cameras), moved by the same
+    rebase offset as the scene's camera."""
+    if node is None:
+        return {}
+    from ..camera import parse_camera
+    views = {}
+    for name, vnode in node.entries():
+        if name.startswith("_"):
+            continue
+        if offset is not None and isinstance(vnode.value, dict):
+            vnode = Node(rebase_sections({"camera": vnode.value}, offset)["camera"], vnode.path, vnode.ctx)
+        views[name] = parse_camera(vnode)
+    return views
 
 
 def check_header(root: Node) -> None:
@@ -277,9 +307,14 @@ def parse_material(node: Node):
         from ..presets import resolve_preset  # the preset library resolves names
         return resolve_preset(node.value, node)
     # "emission_sides" (any material): "both" (default, as Cycles) or "front" (the side the
-    # triangles' counter-clockwise winding faces). Read here so every material type takes it.
+    # triangles' counter-clockwise winding faces). Read here so every material type takes it,
+    # as "pass_index" (the Material Index pass, backend/passes.py).
     sides = node.string("emission_sides", "both", choices=("both", "front")) if isinstance(node.value, dict) else "both"
+    from ..passes import MAX_PASS_INDEX
+    pass_index = node.integer("pass_index", 0, lo=0, hi=MAX_PASS_INDEX) if isinstance(node.value, dict) else 0
     material = dispatch(node, load_all())
+    if pass_index:
+        material.pass_index = pass_index
     if sides == "front":
         if getattr(material, "emission", None) is None:
             node.ctx.warn(node.sub("emission_sides"), "the material emits nothing: ignored")
@@ -343,6 +378,8 @@ def default_material():
 def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list, names: list[str],
                     ctx: LoadContext) -> TriangleSoup:
     verts, norms, uvs, mats, objs, cam, hold = [], [], [], [], [], [], []
+    object_pass: list[float] = []          # each object's pass index (Object Index pass)
+    object_uv: list[bool] = []             # whether its mesh has a UV map (UV pass)
     any_normals = any_uvs = False
     default_index = None
     items = node.items() if node is not None else []
@@ -362,6 +399,8 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
         m = onode.matrix4("to_world", np.eye(4).tolist())
         visible = onode.boolean("visible_camera", True)
         holdout = onode.boolean("holdout", False)
+        from ..passes import MAX_PASS_INDEX
+        object_pass.append(float(onode.integer("pass_index", 0, lo=0, hi=MAX_PASS_INDEX)))
         slot_names = []
         slots_node = onode.optional_child("materials")
         if slots_node is not None:
@@ -403,6 +442,7 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
             nrm /= np.maximum(np.linalg.norm(nrm, axis=2, keepdims=True), 1e-30)
             any_normals = True
         uv = mesh.uvs
+        object_uv.append(uv is not None)
         if uv is not None:
             any_uvs = True
         if np.linalg.det(m[:3, :3]) < 0:
@@ -419,7 +459,9 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
         hold.append(np.full(mesh.triangle_count, holdout))
     if not verts:
         empty = np.zeros((0, 3, 3), np.float32)
-        return TriangleSoup(empty, None, None, np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, bool))
+        soup = TriangleSoup(empty, None, None, np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, bool))
+        soup.object_pass, soup.object_uv = object_pass, object_uv
+        return soup
     vertices = np.concatenate(verts).astype(np.float32)
     normals = None
     if any_normals:
@@ -428,8 +470,10 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
     if any_uvs:
         uv_all = np.concatenate([u if u is not None else np.zeros((v.shape[0], 3, 2), np.float32)
                                  for u, v in zip(uvs, verts)]).astype(np.float32)
-    return TriangleSoup(vertices, normals, uv_all, np.concatenate(mats), np.concatenate(objs), np.concatenate(cam),
+    soup = TriangleSoup(vertices, normals, uv_all, np.concatenate(mats), np.concatenate(objs), np.concatenate(cam),
                         np.concatenate(hold))
+    soup.object_pass, soup.object_uv = object_pass, object_uv
+    return soup
 
 
 def warn_dark_lights(lights: list, nodes: list, ctx: LoadContext) -> None:

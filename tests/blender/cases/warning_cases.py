@@ -24,7 +24,8 @@ def _feature_scene():
     sc.render.use_multiview = True
     vl = bpy.context.view_layer
     for prop in ("use_pass_z", "use_pass_mist", "use_pass_normal", "use_pass_position", "use_pass_uv",
-                 "use_pass_object_index", "use_pass_material_index"):
+                 "use_pass_object_index", "use_pass_material_index", "use_pass_vector",
+                 "use_pass_ambient_occlusion"):
         setattr(vl, prop, True)
     vl.lightgroups.add(name="Key")
     blocker = build.plane("Blocker", size=1, z=2.0)
