@@ -68,10 +68,18 @@ def emitted(I, li, aux, iaux, tx, tri, b0, b1, b2):
     return param_rgb(tx, aux[e:e + 3], iaux[I[li, I_EMIT_TEX_OFF] + slot], u, v)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def sample(I, li, aux, iaux, tx, p, u0, u1):
+    wi, t, value, pdf, _ = sample_tri(I, li, aux, iaux, tx, p, u0, u1)
+    return wi, t, value, pdf
+
+
+@njit(cache=True, _nrt=False)
+def sample_tri(I, li, aux, iaux, tx, p, u0, u1):
+    """``sample`` and the emitter triangle it chose (−1: none), whose object's ray visibility
+    and light linking the integrator then applies (scene/links.py)."""
     if I[li, I_DIST_OFF] < 0:
-        return ZERO3, 0.0, ZERO3, 0.0
+        return ZERO3, 0.0, ZERO3, 0.0, -1
     tri, prob, u_rem = _d.sample_1d(aux, I[li, I_DIST_OFF], I[li, I_COUNT], u0)
     b0, b1 = triangle_barycentric(u_rem, u1)
     b2 = 1.0 - b0 - b1
@@ -85,10 +93,10 @@ def sample(I, li, aux, iaux, tx, p, u0, u1):
     den = aux[r + T_AREA] * cos_l
     pdf = prob * t * t / den if den != 0.0 else 0.0
     if not (cos_l > 0.0 and t > 0.0 and pdf > 0.0):
-        return wi, 0.0, ZERO3, 0.0
+        return wi, 0.0, ZERO3, 0.0, tri
     le = emitted(I, li, aux, iaux, tx, tri, b0, b1, b2)
     inv = 1.0 / pdf
-    return wi, t, (le[0] * inv, le[1] * inv, le[2] * inv), pdf
+    return wi, t, (le[0] * inv, le[1] * inv, le[2] * inv), pdf, tri
 
 
 @njit(cache=True, _nrt=False)
