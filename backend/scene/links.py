@@ -11,9 +11,9 @@ emitters that light them ("receiver sets", at most 64 as in Cycles), and each em
 64-bit mask of the receiver sets it lights (all ones: not linked). Shadow linking is the same
 with blockers: each object is in a "blocker set" and a lamp's shadow mask lists the sets whose
 objects cast its shadows. A list ``{"include": [...], "exclude": [...]}`` means what a Blender
-collection with per-object link states means (measured with Cycles 5.0.1): with any included
-object, only the included objects; otherwise every object but the excluded ones (an object in
-both lists counts as excluded).
+collection with per-object link states means (measured with Cycles 5.0.1): with an ``include``
+list (even an empty one), only the included objects; otherwise every object but the excluded
+ones (an object in both lists counts as excluded).
 """
 from __future__ import annotations
 
@@ -40,14 +40,15 @@ LIGHT_FLAGS = OBJECT_FLAGS[:3]     # a lamp's own shadow switch is Blender's Cas
 @dataclass(frozen=True)
 class LinkList:
     """An include/exclude list of object names (``path``: its field, for messages)."""
-    include: tuple
+    include: tuple | None     # None: no "include" list (every object but the excluded)
     exclude: tuple
     path: str
 
     def members(self, names: list[str]) -> np.ndarray:
         """Which of the objects (by name) the list selects."""
-        inc, exc = set(self.include), set(self.exclude)
-        if inc:
+        exc = set(self.exclude)
+        if self.include is not None:
+            inc = set(self.include)
             return np.array([n in inc and n not in exc for n in names], bool)
         return np.array([n not in exc for n in names], bool)
 
@@ -65,17 +66,19 @@ def _parse_list(node) -> LinkList:
     node.require_object()
     lists = []
     for key in ("include", "exclude"):
-        names = []
         child = node.optional_child(key)
-        if child is not None:
-            for item in child.items():
-                if not isinstance(item.value, str):
-                    from .reader import _describe
-                    raise item.fail(f"expected an object name, got {_describe(item.value)}")
-                names.append(item.value)
+        if child is None:
+            lists.append(None)
+            continue
+        names = []
+        for item in child.items():
+            if not isinstance(item.value, str):
+                from .reader import _describe
+                raise item.fail(f"expected an object name, got {_describe(item.value)}")
+            names.append(item.value)
         lists.append(tuple(names))
     node.finish()
-    return LinkList(lists[0], lists[1], node.path)
+    return LinkList(lists[0], lists[1] or (), node.path)
 
 
 def parse_linking(node, blockers: bool):
@@ -123,7 +126,7 @@ def _sets(lists: list, names: list[str], what: str, ctx):
     known = set(names)
     for i in linked:
         for key in ("include", "exclude"):
-            for j, n in enumerate(getattr(lists[i], key)):
+            for j, n in enumerate(getattr(lists[i], key) or ()):
                 if n not in known:
                     raise ctx.error(f"{lists[i].path}.{key}[{j}]", f"unknown object {short(n)!r}")
     selected = np.array([lists[i].members(names) for i in linked])          # (k, O)
