@@ -202,9 +202,14 @@ class PathTracer:
                 raise RenderInterrupted
             o32, d32 = cur.o32[:active], cur.d32[:active]
             t_in = tmax32[:active] if segment == 0 else np.full(active, 3e38, np.float32)
+            skip = self.skip_camera if segment == 0 else self.skip_indirect
+            # embree writes each hit's distance into the tmax array it is given: re-tracing past
+            # hidden objects needs the rays' own limits (and shading then sees those too).
+            t_ray = t_in.copy() if skip else t_in
             prim, t, b1, b2 = self.accel.intersect32(o32, d32, t_in)
             rays += active
-            if self.skip_camera if segment == 0 else self.skip_indirect:
+            if skip:
+                t_in = t_ray
                 prim, t, b1, b2 = self.vis.skip_hidden(self.accel, o32, d32, t_in, cur.rtype[:active],
                                                        prim, t, b1, b2)
             counts[:] = 0

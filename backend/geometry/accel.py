@@ -104,7 +104,9 @@ class Accelerator:
 
     def intersect32(self, o32: np.ndarray, d32: np.ndarray, tmax32: np.ndarray):
         """Closest hits of float32 rays as embree returns them: (prim int32 with −1 = miss,
-        t float32, b1 float32, b2 float32) — the kernels read these without conversion."""
+        t float32, b1 float32, b2 float32) — the kernels read these without conversion.
+        embree writes each hit's distance into ``tmax32`` (embreex passes the array as the
+        rays' tfar): keep a copy where the limits are needed afterwards."""
         if o32.shape[0] == 0:
             z = np.zeros(0, np.float32)
             return np.zeros(0, np.int32), z, z, z
