@@ -25,6 +25,8 @@ from .kernels.lights.table import build_light_table
 from .kernels.params import ParamPacker
 from .kernels.sampler import SAMPLERS
 from .kernels.soup import shading_rows
+from .scene.links import CAMERA, NO_RECEIVER
+from .visibility import RAY_BITS, Visibility
 
 #: Path segments whose sampling dimensions come from the stratified (Sobol) sampler; deeper ones
 #: use the hashed numbers. Measured (benchmarks/sampler_depth.py, Cornell box 48², 3 seeds):
@@ -53,9 +55,12 @@ class _Queue:
         self.beta = np.empty((n, 3))
         self.pdf = np.empty(n)
         self.delta = np.empty(n, np.uint8)   # how the ray's vertex was lit (kernels VIA_*)
+        self.rtype = np.empty(n, np.uint8)   # the ray's type (scene/links.py bits)
+        self.recv = np.empty(n, np.uint8)    # the receiver set of the vertex it left
 
     def outputs(self):
-        return (self.slot, self.key, self.o, self.d, self.o32, self.d32, self.beta, self.pdf, self.delta)
+        return (self.slot, self.key, self.o, self.d, self.o32, self.d32, self.beta, self.pdf, self.delta,
+                self.rtype, self.recv)
 
 
 class _Scratch:
@@ -74,6 +79,7 @@ class _Scratch:
         self.sh_d32 = np.empty((m, 3), np.float32)
         self.sh_t32 = np.empty(m, np.float32)
         self.sh_c = np.empty((m, 3))
+        self.sh_mask = np.empty(m, np.int64)
         self.walk = layered_batch.scratch(walk_capacity)
 
 
@@ -123,26 +129,34 @@ class PathTracer:
         # and at most ALL_LIGHTS_MAX of them.
         n_sampled = int(self.light_table.sel_active.size)
         nee_all = n_sampled if self.light_table.local_selection and n_sampled <= ALL_LIGHTS_MAX else 0
+        # Ray visibility, light and shadow linking: tables, and the embree-side filters.
+        self.vis = Visibility(scene, self.lights, mesh_light, self.light_table)
         self.settings = ki.Settings(
             np.uint64(s.seed), self.max_segments, s.rr_depth, float(s.clamp), bool(scene.transparent),
             has_lights, mesh_light,
             np.array([i for i, l in enumerate(self.lights) if l.is_hittable], np.int64),
             np.array([i for i, l in enumerate(self.lights) if l.is_infinite], np.int64),
             np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights] or [False]),
-            SAMPLERS[s.sampler], STRATIFIED_BOUNCES, nee_all)
+            SAMPLERS[s.sampler], STRATIFIED_BOUNCES, nee_all, *self.vis.kernel_fields())
         self.camera = camera_vector(scene.camera)
         self.passes = getattr(scene, "passes", None)
         if self.passes is not None and not self.passes.active:
             self.passes = None
         self.pass_params = self._pass_params(scene.camera)
         self.filter = scene.pixel_filter.tables()
-        self.any_hidden = bool(soup.count) and not bool(soup.camera_visible.all())
+        # Which bounces need their hits filtered: the camera's, the others' (ray types).
+        lacking = int(np.bitwise_or.reduce(~self.vis.tri_vis & RAY_BITS)) if self.vis.skip_hits else 0
+        self.skip_camera = bool(lacking & CAMERA)
+        self.skip_indirect = bool(lacking & ~CAMERA)
         self._local = threading.local()      # per-thread _Scratch (threads share one tracer)
 
     def _scratch(self, n: int) -> _Scratch:
         sc = getattr(self._local, "scratch", None)
         if sc is None or sc.n < n:
-            sc = self._local.scratch = _Scratch(n, self.walk_capacity, max(1, self.settings.nee_all))
+            # Shadow rays per lane: next-event estimation's, and one dedicated ray per light
+            # with shadow linking (kernels/integrator.py).
+            per_lane = max(1, self.settings.nee_all) + int(self.vis.shadow_linked.size)
+            sc = self._local.scratch = _Scratch(n, self.walk_capacity, per_lane)
         return sc
 
     def set_camera(self, camera) -> None:
@@ -185,6 +199,8 @@ class PathTracer:
         cur.beta[:n] = 1.0
         cur.pdf[:n] = 0.0
         cur.delta[:n] = ki.VIA_DELTA  # camera rays: emission seen directly gets weight 1
+        cur.rtype[:n] = CAMERA
+        cur.recv[:n] = NO_RECEIVER    # light linking does not apply to camera rays (Cycles)
         sh_slot, sh_o32, sh_d32, sh_t32, sh_c = sc.sh_slot, sc.sh_o32, sc.sh_d32, sc.sh_t32, sc.sh_c
         lw, lb, lr, lc = sc.walk
         for a in sc.walk:
@@ -200,20 +216,30 @@ class PathTracer:
                 raise RenderInterrupted
             o32, d32 = cur.o32[:active], cur.d32[:active]
             t_in = tmax32[:active] if segment == 0 else np.full(active, 3e38, np.float32)
+            skip = self.skip_camera if segment == 0 else self.skip_indirect
+            # embree writes each hit's distance into the tmax array it is given: re-tracing past
+            # hidden objects needs the rays' own limits (and shading then sees those too).
+            t_ray = t_in.copy() if skip else t_in
             prim, t, b1, b2 = self.accel.intersect32(o32, d32, t_in)
             rays += active
-            if segment == 0 and self.any_hidden:
-                prim, t, b1, b2 = self._skip_hidden(o32, d32, t_in, prim, t, b1, b2)
+            if skip:
+                t_in = t_ray
+                prim, t, b1, b2 = self.vis.skip_hidden(self.accel, o32, d32, t_in, cur.rtype[:active],
+                                                       prim, t, b1, b2)
             counts[:] = 0
             ki.shade(self.geometry, self.materials, self.textures, self.light_table, self.settings,
                      self.pass_params, segment, pixels, spp, sample0,
                      cur.slot[:active], cur.key[:active], cur.o[:active], cur.d[:active], cur.beta[:active],
-                     cur.pdf[:active], cur.delta[:active], t_in, prim, t, b1, b2,
+                     cur.pdf[:active], cur.delta[:active], cur.rtype[:active], cur.recv[:active],
+                     t_in, prim, t, b1, b2,
                      L, albedo, normal, alpha, aux, *nxt.outputs(),
-                     sh_slot, sh_o32, sh_d32, sh_t32, sh_c, self.stacks, lw, lb, lr, lc, counts)
+                     sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sc.sh_mask, self.stacks, lw, lb, lr, lc, counts)
             ns = int(counts[1])
             if ns:
-                blocked = self.accel.occluded32(sh_o32[:ns], sh_d32[:ns], sh_t32[:ns])
+                if self.vis.filter_shadows:
+                    blocked = self.vis.occluded(sh_o32[:ns], sh_d32[:ns], sh_t32[:ns], sc.sh_mask[:ns])
+                else:
+                    blocked = self.accel.occluded32(sh_o32[:ns], sh_d32[:ns], sh_t32[:ns])
                 rays += ns
                 ki.add_unoccluded(sh_slot[:ns], sh_c[:ns], blocked, L)
             killed += int(counts[3])
@@ -228,30 +254,6 @@ class PathTracer:
         if self.passes is not None:
             out["passes"] = aux
         return out
-
-    # ------------------------------------------------------------------ geometry
-    def _skip_hidden(self, o32, d32, t_in, prim, t, b1, b2, max_layers: int = 16):
-        """Camera rays pass through objects with visible_camera = false (bounded re-tracing)."""
-        from .geometry.accel import offset_origin
-        prim, t, b1, b2 = prim.copy(), t.astype(np.float64), b1.copy(), b2.copy()
-        o = o32.astype(np.float64)
-        d = d32.astype(np.float64)
-        t_base = np.zeros(prim.size)
-        for _ in range(max_layers):
-            hidden = prim >= 0
-            hidden[hidden] = ~self.soup.camera_visible[prim[hidden]]
-            if not hidden.any():
-                break
-            idx = np.nonzero(hidden)[0]
-            p_hit = o[idx] + d[idx] * (t_base[idx] + t[idx])[:, None]
-            start = offset_origin(p_hit, self.soup.geo_normal[prim[idx]], d[idx])
-            adv = np.einsum("ij,ij->i", start - o[idx], d[idx])
-            p2, t2, u2, v2 = self.accel.intersect32(np.ascontiguousarray(start, np.float32),
-                                                    np.ascontiguousarray(d32[idx]),
-                                                    np.ascontiguousarray(np.maximum(t_in[idx] - adv, 0), np.float32))
-            prim[idx], t[idx], b1[idx], b2[idx] = p2, t2, u2, v2
-            t_base[idx] = adv
-        return prim, (t + t_base).astype(np.float32), b1, b2
 
 
 _NO_LANES = np.zeros((0, 0))     # the pass columns of a work item when no pass is requested

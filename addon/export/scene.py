@@ -16,6 +16,7 @@ from ..util import matrix_rows
 from .camera import CameraError, camera_json, film_json, film_size
 from .images import ImageExporter, safe_name
 from .lights import light_json
+from .linking import LIGHT_RAYS, linking_source, resolve, visibility_fields
 from .mesh import mesh_arrays, sanitise, write_npz
 from .names import FieldNames
 from .nodes import DEFAULT_MATERIAL, NodeTranslator, volume_note
@@ -116,6 +117,7 @@ class SceneExporter:
         self._mesh_names: set[str] = set()
         self.objects: list[dict] = []
         self.lights: list[dict] = []
+        self._linking: list = []          # (entry, collections) resolved once all are exported
         self.stats = {"triangles": 0, "meshes": 0, "instances": 0}
         self.names = FieldNames()
 
@@ -219,6 +221,8 @@ class SceneExporter:
         if kind == "LIGHT":
             entry = light_json(obj, inst.matrix_world.copy(), self.notes)
             if entry is not None:
+                entry.update(visibility_fields(obj, LIGHT_RAYS))
+                self._linking.append((entry, linking_source(obj, blockers=True)))
                 self.lights.append(entry)
                 if not self.preview:
                     self.notes.extend(object_notes(obj, "light") + light_data_notes(obj))
@@ -238,8 +242,8 @@ class SceneExporter:
         slots = [self.material_name(slot.material) for slot in obj.material_slots]
         if not slots:
             slots = [self.material_name(None)]
-        entry = {"_name": obj.name, "mesh": mesh, "to_world": matrix_rows(inst.matrix_world.copy()),
-                 "materials": slots}
+        entry = {"name": obj.name, "_name": obj.name, "mesh": mesh,
+                 "to_world": matrix_rows(inst.matrix_world.copy()), "materials": slots}
         if holdout:
             entry["holdout"] = True
         if int(getattr(original, "pass_index", 0)) > 0:
@@ -248,6 +252,9 @@ class SceneExporter:
             slot.material is not None and slot.material.name.startswith(PREVIEW_FLOOR) for slot in obj.material_slots)
         if not getattr(obj, "visible_camera", True) or hidden_floor:
             entry["visible_camera"] = False
+        if not self.preview:
+            entry.update(visibility_fields(obj))
+            self._linking.append((entry, linking_source(obj, blockers=False)))
         if not self.preview:
             self.notes.extend(object_notes(obj, "object"))
         self.objects.append(entry)
@@ -273,6 +280,10 @@ class SceneExporter:
             film = film_json(scene, width, height)
         for inst in self.depsgraph.object_instances:
             self.add_instance(inst)
+        exported = {o["name"] for o in self.objects}
+        for entry, source in self._linking:
+            if source:
+                entry["light_linking"] = resolve(source, exported)
         if not self.preview:
             self.notes.extend(scene_notes(scene, getattr(self.depsgraph, "view_layer", None)))
         doc = {"format": "lamina-scene", "version": 1,

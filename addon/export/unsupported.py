@@ -2,11 +2,12 @@
 
 Every note is ``"<kind> '<name>': <what> (<what Lamina does instead>)"``, so the render's one
 warning (``scene.warning_text``) groups them by object, material, light, view layer or scene.
-Checked here: motion blur, ray visibility other than camera rays, light and shadow linking,
-light groups, shadow catchers, a light's shadow/contribution switches, and render passes other
-than Combined, the denoising passes and the data passes of passes.py. (Shader nodes are checked
-by nodes.py, geometry types by scene.py, textures by images.py.) Stereo / multi-view renders
-every view from its own camera (engine.py).
+Checked here: motion blur, a light object's shadow ray visibility, shadow linking set on an
+emissive object, light groups, shadow catchers, a light's shadow/contribution switches, and render
+passes other than Combined, the denoising passes and the data passes of passes.py. (Ray
+visibility of objects and lights and light linking of lights and emissive objects are rendered:
+linking.py; stereo / multi-view renders every view from its own camera: engine.py. Shader nodes
+are checked by nodes.py, geometry types by scene.py, textures by images.py.)
 """
 from __future__ import annotations
 
@@ -31,10 +32,10 @@ PASSES = (
     ("use_pass_cryptomatte_asset", "Cryptomatte Asset"),
 )
 
-# Object ray-visibility switches other than camera rays (which Lamina honours).
-# (Volume scatter is left out: Lamina renders no volumes, so it changes nothing.)
-RAY_VISIBILITY = (("visible_diffuse", "diffuse"), ("visible_glossy", "glossy"),
-                  ("visible_transmission", "transmission"), ("visible_shadow", "shadow"))
+# Ray-visibility switches Lamina does not honour: none on objects (camera, diffuse, glossy,
+# transmission and shadow rays are rendered); on a light object the shadow switch (its shadows
+# are Blender's Cast Shadow, noted below). Volume scatter is left out: Lamina renders no volumes.
+RAY_VISIBILITY = {"object": (), "light": (("visible_shadow", "shadow"),)}
 
 
 def scene_notes(scene, view_layer) -> list[str]:
@@ -69,18 +70,17 @@ def object_notes(obj, kind: str) -> list[str]:
     """Per-object settings Lamina ignores (``kind``: 'object' or 'light', for the message)."""
     notes = []
     original = obj.original if getattr(obj, "original", None) is not None else obj
-    hidden = [label for prop, label in RAY_VISIBILITY if not getattr(original, prop, True)]
+    hidden = [label for prop, label in RAY_VISIBILITY.get(kind, ()) if not getattr(original, prop, True)]
     if hidden:
         notes.append(f"{kind} '{original.name}': ray visibility off for {', '.join(hidden)} rays "
                      f"(ignored: seen by every ray)")
     linking = getattr(original, "light_linking", None)
-    if linking is not None:
-        if getattr(linking, "receiver_collection", None) is not None:
-            notes.append(f"{kind} '{original.name}': light linking to collection "
-                         f"'{linking.receiver_collection.name}' (ignored: lights everything)")
-        if getattr(linking, "blocker_collection", None) is not None:
-            notes.append(f"{kind} '{original.name}': shadow linking to collection "
-                         f"'{linking.blocker_collection.name}' (ignored: every object casts shadows)")
+    if linking is not None and kind == "object" and getattr(linking, "blocker_collection", None) is not None:
+        # Light linking of lights and emissive objects and shadow linking of lights are
+        # rendered; an emissive object's blockers are not (its emission found by BSDF sampling
+        # would need a dedicated ray past non-blockers, which Lamina traces only for lights).
+        notes.append(f"{kind} '{original.name}': shadow linking to collection "
+                     f"'{linking.blocker_collection.name}' (ignored: every object casts shadows)")
     if getattr(original, "lightgroup", ""):
         notes.append(f"{kind} '{original.name}': light group '{original.lightgroup}' (ignored)")
     if kind == "object" and getattr(original, "is_shadow_catcher", False):

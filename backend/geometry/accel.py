@@ -39,10 +39,23 @@ class TriangleSoup:
     area: np.ndarray = None         # (T,) float64
     object_pass: list = None        # each object's pass index (the Object Index pass)
     object_uv: list = None          # whether each object's mesh has a UV map (the UV pass)
+    # Per object (object_id indexes them; scene/links.py): names, ray-type bits, the receiver
+    # list of an emissive object (light linking). Defaults: every ray sees every object.
+    object_names: list = None
+    object_vis: np.ndarray = None
+    object_receivers: list = None
 
     def __post_init__(self):
         if self.holdout is None:
             self.holdout = np.zeros(self.vertices.shape[0], dtype=bool)
+        if self.object_names is None:
+            from ..scene.links import ALL_RAYS, CAMERA
+            n = int(self.object_id.max()) + 1 if self.object_id.size else 0
+            hidden = np.zeros(n, bool)
+            hidden[self.object_id[~np.asarray(self.camera_visible, bool)]] = True
+            self.object_names = [f"object {i}" for i in range(n)]
+            self.object_vis = np.where(hidden, ALL_RAYS & ~CAMERA, ALL_RAYS).astype(np.uint8)
+            self.object_receivers = [None] * n
         from ..kernels.soup import triangle_frames
         self.geo_normal, self.tangent, self.area = triangle_frames(self.vertices, self.uvs)
 
@@ -93,7 +106,9 @@ class Accelerator:
 
     def intersect32(self, o32: np.ndarray, d32: np.ndarray, tmax32: np.ndarray):
         """Closest hits of float32 rays as embree returns them: (prim int32 with −1 = miss,
-        t float32, b1 float32, b2 float32) — the kernels read these without conversion."""
+        t float32, b1 float32, b2 float32) — the kernels read these without conversion.
+        embree writes each hit's distance into ``tmax32`` (embreex passes the array as the
+        rays' tfar): keep a copy where the limits are needed afterwards."""
         if o32.shape[0] == 0:
             z = np.zeros(0, np.float32)
             return np.zeros(0, np.int32), z, z, z
@@ -105,7 +120,9 @@ class Accelerator:
         return res["primID"], res["tfar"], res["u"], res["v"]
 
     def occluded32(self, o32: np.ndarray, d32: np.ndarray, tmax32: np.ndarray) -> np.ndarray:
-        """embree's OCCLUDED answer per float32 segment: −1 where the segment (0, tmax) is free."""
+        """embree's OCCLUDED answer per float32 segment: −1 where the segment (0, tmax) is free
+        (otherwise the geometry id, not the primitive: embree's any-hit query does not say
+        which triangle)."""
         if o32.shape[0] == 0:
             return np.zeros(0, np.int32)
         if self.recorder is not None:
@@ -124,10 +141,31 @@ class Accelerator:
         dists = np.ascontiguousarray(np.minimum(tmax, 3e38), dtype=np.float32)
         if self.recorder is not None:
             self.recorder.append(("occluded", o32, d32, dists))
-        # With query OCCLUDED embreex returns the hit primitive id, or -1 when the segment is free.
+        # With query OCCLUDED embreex returns the hit geometry id (0: the one mesh), or -1 when
+        # the segment is free.
         res = self._scene.run(o32, d32, dists=dists, query="OCCLUDED")
         self.rays_traced += n
         return np.asarray(res) != -1
+
+
+class Occluder:
+    """An embree scene over some of the scene's triangles, for shadow rays only (the triangles
+    that stop one class of shadow rays: backend/visibility.py). Empty: nothing blocks."""
+
+    def __init__(self, vertices: np.ndarray):
+        self._scene = None
+        if vertices.shape[0]:
+            from embreex import rtcore_scene as rtcs
+            from embreex.mesh_construction import TriangleMesh
+            self._scene = rtcs.EmbreeScene()
+            TriangleMesh(self._scene, np.ascontiguousarray(vertices, dtype=np.float32))
+
+    def occluded32(self, o32: np.ndarray, d32: np.ndarray, tmax32: np.ndarray) -> np.ndarray:
+        """−1 where the segment (0, tmax) is free (embree reports the geometry id otherwise)."""
+        if self._scene is None or o32.shape[0] == 0:
+            return np.full(o32.shape[0], -1, np.int32)
+        return np.asarray(self._scene.run(np.ascontiguousarray(o32), np.ascontiguousarray(d32),
+                                          dists=np.ascontiguousarray(tmax32), query="OCCLUDED"))
 
 
 def retrace(accel: "Accelerator", batches: list) -> float:

@@ -33,6 +33,7 @@ from . import materials as km
 from .jit import inlined, kernel
 from .layered import batch as layered
 from .lights import dispatch as ld
+from .lights import mesh as _mesh
 from .lights.common import C_POWER
 from .rng import SLOT_BSDF, SLOT_LIGHT, SLOT_LIGHT_PICK, SLOT_RR, SLOT_SPARE, bounce_dim, stream_key, uniform
 from .sampler import get2, pixel_seed
@@ -52,7 +53,26 @@ Geometry = namedtuple("Geometry", ["rows", "irows", "holdout", "has_normals", "h
 # Render settings the kernels read (scalars; one Numba type per field).
 Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", "transparent",
                                    "has_lights", "mesh_light", "hittable", "infinite",
-                                   "visible_camera", "sampler", "stratified_bounces", "nee_all"])
+                                   "visible_camera", "sampler", "stratified_bounces", "nee_all",
+                                   "track", "gated", "links", "shadow_linked", "tri_recv",
+                                   "light_vis", "light_recv", "light_shadow", "emit_vis",
+                                   "emit_recv", "mat_refl"])
+# Ray visibility and light/shadow linking (scene/links.py; integrator.py builds the tables):
+#   track         the lanes' ray types matter (the next ray's type is written: ``_lobe_class``)
+#   gated         next-event estimation and emission found by BSDF sampling are filtered per
+#                 light: its ray-type bits against the connection's class, its receiver mask
+#                 against the vertex's receiver set (``_allowed``)
+#   links         light linking: the receiver set of a vertex is its object's (``tri_recv``)
+#   shadow_linked lights with shadow linking whose emission BSDF-sampled rays can hit (area,
+#                 sphere, sun disk, …): found by a dedicated shadow ray that only their blockers
+#                 stop (as Cycles' dedicated light rays), not at the closest surface
+#   light_vis/light_recv/light_shadow   per light (the mesh light and the world: everything)
+#   emit_vis/emit_recv  per emitter triangle of the mesh light (its object's)
+#   mat_refl      per material: the class of a reflection (a layered stack: diffuse if one of
+#                 its interfaces is diffuse, else glossy; transmission is always TRANSMIT)
+# Ray-type bits (scene/links.py).
+RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT = 1, 2, 4, 8
+NO_RECEIVER = 64
 
 
 @kernel
@@ -199,21 +219,67 @@ def _lane_pixel_sample(i, spp, inv_spp):
 
 
 @inlined
-def _light_sample(LT, TX, li, p, u0, u1, fs, ft, ns, ng):
-    """A next-event sample of light li from p: (wi world, dist, value, pdf, is_delta, wi in the
-    shading frame, live = it carries light and lies on the same side for both normals)."""
-    wi_w, dist, value, lpdf, is_delta = ld.sample(LT, TX, li, p, u0, u1)
-    wo_n = _local(fs, ft, ns, wi_w)
-    live = max(value[0], max(value[1], value[2])) > 0.0 and _dot(wi_w, ng) * wo_n[2] > 0.0
-    return wi_w, dist, value, lpdf, is_delta, wo_n, live
+def _linked(mask, rs):
+    """Light linking: does an emitter with receiver mask ``mask`` light receiver set ``rs``?"""
+    return rs >= NO_RECEIVER or ((mask >> np.int64(rs)) & 1) != 0
 
 
 @inlined
-def _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, sh_slot, sh_o32, sh_d32, sh_t32,
-                 sh_c, counts):
+def _lobe_class(S, kind, m, reflect):
+    """The ray type of a direction a material scatters into (Cycles' labels): reflection by a
+    diffuse material is diffuse, by a conductor or dielectric glossy (mirrors included), by a
+    layered stack ``mat_refl``; every transmission is transmission."""
+    if not reflect:
+        return RAY_TRANSMIT
+    if kind == km.DIFFUSE:
+        return RAY_DIFFUSE
+    if kind == km.LAYERED:
+        return S.mat_refl[m]
+    return RAY_GLOSSY
+
+
+@inlined
+def _allowed(S, li, tri, rs, cls):
+    """May light li (emitter triangle tri of the mesh light) light this vertex (receiver set
+    rs) through a connection of class cls? (Cycles' SHADER_EXCLUDE_* and light sets.)"""
+    if li == S.mesh_light:
+        if tri < 0:
+            return True
+        return (S.emit_vis[tri] & cls) != 0 and _linked(S.emit_recv[tri], rs)
+    return (S.light_vis[li] & cls) != 0 and _linked(S.light_recv[li], rs)
+
+
+@inlined
+def _light_sample(S, LT, TX, li, p, u0, u1, fs, ft, ns, ng):
+    """A next-event sample of light li from p: (wi world, dist, value, pdf, is_delta, wi in the
+    shading frame, live = it carries light and lies on the same side for both normals, the
+    mesh light's emitter triangle or −1)."""
+    tri = -1
+    if S.gated and li == S.mesh_light:
+        wi_w, dist, value, lpdf, tri = _mesh.sample_tri(LT.iparams, li, LT.aux, LT.iaux, TX, p, u0, u1)
+        is_delta = False
+    else:
+        wi_w, dist, value, lpdf, is_delta = ld.sample(LT, TX, li, p, u0, u1)
+    wo_n = _local(fs, ft, ns, wi_w)
+    live = max(value[0], max(value[1], value[2])) > 0.0 and _dot(wi_w, ng) * wo_n[2] > 0.0
+    return wi_w, dist, value, lpdf, is_delta, wo_n, live, tri
+
+
+@inlined
+def _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, mask, sh_slot, sh_o32, sh_d32, sh_t32,
+                 sh_c, sh_mask, counts):
+    """A shadow ray from p (offset) towards wi_w over dist, carrying c if nothing blocks it;
+    ``mask``: the blocker sets that stop it (shadow linking; −1: all)."""
+    _push_ray(S, segment, slot, _offset(p, ng, wi_w), wi_w, dist, c, mask, sh_slot, sh_o32, sh_d32,
+              sh_t32, sh_c, sh_mask, counts)
+
+
+@inlined
+def _push_ray(S, segment, slot, origin, wi_w, dist, c, mask, sh_slot, sh_o32, sh_d32, sh_t32,
+              sh_c, sh_mask, counts):
     k = counts[1]
-    origin = _offset(p, ng, wi_w)
     sh_slot[k] = slot
+    sh_mask[k] = mask
     for j in range(3):
         sh_o32[k, j] = origin[j]
         sh_d32[k, j] = wi_w[j]
@@ -225,14 +291,15 @@ def _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, sh_slot, sh_o32, sh_d32
 
 @inlined
 def _nee(S, segment, slot, beta, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p, f, bsdf_pdf,
-         sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts):
+         mask, sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, counts):
     """Light-sample contribution: MIS (power heuristic) against BSDF sampling, divided by the
     selection probability; a shadow ray if it carries anything."""
     w = 1.0 if is_delta else power_heuristic(sel_p * lpdf, bsdf_pdf)
     w /= sel_p
     c = (w * beta[0] * f[0] * value[0], w * beta[1] * f[1] * value[1], w * beta[2] * f[2] * value[2])
     if max(c[0], max(c[1], c[2])) > 0.0:
-        _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
+        _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, mask, sh_slot, sh_o32, sh_d32, sh_t32,
+                     sh_c, sh_mask, counts)
 
 
 @inlined
@@ -259,8 +326,9 @@ def _roulette(MT, TX, m, u, v, wi, ng, beta):
 
 
 @inlined
-def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, via,
-              nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, counts):
+def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, via, rtype, recv,
+              nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, nx_rtype,
+              nx_recv, counts):
     """The next ray: leak guard, compaction into the next-ray queue (Russian roulette is
     decided at the surface the ray reaches, ``_roulette``)."""
     # The sampled side must agree for the shading and the geometric normal.
@@ -285,6 +353,8 @@ def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, vi
         nx_beta[k, j] = b[j]
     nx_pdf[k] = pdf
     nx_delta[k] = via
+    nx_rtype[k] = rtype
+    nx_recv[k] = recv
     counts[0] = k + 1
 
 
@@ -329,10 +399,10 @@ def _write_passes(PS, aux, sl, p, ng, ns, wi, u, v, has_uvs, m, pr):
 
 @kernel(nogil=True)
 def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
-          slot, key, o, d, beta, prev_pdf, prev_delta, tmax32, prim, t32, b1_32, b2_32,
+          slot, key, o, d, beta, prev_pdf, prev_delta, rtype, recv, tmax32, prim, t32, b1_32, b2_32,
           L, albedo, normal, alpha, aux,
-          nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta,
-          sh_slot, sh_o32, sh_d32, sh_t32, sh_c,
+          nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, nx_rtype, nx_recv,
+          sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask,
           ST, LW, LB, LR, LC, counts):
     """One bounce for every traced lane (see the module docstring). Lane slot ``sl`` is sample
     ``sample0 + sl % spp`` of pixel ``pixels[sl // spp]`` (for the path sampler). ``counts``
@@ -340,15 +410,21 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
     ``PS``, ``aux``: the data passes' table and per-lane columns (backend/passes.py; untouched
     when ``PS.active`` is false).
     ``ST``: the layered stack table; ``LW``, ``LB``, ``LR``, ``LC``: the layered walks' scratch
-    and counters (kernels/layered/batch.py)."""
+    and counters (kernels/layered/batch.py). ``rtype``/``recv``: each ray's type and the receiver
+    set of the vertex it left (ray visibility, light linking: ``Settings``); ``sh_mask``: each
+    shadow ray's blocker sets."""
     camera = segment == 0
     inv_spp = 1.0 / spp
     last = segment == S.max_segments - 1
     can_nee = S.has_lights and segment + 1 < S.max_segments
     nh = S.hittable.shape[0]
     ni = S.infinite.shape[0]
+    nsl = S.shadow_linked.shape[0] if not camera else 0
+    gate_hits = S.gated and not camera     # camera rays see every light (Cycles)
     for i in range(slot.shape[0]):
         sl = slot[i]
+        rt = rtype[i]
+        rv = recv[i]
         ro = (o[i, 0], o[i, 1], o[i, 2])
         rd = (d[i, 0], d[i, 1], d[i, 2])
         bt = (beta[i, 0], beta[i, 1], beta[i, 2])
@@ -357,10 +433,35 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
         pr = prim[i]
         t_surf = np.float64(t32[i]) if pr >= 0 else INF
         t_limit = min(t_surf, np.float64(tmax32[i]))
+        # 0. lights with shadow linking: what this ray would see of them past surfaces that do
+        # not block them goes to a dedicated shadow ray along the ray (only their blockers stop
+        # it); the loops below then skip them.
+        for j in range(nsl):
+            li = S.shadow_linked[j]
+            if not ((S.light_vis[li] & rt) != 0 and _linked(S.light_recv[li], rv)):
+                continue
+            if LT.is_infinite[li]:
+                le = ld.eval_escaped(LT, li, rd)
+                pdf_l = ld.pdf_escaped(LT, li, rd)
+                tl = INF
+            else:
+                tl = ld.intersect(LT, li, ro, rd, INF)
+                if not tl < INF:
+                    continue
+                le = ld.eval_hit(LT, li, ro, rd, tl)
+                pdf_l = ld.pdf_hit(LT, li, ro, rd, tl)
+            if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
+                w = _mis_hit(LT, li, pdf_l, pp, pd, ro)
+                c = _clamped((bt[0] * le[0] * w, bt[1] * le[1] * w, bt[2] * le[2] * w), S.clamp, segment)
+                _push_ray(S, segment, sl, ro, rd, tl, c, S.light_shadow[li], sh_slot, sh_o32, sh_d32, sh_t32,
+                          sh_c, sh_mask, counts)
         # 1. lights passed on the way (transparent, as in Cycles)
         for j in range(nh):
             li = S.hittable[j]
             if camera and not S.visible_camera[li]:
+                continue
+            if gate_hits and not ((S.light_vis[li] & rt) != 0 and _linked(S.light_recv[li], rv)
+                                  and S.light_shadow[li] == -1):
                 continue
             tl = ld.intersect(LT, li, ro, rd, t_limit)
             if tl < INF:
@@ -373,6 +474,9 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
                 for j in range(ni):
                     li = S.infinite[j]
                     if camera and not S.visible_camera[li]:
+                        continue
+                    if gate_hits and not ((S.light_vis[li] & rt) != 0 and _linked(S.light_recv[li], rv)
+                                          and S.light_shadow[li] == -1):
                         continue
                     le = ld.eval_escaped(LT, li, rd)
                     if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
@@ -411,7 +515,9 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
         if camera and PS.active:
             _write_passes(PS, aux, sl, p, ng, ns, wi, u, v, G.has_uvs, m, pr)
         # Both faces emit (as Cycles' emission shader), or the front only (emission_sides).
-        if MT.emits[m] and (not MT.emit_front[m] or _dot(wi, ng) > 0.0):
+        if MT.emits[m] and (not MT.emit_front[m] or _dot(wi, ng) > 0.0) and not (
+                gate_hits and S.links and G.irows[pr, ROW_EMIT] >= 0
+                and not _linked(S.emit_recv[G.irows[pr, ROW_EMIT]], rv)):
             le = km.emission(MT, TX, m, u, v)
             w = 1.0
             if S.mesh_light >= 0:
@@ -462,6 +568,8 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
         is_delta = True
         live = False
         wo_n = (0.0, 0.0, 1.0)
+        # The receiver set of this vertex (light linking).
+        rs = np.int64(S.tri_recv[pr]) if S.links else np.int64(NO_RECEIVER)
         # Few lights (S.nee_all = their number, 2-4): every one is sampled at an analytic
         # material's vertex (one shadow ray each) instead of picking one; layered stacks connect
         # to one picked light (their walks serve one direction).
@@ -470,8 +578,10 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
             li, sel_p = ld.select(LT, p, u_pick)
             if li >= 0 and sel_p > 0.0:
                 ul0, ul1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_LIGHT))
-                wi_w, dist, value, lpdf, is_delta, wo_n, live = _light_sample(LT, TX, li, p, ul0, ul1,
-                                                                               fs, ft, ns, ng)
+                wi_w, dist, value, lpdf, is_delta, wo_n, live, etri = _light_sample(
+                    S, LT, TX, li, p, ul0, ul1, fs, ft, ns, ng)
+                if live and S.gated:
+                    live = _allowed(S, li, etri, rs, _lobe_class(S, kind, m, wi_l[2] * wo_n[2] > 0.0))
         if kind == km.LAYERED:
             # 4b + 5 for a layered stack: one per-lane call (shared walks).
             counts[2] += 1
@@ -482,11 +592,12 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
                 albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = alb
             if live:
                 _nee(S, segment, sl, bt, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p, f, bpdf,
-                     sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
+                     S.light_shadow[li], sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, counts)
             if not last and (weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0):
+                nrt = _lobe_class(S, kind, m, wi_l[2] * wo[2] > 0.0) if S.track else 0
                 _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
-                          spdf, VIA_DELTA if sdelta else VIA_SAMPLED, nx_slot, nx_key, nx_o, nx_d,
-                          nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, counts)
+                          spdf, VIA_DELTA if sdelta else VIA_SAMPLED, nrt, rs, nx_slot, nx_key, nx_o,
+                          nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, nx_rtype, nx_recv, counts)
             continue
         prm = km.bind(MT, TX, m, u, v)
         dist_code = MT.dist[m]
@@ -504,15 +615,18 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
                 else:
                     ul0 = uniform(sub, 2 * k - 2)
                     ul1 = uniform(sub, 2 * k - 1)
-                wk, dk, vk, pk, dlk, wok, live_k = _light_sample(LT, TX, lk, p, ul0, ul1, fs, ft, ns, ng)
+                wk, dk, vk, pk, dlk, wok, live_k, etri = _light_sample(S, LT, TX, lk, p, ul0, ul1,
+                                                                       fs, ft, ns, ng)
+                if live_k and S.gated:
+                    live_k = _allowed(S, lk, etri, rs, _lobe_class(S, kind, m, wi_l[2] * wok[2] > 0.0))
                 if live_k:
                     f, bpdf = km.eval_pdf(kind, dist_code, mask_code, prm, 0, wi_l, wok)
                     _nee(S, segment, sl, bt, p, ng, wk, dk, vk, pk, dlk, 1.0, f, bpdf,
-                         sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
+                         S.light_shadow[lk], sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, counts)
         elif live and not km.is_delta_only(kind, prm):
             f, bpdf = km.eval_pdf(kind, dist_code, mask_code, prm, 0, wi_l, wo_n)
             _nee(S, segment, sl, bt, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p, f, bpdf,
-                 sh_slot, sh_o32, sh_d32, sh_t32, sh_c, counts)
+                 S.light_shadow[li], sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, counts)
         # 5. continuation
         if not last:
             ub0, ub1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_BSDF))
@@ -520,9 +634,10 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
                                                  ub0, ub1, u_lobe)
             if weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0:
                 via = VIA_DELTA if sdelta else (VIA_ALL_LIGHTS if all_lights else VIA_SAMPLED)
+                nrt = _lobe_class(S, kind, m, wi_l[2] * wo[2] > 0.0) if S.track else 0
                 _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
-                          spdf, via, nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta,
-                          nx_pdf, nx_delta, counts)
+                          spdf, via, nrt, rs, nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta,
+                          nx_pdf, nx_delta, nx_rtype, nx_recv, counts)
 
 
 @kernel(nogil=True)

@@ -16,6 +16,7 @@ from ..geometry.accel import TriangleSoup
 from ..geometry.mesh import Mesh, parse_mesh
 from ..limits import MAX_BOUNCES, MAX_COORDINATE, MAX_FILM_SIDE, MAX_SEED, MAX_SPP, film_memory_problem, short
 from .inputs import record_inputs
+from .links import CAMERA, LIGHT_FLAGS, OBJECT_FLAGS, SHADOW, build_links, parse_linking, parse_visibility
 from .reader import LoadContext, Node, dispatch, path_problem, read_json
 
 FORMAT = "lamina-scene"
@@ -64,6 +65,8 @@ class Scene:
     origin: tuple = (0.0, 0.0, 0.0)
     # Cameras of named views (stereo / multi-view): the CLI's --view renders one of them.
     views: dict = field(default_factory=dict)
+    # Ray visibility, light and shadow linking (scene/links.py); None: nothing restricted.
+    links: object = None
 
 
 def load_scene(path: str | Path) -> Scene:
@@ -237,6 +240,7 @@ def assemble_scene(ctx: LoadContext, width: int, height: int, pixel_filter, crop
         light.prepare(center, radius)
     scene = Scene(ctx.where, width, height, pixel_filter, crop, transparent, camera, settings, materials, names,
                   soup, all_lights, world, mesh_light, ctx.warnings, center, radius)
+    scene.links = build_links(soup, list(lights), ctx)
     if light_nodes is not None:
         warn_dark_lights(lights, light_nodes, ctx)
     if root is not None:
@@ -352,7 +356,16 @@ def parse_meshes(node: Node | None) -> dict[str, Mesh]:
 def parse_lights(node: Node | None) -> list:
     from ..lights import load_all as load_lights
     light_parsers, _ = load_lights()
-    return [dispatch(lnode, light_parsers) for lnode in node.items()] if node is not None else []
+    lights = []
+    for lnode in (node.items() if node is not None else []):
+        lnode.require_object()
+        # Ray visibility and linking (scene/links.py) are common to every lamp type.
+        vis = parse_visibility(lnode, LIGHT_FLAGS, CAMERA | SHADOW)
+        receivers, blockers = parse_linking(lnode, blockers=True)
+        light = dispatch(lnode, light_parsers)
+        light.ray_vis, light.receivers, light.blockers = vis, receivers, blockers
+        lights.append(light)
+    return lights
 
 
 def parse_world(node: Node | None):
@@ -380,6 +393,7 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
     verts, norms, uvs, mats, objs, cam, hold = [], [], [], [], [], [], []
     object_pass: list[float] = []          # each object's pass index (Object Index pass)
     object_uv: list[bool] = []             # whether its mesh has a UV map (UV pass)
+    obj_names, obj_vis, obj_receivers = [], [], []      # per object (scene/links.py)
     any_normals = any_uvs = False
     default_index = None
     items = node.items() if node is not None else []
@@ -401,6 +415,9 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
         holdout = onode.boolean("holdout", False)
         from ..passes import MAX_PASS_INDEX
         object_pass.append(float(onode.integer("pass_index", 0, lo=0, hi=MAX_PASS_INDEX)))
+        obj_names.append(onode.value.get("name", f"object {oi}"))
+        obj_vis.append(parse_visibility(onode, OBJECT_FLAGS, CAMERA if visible else 0))
+        obj_receivers.append(parse_linking(onode, blockers=False)[0])
         slot_names = []
         slots_node = onode.optional_child("materials")
         if slots_node is not None:
@@ -461,6 +478,7 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
         empty = np.zeros((0, 3, 3), np.float32)
         soup = TriangleSoup(empty, None, None, np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, bool))
         soup.object_pass, soup.object_uv = object_pass, object_uv
+        soup.object_names, soup.object_vis, soup.object_receivers = obj_names, np.array(obj_vis, np.uint8), obj_receivers
         return soup
     vertices = np.concatenate(verts).astype(np.float32)
     normals = None
@@ -473,6 +491,7 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
     soup = TriangleSoup(vertices, normals, uv_all, np.concatenate(mats), np.concatenate(objs), np.concatenate(cam),
                         np.concatenate(hold))
     soup.object_pass, soup.object_uv = object_pass, object_uv
+    soup.object_names, soup.object_vis, soup.object_receivers = obj_names, np.array(obj_vis, np.uint8), obj_receivers
     return soup
 
 

@@ -27,7 +27,7 @@ texture id (−1: constant) in ``iaux`` at ``I_EMIT_TEX_OFF``.
 from __future__ import annotations
 
 from .. import discrete as _d
-from ..jit import kernel
+from ..jit import inlined, kernel
 from ..params import param_rgb
 from ..vec import dot
 from ..warp import triangle_barycentric
@@ -67,10 +67,18 @@ def emitted(I, li, aux, iaux, tx, tri, b0, b1, b2):
     return param_rgb(tx, aux[e:e + 3], iaux[I[li, I_EMIT_TEX_OFF] + slot], u, v)
 
 
-@kernel
+@inlined
 def sample(I, li, aux, iaux, tx, p, u0, u1):
+    wi, t, value, pdf, _ = sample_tri(I, li, aux, iaux, tx, p, u0, u1)
+    return wi, t, value, pdf
+
+
+@kernel
+def sample_tri(I, li, aux, iaux, tx, p, u0, u1):
+    """``sample`` and the emitter triangle it chose (−1: none), whose object's ray visibility
+    and light linking the integrator then applies (scene/links.py)."""
     if I[li, I_DIST_OFF] < 0:
-        return ZERO3, 0.0, ZERO3, 0.0
+        return ZERO3, 0.0, ZERO3, 0.0, -1
     tri, prob, u_rem = _d.sample_1d(aux, I[li, I_DIST_OFF], I[li, I_COUNT], u0)
     b0, b1 = triangle_barycentric(u_rem, u1)
     b2 = 1.0 - b0 - b1
@@ -84,10 +92,10 @@ def sample(I, li, aux, iaux, tx, p, u0, u1):
     den = aux[r + T_AREA] * cos_l
     pdf = prob * t * t / den if den != 0.0 else 0.0
     if not (cos_l > 0.0 and t > 0.0 and pdf > 0.0):
-        return wi, 0.0, ZERO3, 0.0
+        return wi, 0.0, ZERO3, 0.0, tri
     le = emitted(I, li, aux, iaux, tx, tri, b0, b1, b2)
     inv = 1.0 / pdf
-    return wi, t, (le[0] * inv, le[1] * inv, le[2] * inv), pdf
+    return wi, t, (le[0] * inv, le[1] * inv, le[2] * inv), pdf, tri
 
 
 @kernel

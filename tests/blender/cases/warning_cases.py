@@ -14,6 +14,15 @@ from .ui_cases import Recorder, _calls
 IES = Path(__file__).resolve().parents[2] / "data" / "ies" / "erco_narrow10_lm95.ies"
 
 
+def _emissive(name):
+    mat = bpy.data.materials.new(name)
+    tree = mat.node_tree
+    tree.nodes.clear()
+    emit = tree.nodes.new("ShaderNodeEmission")
+    tree.links.new(emit.outputs[0], tree.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
+    return mat
+
+
 def _feature_scene():
     """A scene using every feature the one warning must name."""
     sc = build.scene()
@@ -41,6 +50,11 @@ def _feature_scene():
     blockers.objects.link(blocker)
     lamp.light_linking.blocker_collection = blockers
     lamp.lightgroup = "Key"
+    lamp.visible_shadow = False           # a light object's shadow switch is not rendered
+    # An emissive object's light linking is rendered, its shadow linking is not.
+    glow = build.plane("Glow", size=0.5, z=2.5, material=_emissive("Glowing"))
+    glow.light_linking.receiver_collection = receivers
+    glow.light_linking.blocker_collection = blockers
     # Shader features the integrator does not render yet: Mix/Add Shader, normal/bump maps, a
     # procedural texture, a Volume output.
     mix = bpy.data.materials.new("Mixed")
