@@ -30,6 +30,9 @@ SLOT_LIGHT = 2          # 2-D: point/direction on the light
 SLOT_BSDF = 4           # 2-D: direction
 SLOT_RR = 6             # 1 (hashed): Russian roulette
 SLOT_SPARE = 7          # the layered walks' sub-stream (stream_key); 8..11 free
+# Next-event estimation of every light (2-4 lights): light k of a vertex reads the light slot at
+# dim + k·DIM_NEXT_LIGHT, far beyond any bounce's dimensions (< 2^20 for up to 87 000 bounces).
+DIM_NEXT_LIGHT = 1 << 20
 
 _M0 = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xD1B54A32D192ED03)
