@@ -196,3 +196,26 @@ def test_missing_numba_is_one_clear_error(tmp_path):
     assert len(lines) == 1 and "Traceback" not in out.stderr, out.stderr
     assert "need Numba" in lines[0] and "numba==0.68.1" in lines[0]
     assert not (tmp_path / "o.exr").exists()
+
+
+# --------------------------------------------------------------------------- kernels/jit.py
+
+def test_kernel_decorators_compile_one_version_per_type_and_inline_only_what_they_mark(tmp_path):
+    # In a fresh process with an empty cache, so that everything compiles (a cached caller would
+    # not compile its callees at all).
+    code = """
+import kernel_jit_cases as c
+assert c.two_constants(1.5) == 7.5
+# Constants passed between kernels are not literal types: one version for (float64, int64).
+assert [tuple(map(str, s)) for s in c.scale.signatures] == [("float64", "int64")], c.scale.signatures
+assert [tuple(map(str, s)) for s in c.scale_inlined.signatures] == [("float64", "int64")]
+# forceinline is the decorator's, never inherited from an inlined caller.
+inline = {n: next(iter(f.overloads.values())).fndesc.inline
+          for n, f in (("scale", c.scale), ("scale_inlined", c.scale_inlined))}
+assert inline == {"scale": False, "scale_inlined": True}, inline
+print("ok")
+"""
+    env = dict(os.environ, LAMINA_KERNEL_CACHE=str(tmp_path),
+               PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests")]))
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, cwd=ROOT)
+    assert proc.returncode == 0 and proc.stdout.strip() == "ok", proc.stderr[-2000:]
