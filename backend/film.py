@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .passes import NO_LANES
 from .scene.reader import Node
 
 
@@ -104,7 +105,7 @@ class FilmAccumulator:
         L, albedo, normal, alpha = result["lanes"]
         aux = result.get("passes")
         if aux is None or self.passes is None:
-            aux = _NO_PASSES
+            aux = NO_LANES
         return int(accumulate(self.sum, self.sum_sq, self.albedo, self.normal, self.alpha, self.count,
                               self.first, self.pass_sum, np.ascontiguousarray(pixels, np.int64),
                               int(result["spp"]), L, albedo, normal, alpha, aux))
@@ -145,5 +146,3 @@ class FilmAccumulator:
             return {}
         return self.passes.images(self.first, self.pass_sum, self.count, self.height, self.width)
 
-
-_NO_PASSES = np.zeros((0, 0))   # a work item's lanes when no data pass is requested

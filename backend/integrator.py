@@ -25,6 +25,7 @@ from .kernels.lights.table import build_light_table
 from .kernels.params import ParamPacker
 from .kernels.sampler import SAMPLERS
 from .kernels.soup import shading_rows
+from .passes import NO_LANES, PassLayout
 from .scene.links import CAMERA, NO_RECEIVER
 from .visibility import RAY_BITS, Visibility
 
@@ -169,7 +170,7 @@ class PathTracer:
     def _pass_params(self, camera):
         """The data passes' kernel table (backend/passes.py); an inactive one when none is asked
         for (the kernel then never touches the pass columns)."""
-        layout = self.passes if self.passes is not None else _no_passes()
+        layout = self.passes if self.passes is not None else PassLayout()
         return layout.params(camera, self.soup, self.scene.materials, self.soup.object_pass,
                              getattr(self.scene, "origin", (0.0, 0.0, 0.0)), self.soup.object_uv)
 
@@ -188,7 +189,7 @@ class PathTracer:
         normal = np.zeros((n, 3))
         alpha = np.zeros(n)
         # Data passes: a column per requested channel, none (and no allocation) otherwise.
-        aux = self.passes.lane_array(n) if self.passes is not None else _NO_LANES
+        aux = self.passes.lane_array(n) if self.passes is not None else NO_LANES
         sc = self._scratch(n)
         cur, nxt = sc.queues
         tmax32 = sc.tmax32
@@ -254,14 +255,6 @@ class PathTracer:
         if self.passes is not None:
             out["passes"] = aux
         return out
-
-
-_NO_LANES = np.zeros((0, 0))     # the pass columns of a work item when no pass is requested
-
-
-def _no_passes():
-    from .passes import PassLayout
-    return PassLayout()
 
 
 def build_material_table(materials, packer, stacks=None):

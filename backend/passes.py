@@ -45,6 +45,8 @@ PASSES = {
 DEPTH_ESCAPED = 1.0e10      # Cycles' Depth where nothing was hit (metres)
 MIST_ESCAPED = 1.0          # Mist of a sample that hit nothing (fully misted)
 FALLOFF = {"linear": 1.0, "quadratic": 2.0, "inverse_quadratic": 0.5}   # Blender's mist falloffs
+#: A work item's pass columns when no pass is requested (nothing allocated per item).
+NO_LANES = np.zeros((0, 0))
 
 # What the shade kernel reads: lane-array column of every pass (−1: not requested), the mist
 # mapping, the camera (position, unit view axis, orthographic?), the rebase offset added to

@@ -131,29 +131,17 @@ class Visibility:
         return prim, t.astype(np.float32), b1, b2
 
     # ------------------------------------------------------------------ shadow rays
-    def _occluder(self, mask: int):
-        """The embree scene of the triangles that stop shadow rays with blocker mask ``mask``."""
-        return self._occluders[mask]
-
     def occluded(self, o32, d32, t32, mask):
         """OCCLUDED answers (−1 = free) of shadow rays against the triangles that block each:
         one embree scene per distinct blocker mask among the rays (see the module docstring)."""
         first = int(mask[0])
         if (mask == first).all():
-            return self._occluder(first).occluded32(o32, d32, t32)
+            return self._occluders[first].occluded32(o32, d32, t32)
         blocked = np.empty(mask.size, np.int32)
         for m in np.unique(mask):
             idx = np.nonzero(mask == m)[0]
-            blocked[idx] = self._occluder(int(m)).occluded32(o32[idx], d32[idx], t32[idx])
+            blocked[idx] = self._occluders[int(m)].occluded32(o32[idx], d32[idx], t32[idx])
         return blocked
-
-
-def kernel_defaults(n_lights: int, n_materials: int) -> tuple:
-    """``Settings`` fields for a scene without any of these features (nothing tracked)."""
-    return (False, False, False, np.zeros(0, np.int64), np.zeros(1, np.uint8),
-            np.full(max(n_lights, 1), ALL_RAYS, np.uint8), np.full(max(n_lights, 1), ALL_SETS, np.int64),
-            np.full(max(n_lights, 1), ALL_SETS, np.int64), np.full(1, ALL_RAYS, np.uint8),
-            np.full(1, ALL_SETS, np.int64), np.full(max(n_materials, 1), GLOSSY, np.uint8))
 
 
 __all__ = ["Visibility", "MAX_LAYERS", "NO_RECEIVER"]

@@ -74,16 +74,21 @@ def offset_origin(p: np.ndarray, ng: np.ndarray, d: np.ndarray) -> np.ndarray:
     return add_scaled(p, side * offset_scale(p), ng)
 
 
+def _embree_scene(vertices: np.ndarray):
+    """An embree scene over a (T, 3, 3) triangle soup (one mesh, geometry id 0)."""
+    from embreex import rtcore_scene as rtcs
+    from embreex.mesh_construction import TriangleMesh
+    scene = rtcs.EmbreeScene()
+    TriangleMesh(scene, np.ascontiguousarray(vertices, dtype=np.float32))
+    return scene
+
+
 class Accelerator:
     """embree scene over a TriangleSoup. Built per process (embree objects do not pickle)."""
 
     def __init__(self, soup: TriangleSoup):
-        from embreex import rtcore_scene as rtcs
-        from embreex.mesh_construction import TriangleMesh
-
         self.soup = soup
-        self._scene = rtcs.EmbreeScene()
-        TriangleMesh(self._scene, np.ascontiguousarray(soup.vertices, dtype=np.float32))
+        self._scene = _embree_scene(soup.vertices)
         self.rays_traced = 0
         #: Set to a list to record every traced batch (benchmarks re-trace the render's own rays).
         self.recorder: list | None = None
@@ -153,12 +158,7 @@ class Occluder:
     that stop one class of shadow rays: backend/visibility.py). Empty: nothing blocks."""
 
     def __init__(self, vertices: np.ndarray):
-        self._scene = None
-        if vertices.shape[0]:
-            from embreex import rtcore_scene as rtcs
-            from embreex.mesh_construction import TriangleMesh
-            self._scene = rtcs.EmbreeScene()
-            TriangleMesh(self._scene, np.ascontiguousarray(vertices, dtype=np.float32))
+        self._scene = _embree_scene(vertices) if vertices.shape[0] else None
 
     def occluded32(self, o32: np.ndarray, d32: np.ndarray, tmax32: np.ndarray) -> np.ndarray:
         """−1 where the segment (0, tmax) is free (embree reports the geometry id otherwise)."""
