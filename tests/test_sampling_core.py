@@ -105,3 +105,49 @@ def test_piecewise_constant_2d_matches_table():
     assert chi2_pvalue(counts, n * table / table.sum()) > ALPHA
     # The density is normalised over the unit square.
     assert abs(dist.density.mean() - 1.0) < 1e-12
+
+
+def _urena_reference(x0, y0, z0, lx, ly, u0, u1):
+    """Ureña, Fajardo and King (2013), Algorithm 1, written out from the paper in NumPy: the
+    independent reference of the per-lane spherical-rectangle sampler (which rewrites it for
+    fewer square roots and divisions)."""
+    z0 = -np.abs(z0)
+    x1, y1 = x0 + lx, y0 + ly
+    v00, v01 = np.stack([x0, y0, z0], -1), np.stack([x0, y1, z0], -1)
+    v10, v11 = np.stack([x1, y0, z0], -1), np.stack([x1, y1, z0], -1)
+    unit = lambda a: a / np.linalg.norm(a, axis=-1, keepdims=True)            # noqa: E731
+    n0, n1 = unit(np.cross(v00, v10)), unit(np.cross(v10, v11))
+    n2, n3 = unit(np.cross(v11, v01)), unit(np.cross(v01, v00))
+    g = [np.arccos(np.clip(-np.sum(a * b, -1), -1, 1)) for a, b in ((n0, n1), (n1, n2), (n2, n3), (n3, n0))]
+    solid = g[0] + g[1] + g[2] + g[3] - 2 * np.pi
+    b0, b1 = n0[:, 2], n2[:, 2]
+    au = u0 * solid - g[2] - g[3] + 2 * np.pi
+    fu = (np.cos(au) * b0 - b1) / np.sin(au)
+    cu = np.clip(np.sign(fu) / np.sqrt(fu * fu + b0 * b0), -1, 1)
+    xu = np.clip(-(cu * z0) / np.sqrt(1 - cu * cu), x0, x1)
+    d = np.sqrt(xu * xu + z0 * z0)
+    h0, h1 = y0 / np.sqrt(d * d + y0 * y0), y1 / np.sqrt(d * d + y1 * y1)
+    hv = h0 + u1 * (h1 - h0)
+    yv = np.clip(hv * d / np.sqrt(1 - hv * hv), y0, y1)
+    return solid, xu, yv
+
+
+def test_spherical_rectangle_sampler_matches_the_papers_algorithm():
+    """Same solid angle, same points (to 1e-7 of the rectangle's size) as the paper's algorithm
+    on 20 000 random rectangles and sample pairs, and the returned distance is the point's."""
+    from backend.sampling.spherical_rect import sample_spherical_rect, spherical_rect
+    rng = np.random.default_rng(7)
+    n = 20000
+    x0, y0 = rng.uniform(-2, 1, n), rng.uniform(-2, 1, n)
+    z0 = -rng.uniform(0.05, 2, n)
+    lx, ly = rng.uniform(0.1, 2, n), rng.uniform(0.1, 2, n)
+    u = rng.uniform(0.001, 0.999, (n, 2))
+    r = spherical_rect(x0, y0, z0, lx, ly)
+    solid, xu_ref, yv_ref = _urena_reference(x0, y0, z0, lx, ly, u[:, 0], u[:, 1])
+    np.testing.assert_allclose(r.solid_angle, solid, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(r.c0, 1 - r.b0 ** 2, rtol=1e-9, atol=1e-15)
+    xu, yv = sample_spherical_rect(r, u)
+    size = np.maximum(lx, ly)
+    assert np.max(np.abs(xu - xu_ref) / size) < 1e-7
+    assert np.max(np.abs(yv - yv_ref) / size) < 1e-7
+    assert np.all((xu >= x0) & (xu <= x0 + lx) & (yv >= y0) & (yv <= y0 + ly))

@@ -73,6 +73,7 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
 # Ray-type bits (scene/links.py).
 RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT = 1, 2, 4, 8
 NO_RECEIVER = 64
+NO_PARAMS = (0.0,) * 12      # km.bind's 12-tuple, for lanes that do not use it
 
 
 @kernel
@@ -574,7 +575,15 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
         # material's vertex (one shadow ray each) instead of picking one; layered stacks connect
         # to one picked light (their walks serve one direction).
         all_lights = can_nee and S.nee_all > 0 and kind != km.LAYERED
-        if can_nee and not all_lights:
+        # An analytic material's lane parameters; a delta-only one (smooth glass or mirror) takes
+        # no light sample: nothing could use it (on the Cornell box ~10 % of the lanes).
+        if kind != km.LAYERED:
+            prm = km.bind(MT, TX, m, u, v)
+            delta_only = km.is_delta_only(kind, prm)
+        else:
+            prm = NO_PARAMS
+            delta_only = False
+        if can_nee and not all_lights and not delta_only:
             li, sel_p = ld.select(LT, p, u_pick)
             if li >= 0 and sel_p > 0.0:
                 ul0, ul1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_LIGHT))
@@ -599,14 +608,13 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
                           spdf, VIA_DELTA if sdelta else VIA_SAMPLED, nrt, rs, nx_slot, nx_key, nx_o,
                           nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, nx_rtype, nx_recv, counts)
             continue
-        prm = km.bind(MT, TX, m, u, v)
         dist_code = MT.dist[m]
         mask_code = MT.masking[m]
         if camera:
             a = km.albedo(kind, prm)
             albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = a
         # 4b. next-event estimation
-        if all_lights and not km.is_delta_only(kind, prm):
+        if all_lights and not delta_only:
             for k in range(S.nee_all):
                 lk = LT.sel_active[k]
                 # Every light its own stratified 2-D sample: the light slot under the sampler's
@@ -622,7 +630,7 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
                     f, bpdf = km.eval_pdf(kind, dist_code, mask_code, prm, 0, wi_l, wok)
                     _nee(S, segment, sl, bt, p, ng, wk, dk, vk, pk, dlk, 1.0, f, bpdf,
                          S.light_shadow[lk], sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, counts)
-        elif live and not km.is_delta_only(kind, prm):
+        elif live and not delta_only:
             f, bpdf = km.eval_pdf(kind, dist_code, mask_code, prm, 0, wi_l, wo_n)
             _nee(S, segment, sl, bt, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p, f, bpdf,
                  S.light_shadow[li], sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, counts)

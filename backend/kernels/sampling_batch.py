@@ -29,10 +29,10 @@ def pdf_2d(block, h, w, xy, out):
 
 @kernel
 def spherical_rect(x0, y0, z0, lx, ly, out):
-    """out[i] = the 9 numbers of the lane's spherical rectangle (spherical_rect.py)."""
+    """out[i] = the 10 numbers of the lane's spherical rectangle (spherical_rect.py)."""
     for i in range(x0.shape[0]):
         r = _sr.spherical_rect(x0[i], y0[i], z0[i], lx[i], ly[i])
-        for k in range(9):
+        for k in range(10):
             out[i, k] = r[k]
 
 
@@ -40,7 +40,7 @@ def spherical_rect(x0, y0, z0, lx, ly, out):
 def sample_spherical_rect(rects, u, xu, yv):
     for i in range(u.shape[0]):
         r = rects[i]
-        sr = (r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8])
+        sr = (r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9])
         xu[i], yv[i] = _sr.sample(sr, u[i, 0], u[i, 1])
 
 

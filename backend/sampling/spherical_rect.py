@@ -24,10 +24,11 @@ class SphericalRect:
     b1: np.ndarray
     g23: np.ndarray    # g2 + g3
     solid_angle: np.ndarray
+    c0: np.ndarray     # 1 − b0², without cancellation
 
     def rows(self) -> np.ndarray:
         return np.ascontiguousarray(np.stack([self.x0, self.x1, self.y0, self.y1, self.z0, self.b0,
-                                              self.b1, self.g23, self.solid_angle], axis=1))
+                                              self.b1, self.g23, self.solid_angle, self.c0], axis=1))
 
 
 def spherical_rect(x0, y0, z0, lx, ly) -> SphericalRect:
@@ -35,9 +36,9 @@ def spherical_rect(x0, y0, z0, lx, ly) -> SphericalRect:
     origin (arrays broadcast together)."""
     x0, y0, z0, lx, ly = (np.ascontiguousarray(a, dtype=np.float64).ravel()
                           for a in np.broadcast_arrays(x0, y0, z0, lx, ly))
-    out = np.empty((x0.size, 9))
+    out = np.empty((x0.size, 10))
     _b.spherical_rect(x0, y0, z0, lx, ly, out)
-    return SphericalRect(*(out[:, k].copy() for k in range(9)))
+    return SphericalRect(*(out[:, k].copy() for k in range(10)))
 
 
 def sample_spherical_rect(r: SphericalRect, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -78,7 +78,7 @@ I_PROFILE = I_FIRST + 2  # profiles.LAMBERTIAN / SPREAD / SMOOTH_CONE
 I_CONE_OFF = I_FIRST + 3     # aux offset of the cone table
 I_CONE_BINS = I_FIRST + 4    # 0: no cone table (no cutoff)
 
-_NO_RECT = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+_NO_RECT = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 @kernel
@@ -215,19 +215,23 @@ def _sample_whole_rect(P, I, li, p, u0, u1):
     if by_area:
         xu = x0 + u0 * lx                              # nearly uniform, or tiny: by area
         yv = y0 + u1 * ly
+        t = math.sqrt(xu * xu + yv * yv + z0 * z0)
+        inv_t = 1.0 / t if t > 0.0 else 0.0
     else:
-        xu, yv = _sr.sample(sr, u0, u1)
-    t = math.sqrt(xu * xu + yv * yv + z0 * z0)
+        xu, yv, t, inv_t = _sr.sample_point(sr, u0, u1)
     if not t > 0.0:
         return ZERO3, 0.0, ZERO3, 0.0
-    inv_t = 1.0 / t
     w = (xu * inv_t, yv * inv_t, z0 * inv_t)
     cos_out = -(w[0] * n[0] + w[1] * n[1] + w[2] * n[2])
     if not cos_out > 0.0:
         return ZERO3, 0.0, ZERO3, 0.0
-    pdf = t * t / (cos_out * P[li, A_AREA]) if by_area else 1.0 / solid
+    if by_area:
+        pdf = t * t / (cos_out * P[li, A_AREA])
+        inv = 1.0 / pdf
+    else:
+        pdf = 1.0 / solid
+        inv = solid
     le = radiance(P, I, li, cos_out)
-    inv = 1.0 / pdf
     wi = (w[0] * U[0] + w[1] * V[0] + w[2] * W[0], w[0] * U[1] + w[1] * V[1] + w[2] * W[1],
           w[0] * U[2] + w[1] * V[2] + w[2] * W[2])
     return wi, t, (le[0] * inv, le[1] * inv, le[2] * inv), pdf
@@ -297,9 +301,13 @@ def sample(P, I, li, aux, p, u0, u1):
 
 @kernel
 def intersect(P, I, li, o, d, tmax):
-    ou, ov, h = _local(P, li, o)
+    # Every ray of the render is tested against every area light: the direction test first
+    # (half the rays head away from the emitting side), then the point's height.
     denom = dot(d, get3(P, li, A_N))
-    if not (denom < 0.0 and h > 0.0 and I[li, I_EMITS] != 0):
+    if not (denom < 0.0 and I[li, I_EMITS] != 0):
+        return INF
+    ou, ov, h = _local(P, li, o)
+    if not h > 0.0:
         return INF
     t = h / -denom
     lu = ou + t * dot(d, get3(P, li, A_U))       # emitter coordinates of o + t·d
