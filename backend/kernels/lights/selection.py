@@ -114,6 +114,8 @@ def select(lt, p, u):
     na = lt.sel_active.shape[0]
     if na == 0:
         return -1, 0.0
+    if na == 1:
+        return lt.sel_active[0], 1.0          # one light: no table lookup
     if lt.local_selection == 0:
         k, prob, _ = _d.sample_1d(lt.sel_dist, 0, na, u)
         return lt.sel_active[k], prob
