@@ -115,8 +115,11 @@ def test_back_face_normal_faces_the_camera_and_orthographic_depth():
                   camera=look_down_ortho(0.5, height=4.0))
     data["meshes"] = {"wall": {"positions": [[-2, -2, 1], [2, -2, 1], [2, 2, 1], [-2, 2, 1]],
                                "indices": [[0, 2, 1], [0, 3, 2]]}}     # normal −Z: seen from behind
-    img = render(data).film.pass_images()
+    film = render(data).film
+    img = film.pass_images()
     np.testing.assert_allclose(img["Normal"], np.broadcast_to([0, 0, 1], img["Normal"].shape), atol=1e-6)
+    # The denoiser's normal (Denoising Normal) faces the camera too, as the Normal pass does.
+    np.testing.assert_allclose(film.normal_image(), np.broadcast_to([0, 0, 1], img["Normal"].shape), atol=1e-6)
     np.testing.assert_allclose(img["Depth"], 3.0, rtol=1e-6)              # 4 m camera, plane z = 1
     # Orthographic mist: along the view axis, quadratic (Blender's default) from 0 over 20 m.
     np.testing.assert_allclose(img["Mist"], (3.0 / 20.0) ** 2, rtol=1e-6)

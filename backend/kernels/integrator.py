@@ -534,7 +534,10 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
             bt = (bt[0] / q, bt[1] / q, bt[2] / q)
         # 3. shading frame and AOVs
         if camera:
-            normal[sl, 0], normal[sl, 1], normal[sl, 2] = ns
+            # The denoiser's normal, like the Normal pass: turned towards the camera on back
+            # faces (Cycles flips N there, whatever the material).
+            facing = 1.0 if _dot(wi, ng) >= 0.0 else -1.0
+            normal[sl, 0], normal[sl, 1], normal[sl, 2] = facing * ns[0], facing * ns[1], facing * ns[2]
         kind = MT.kind[m]
         if MT.two_sided[m]:
             # Reflection-only materials are seen from both sides: turn the normals towards the
