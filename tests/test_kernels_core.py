@@ -140,10 +140,20 @@ def test_first_run_compiles_once_and_says_so(tmp_path):
     path = tmp_path / "s.json"
     path.write_text(json.dumps(data))
     env = dict(os.environ, LAMINA_KERNEL_CACHE=str(tmp_path / "kernels"), PYTHONPATH=str(ROOT))
-    first = _cli(["render", str(path), "-o", str(tmp_path / "a.exr"), "--workers", "1"], env)
+    env.pop("LAMINA_SERIAL_COMPILE", None)
+    # Numba's cache log (stdout) tells which kernels this process compiled and which it loaded.
+    first = _cli(["render", str(path), "-o", str(tmp_path / "a.exr"), "--workers", "1"],
+                 dict(env, NUMBA_DEBUG_CACHE="1"))
     assert first.returncode == 0, first.stderr
     assert first.stderr.count("compiling render kernels (first run only)") == 1
     assert "compiled render kernels in" in first.stderr
+    if (os.cpu_count() or 1) >= 2:
+        # The layered lane was compiled by the second process (kernels/cache.py) for the
+        # argument types the shading kernel passes (warmup.layered_lane_signature): this
+        # process loaded it from the cache and did not compile it again.
+        log = [line for line in first.stdout.splitlines() if "batch.shade_lane" in line]
+        assert any("data loaded from" in line for line in log), log
+        assert not any("data saved to" in line for line in log), log
     second = _cli(["render", str(path), "-o", str(tmp_path / "b.exr"), "--workers", "1"], env)
     assert second.returncode == 0, second.stderr
     assert "compiling" not in second.stderr
@@ -219,3 +229,4 @@ print("ok")
                PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests")]))
     proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, cwd=ROOT)
     assert proc.returncode == 0 and proc.stdout.strip() == "ok", proc.stderr[-2000:]
+

@@ -35,7 +35,21 @@ from numba.core import types as _nbtypes
 _COMMON = {"cache": True, "_nrt": False}
 
 
+#: Dispatchers being compiled by another process into the shared cache (kernels/cache.py):
+#: id(dispatcher) → a function that waits for it. A call to one waits first, then loads it.
+_COMPILED_ELSEWHERE: dict = {}
+
+
+def compiled_elsewhere(dispatcher, wait) -> None:
+    """Before this process compiles a call to ``dispatcher``, call ``wait()`` (another process
+    is writing its machine code to the kernel cache, where the call then finds it)."""
+    _COMPILED_ELSEWHERE[id(dispatcher)] = wait
+
+
 def _call_template_without_literals(self, args, kws):
+    wait = _COMPILED_ELSEWHERE.pop(id(self), None)
+    if wait is not None:
+        wait()
     args = tuple(_nbtypes.unliteral(a) for a in args)
     kws = {k: _nbtypes.unliteral(v) for k, v in kws.items()}
     return type(self).get_call_template(self, args, kws)

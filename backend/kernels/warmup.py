@@ -96,3 +96,32 @@ def warm_up() -> None:
             pixels = np.arange(16, dtype=np.int64)
             result = tracer.render(pixels, 2, np.random.default_rng(0), 0)
             FilmAccumulator(4, 4).add(pixels, result)
+
+
+def layered_lane_signature() -> tuple:
+    """The argument types with which the shading kernel calls the layered lane
+    (``kernels/integrator.shade`` → ``layered.batch.shade_lane``). Numba types a table by its
+    arrays' dtypes and dimensions, not their contents, so empty tables give the render's types
+    without building (or compiling) anything (tests/test_kernels_core.py checks that they are
+    the render's). If they ever differ, the render process compiles its own version."""
+    from numba import typeof
+    from numba.core import types
+
+    from .layered import batch
+    from .layered.table import empty_table
+    from .textures import empty_table as empty_textures
+    TX = empty_textures()
+    vec3 = types.UniTuple(types.float64, 3)
+    flag = types.boolean
+    return (typeof(empty_table(TX)), typeof(TX), types.int64, types.float64, types.float64,
+            vec3, vec3, flag, flag, flag, flag, types.uint64, types.int64,
+            *(typeof(a) for a in batch.scratch(2)))
+
+
+def precompile_layered() -> None:
+    """Compile the layered lane (about 40 % of the first compilation) into the kernel cache, in a
+    process of its own that runs while the render process compiles the rest (kernels/cache.py)."""
+    from .cache import configure
+    configure()
+    from .layered import batch
+    batch.shade_lane.compile(layered_lane_signature())
