@@ -579,7 +579,7 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
         # to one picked light (their walks serve one direction).
         all_lights = can_nee and S.nee_all > 0 and kind != km.LAYERED
         # An analytic material's lane parameters; a delta-only one (smooth glass or mirror) takes
-        # no light sample: nothing could use it (on the Cornell box ~10 % of the lanes).
+        # no light sample: nothing could use it.
         if kind != km.LAYERED:
             prm = km.bind(MT, TX, m, u, v)
             delta_only = km.is_delta_only(kind, prm)
