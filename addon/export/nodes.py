@@ -83,7 +83,10 @@ class NodeTranslator:
         if handler is None:
             self.note(f"{label(node)} (not supported: grey diffuse used)")
             return dict(DEFAULT_MATERIAL)
-        return handler(node)
+        out = handler(node)
+        if kind != "ShaderNodeEmission":
+            self._normal_map(node, out)
+        return out
 
     # ---------------------------------------------------------------- inputs
 
@@ -144,13 +147,11 @@ class NodeTranslator:
 
     def diffuse(self, node) -> dict:
         self._unused(node, "Roughness", lambda v: v == 0.0)
-        self._normal(node)
         return {"type": "diffuse", "color": self.colour(node, "Color")}
 
     def glossy(self, node) -> dict:
         # Cycles' Glossy BSDF reflects its colour at every angle; a conductor with that
         # normal-incidence reflectance is the closest Lamina material.
-        self._normal(node)
         self._unused(node, "Anisotropy", lambda v: v == 0.0)
         colour = self.colour(node, "Color")
         out = {"type": "conductor", "roughness": self.scalar(node, "Roughness", 0.5, allow_texture=True, squared=True),
@@ -171,7 +172,6 @@ class NodeTranslator:
         return [round(float(v), 6) for v in f0]
 
     def metallic(self, node) -> dict:
-        self._normal(node)
         self._unused(node, "Anisotropy", lambda v: v == 0.0)
         out = {"type": "conductor", "roughness": self.scalar(node, "Roughness", 0.5, allow_texture=True, squared=True),
                "distribution": _distribution(node)}
@@ -192,7 +192,6 @@ class NodeTranslator:
         return self._conductor_from_f0(out, colour)
 
     def glass(self, node) -> dict:
-        self._normal(node)
         out = {"type": "dielectric", "ior": float(node.inputs["IOR"].default_value),
                "roughness": self.scalar(node, "Roughness", 0.0, allow_texture=True, squared=True),
                "distribution": _distribution(node)}
@@ -214,7 +213,6 @@ class NodeTranslator:
     def principled(self, node) -> dict:
         """Principled BSDF → a stack whose albedo matches Cycles' (principled.py)."""
         from .principled import principled_material
-        self._normal(node)
         self._unused(node, "Alpha", lambda v: v >= 1.0)
         self._unused(node, "Subsurface Weight", lambda v: v == 0.0)
         self._unused(node, "Anisotropic", lambda v: v == 0.0)
@@ -320,10 +318,44 @@ class NodeTranslator:
             return None
         return [c * strength for c in colour]
 
-    def _normal(self, node) -> None:
+    def _normal_map(self, node, out: dict) -> None:
+        """A BSDF's Normal input: a Normal Map node in tangent space fed by an image texture
+        becomes the material's ``normal`` (+ ``normal_strength``; materials/normal.py in the
+        backend); anything else is named in the warning."""
         sock = node.inputs.get("Normal")
-        if sock is not None and sock.is_linked:
-            self.note(f"{node.name}.Normal is connected (normal/bump maps are not supported)")
+        if sock is None or not sock.is_linked:
+            return
+        src, _ = _follow(sock)
+        if src is None:
+            return
+        if src.bl_idname != "ShaderNodeNormalMap":
+            self.note(f"{label(src)} → {node.name}.Normal (not supported: the surface normal used)")
+            return
+        if src.space != "TANGENT":
+            self.note(f"{src.name}: {src.space.lower()} space normal map (only tangent space: "
+                      f"the surface normal used)")
+            return
+        colour, _ = _follow(src.inputs["Color"])
+        if colour is None:
+            return                                   # an unconnected colour is the flat normal
+        if colour.bl_idname != "ShaderNodeTexImage" or colour.image is None:
+            self.note(f"{label(colour)} → {src.name}.Color (only image textures: the surface normal used)")
+            return
+        if src.uv_map:
+            self.note(f"{src.name}: UV map '{src.uv_map}' (the active UV map is used)")
+        if colour.inputs["Vector"].is_linked:
+            self.note(f"{colour.name}: texture mapping (ignored; the active UV map is used)")
+        tex = self.images.texture(colour.image)
+        if tex is None:
+            return
+        self.images.label(tex, f"node '{colour.name}' (image '{colour.image.name}' → {src.name}.Color)")
+        out["normal"] = tex
+        strength_sock = src.inputs["Strength"]
+        if strength_sock.is_linked:
+            self.note(f"{src.name}.Strength is connected (value used)")
+        strength = float(strength_sock.default_value)
+        if strength != 1.0:
+            out["normal_strength"] = max(strength, 0.0)
 
     def _conductor_from_f0(self, out: dict, colour) -> dict:
         if isinstance(colour, dict):

@@ -175,6 +175,24 @@ def _valid_reflection_normal(wi, ns, ng):
     return (h[0] * sg, h[1] * sg, h[2] * sg)
 
 
+@inlined
+def _mapped_normal(MT, TX, m, u, v, ns, tangent):
+    """ns turned by material m's normal map (Blender's Normal Map node in tangent space): the
+    map's vector (x, y, z) in the frame (UV tangent, n × tangent, ns), then mixed with ns by the
+    strength k as Cycles does, normalize(ns + k·(mapped − ns)). Applied to the surface's own
+    (front-side) normal before a back face is turned towards the viewer, as Cycles does."""
+    c = km._rgb(MT, TX, m, km.N_MAP, u, v)
+    if MT.nmode[m] == 2:                       # texture: RGB · 2 − 1, kept above the surface
+        c = (2.0 * c[0] - 1.0, 2.0 * c[1] - 1.0, max(2.0 * c[2] - 1.0, 1e-3))
+    s, t = _frame(ns, tangent)
+    w = _normalize((c[0] * s[0] + c[1] * t[0] + c[2] * ns[0], c[0] * s[1] + c[1] * t[1] + c[2] * ns[1],
+                    c[0] * s[2] + c[1] * t[2] + c[2] * ns[2]))
+    k = MT.values[m, km.N_STRENGTH]
+    if k != 1.0:
+        w = _normalize((ns[0] + k * (w[0] - ns[0]), ns[1] + k * (w[1] - ns[1]), ns[2] + k * (w[2] - ns[2])))
+    return w
+
+
 @kernel
 def _frame(n, tangent):
     """(s, t, n): Gram-Schmidt the UV tangent against n; Duff et al.'s frame where it is
@@ -513,6 +531,10 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
             v = 0.0
         m = G.irows[pr, ROW_MAT]
         wi = (-rd[0], -rd[1], -rd[2])
+        tan = (np.float64(R[pr, ROW_TAN]), np.float64(R[pr, ROW_TAN + 1]), np.float64(R[pr, ROW_TAN + 2]))
+        mapped = MT.nmode[m] != 0
+        if mapped:
+            ns = _mapped_normal(MT, TX, m, u, v, ns, tan)
         if camera and PS.active:
             _write_passes(PS, aux, sl, p, ng, ns, wi, u, v, G.has_uvs, m, pr)
         # Both faces emit (as Cycles' emission shader), or the front only (emission_sides).
@@ -547,9 +569,8 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
                 ns = (-ns[0], -ns[1], -ns[2])
             if _dot(wi, ns) <= 0.0:
                 ns = ng
-        if G.has_normals:
+        if G.has_normals or mapped:
             ns = _valid_reflection_normal(wi, ns, ng)
-        tan = (np.float64(R[pr, ROW_TAN]), np.float64(R[pr, ROW_TAN + 1]), np.float64(R[pr, ROW_TAN + 2]))
         fs, ft = _frame(ns, tan)
         wi_l = _local(fs, ft, ns, wi)
         # 4a. light sample (shared with layered lanes) from the sampler's 2-D slots of this bounce.

@@ -12,7 +12,10 @@
   emit_front bool   it emits from the front side only (counter-clockwise winding), else both
   values    float64 (M, NSLOT), tex int32 (M, NSLOT): texturable parameters (kernels/params.py),
                     an RGB parameter takes three consecutive slots and its texture id sits in the
-                    first. Slot layout below (EMISSION is common to every kind).
+                    first. Slot layout below (EMISSION and the normal map are common to every kind).
+  nmode     int32   the material's normal map (materials/normal.py): 0 none, 1 a constant
+                    normal (slots N_MAP, unit), 2 a texture (slots N_MAP: RGB · 2 − 1); its
+                    strength in slot N_STRENGTH (kernels/integrator.py ``_mapped_normal``)
 
 Per lane, ``bind`` evaluates a row's parameters at a UV into a fixed 12-tuple ``p`` (so every
 kind returns the same Numba type): diffuse (colour); conductor (eta, k, tint, αu, αv, smooth);
@@ -30,15 +33,16 @@ from .microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from .params import ParamPacker, param_rgb, param_scalar
 
 DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK, LAYERED = 0, 1, 2, 3, 4
-NSLOT = 16
+NSLOT = 20
 EMISSION = 0                 # RGB, every kind
+N_MAP, N_STRENGTH = 16, 19   # every kind: the normal map (RGB) and its strength
 COLOR = 3                    # diffuse: RGB albedo
 ETA, K, TINT, AU, AV = 3, 6, 9, 12, 13         # conductor: relative eta, k (RGB), tint, α
 D_ETA, D_TINT, D_AU, D_AV = 3, 4, 7, 8           # dielectric: relative eta, transmission colour, α
 LAYER_ID = 3                 # layered: the stack's row in the stack table
 
 MaterialTable = namedtuple("MaterialTable", ["kind", "dist", "masking", "two_sided", "emits",
-                                             "values", "tex", "emit_front"])
+                                             "values", "tex", "emit_front", "nmode"])
 
 
 class MaterialRow:
@@ -55,6 +59,7 @@ class MaterialRow:
         self.emit_front = False
         self.values = np.zeros(NSLOT)
         self.tex = np.full(NSLOT, -1, np.int32)
+        self.nmode = 0
 
     def set(self, slot: int, param, channels: int, factor=1.0) -> None:
         values, tex = self.packer.pack(param, channels, factor)
@@ -78,13 +83,30 @@ def build_material_table(materials: list, packer: ParamPacker, stacks=None) -> M
             row.set(EMISSION, m.emission, 3)
             row.emits = True
             row.emit_front = bool(getattr(m, "emission_front_only", False))
+        _pack_normal_map(row, getattr(m, "normal_map", None), getattr(m, "normal_strength", 1.0))
         rows.append(row)
     if not rows:
         rows.append(MaterialRow(packer, stacks))
     return MaterialTable(np.array([r.kind for r in rows], np.int32), np.array([r.dist for r in rows], np.int32),
                          np.array([r.masking for r in rows], np.int32), np.array([r.two_sided for r in rows]),
                          np.array([r.emits for r in rows]), np.stack([r.values for r in rows]),
-                         np.stack([r.tex for r in rows]), np.array([r.emit_front for r in rows]))
+                         np.stack([r.tex for r in rows]), np.array([r.emit_front for r in rows]),
+                         np.array([r.nmode for r in rows], np.int32))
+
+
+def _pack_normal_map(row: MaterialRow, normal, strength: float) -> None:
+    """A material's normal map (materials/normal.NormalParam or None) into its row."""
+    row.values[N_STRENGTH] = strength
+    if normal is None:
+        return
+    if normal.texture:
+        row.set(N_MAP, normal.param, 3)
+        row.nmode = 2
+        return
+    n = normal.bind(None)                  # unit, kept above the surface; None: the normal itself
+    if n is not None:
+        row.values[N_MAP:N_MAP + 3] = n[:, 0]
+        row.nmode = 1
 
 
 @inlined

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..materials import REGISTRY, register
 from ..materials.base import Material, ShadingContext
+from ..materials.normal import parse_normal
 from ..scene.reader import Node, _describe
 from .bsdf import LayeredBSDF, Options, new_stats
 from .medium import parse_medium
@@ -167,41 +168,6 @@ def _constant_ior(material, inode: Node) -> float:
         raise inode.fail("inside a layered stack the index of refraction must be a number "
                          "(it is the index of the whole slab below)", "ior")
     return float(np.asarray(p.bind(None)).reshape(-1)[0])
-
-
-class NormalParam:
-    """A per-interface shading normal in the material's local frame (x = UV tangent, z = the
-    surface normal): a constant vector, or a normal-map texture (RGB · 2 − 1, tangent space).
-    ``bind`` gives unit normals as (3, 1) or (3, n); normals are kept above the surface."""
-
-    def __init__(self, param, texture: bool):
-        self.param = param
-        self.texture = texture
-        self.is_constant = param.is_constant
-
-    def bind(self, uv):
-        v = np.asarray(self.param.bind(uv), dtype=np.float64).reshape(-1, 3)
-        if self.texture:
-            v = 2.0 * v - 1.0
-        v = v.copy()
-        v[:, 2] = np.maximum(v[:, 2], 1e-3)
-        v /= np.linalg.norm(v, axis=1, keepdims=True)
-        if v.shape[0] == 1 and np.allclose(v[0], [0.0, 0.0, 1.0], atol=1e-12):
-            return None
-        return np.ascontiguousarray(v.T)
-
-
-def parse_normal(inode: Node) -> NormalParam | None:
-    if not inode.has("normal"):
-        return None
-    raw = inode.value["normal"]
-    texture = isinstance(raw, dict)
-    p = inode.param("normal", channels=3, lo=None, color=False)
-    if not texture:
-        v = np.asarray(p.bind(None)).reshape(3)
-        if v[2] <= 0 or not np.any(v):
-            raise inode.fail("expected a normal [x, y, z] pointing out of the surface (z > 0)", "normal")
-    return NormalParam(p, texture)
 
 
 def parse_interface(inode: Node, eta_above: float):

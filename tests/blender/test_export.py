@@ -205,6 +205,15 @@ def test_node_materials_translation(results):
     for needle in ("Noise Texture", "Sheen", "Mix Shader"):
         assert needle in warning, needle
     assert mats["Mixed"] == {"type": "diffuse", "color": [0.8, 0.8, 0.8]}
+    # A Normal Map node (tangent space, image texture) becomes the material's normal map, on a
+    # Principled stack and on a plain BSDF; the image is read as stored (Non-Color).
+    mapped = mats["NormalMapped"]
+    assert mapped["type"] == "layered" and mapped["normal_strength"] == pytest.approx(0.7)
+    assert mapped["normal"]["texture"] and mapped["normal"]["colorspace"] != "sRGB"
+    plain = mats["DiffuseNormalMapped"]
+    assert plain["type"] == "diffuse" and "normal_strength" not in plain
+    assert plain["normal"]["texture"] == mapped["normal"]["texture"]
+    assert "Normal Map" not in warning and "normal/bump" not in warning
 
 
 def test_million_triangle_export_time(results):

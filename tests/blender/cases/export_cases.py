@@ -167,6 +167,26 @@ def node_materials(tmp):
     rough = mat.node_tree.nodes.new("ShaderNodeTexImage")
     rough.image = image
     mat.node_tree.links.new(rough.outputs["Color"], node.inputs["Roughness"])
+    mat, node = principled("NormalMapped", **{"Base Color": (0.5, 0.5, 0.5, 1)})
+    bumps = bpy.data.images.new("bumps", 8, 8, alpha=False, float_buffer=False)
+    bumps.colorspace_settings.name = "Non-Color"
+    nmap = mat.node_tree.nodes.new("ShaderNodeNormalMap")
+    nmap.inputs["Strength"].default_value = 0.7
+    ntex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    ntex.image = bumps
+    mat.node_tree.links.new(ntex.outputs["Color"], nmap.inputs["Color"])
+    mat.node_tree.links.new(nmap.outputs["Normal"], node.inputs["Normal"])
+    diffuse_mat = bpy.data.materials.new("DiffuseNormalMapped")
+    diffuse_mat.use_nodes = True
+    tree = diffuse_mat.node_tree
+    dif = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    tree.links.new(dif.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    nmap = tree.nodes.new("ShaderNodeNormalMap")
+    ntex = tree.nodes.new("ShaderNodeTexImage")
+    ntex.image = bumps
+    tree.links.new(ntex.outputs["Color"], nmap.inputs["Color"])
+    tree.links.new(nmap.outputs["Normal"], dif.inputs["Normal"])
+    mats["DiffuseNormalMapped"] = diffuse_mat
     mat, node = principled("Unsupported")
     noise = mat.node_tree.nodes.new("ShaderNodeTexNoise")
     mat.node_tree.links.new(noise.outputs["Color"], node.inputs["Base Color"])

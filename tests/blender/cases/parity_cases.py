@@ -169,3 +169,49 @@ def emission_sides(tmp, spp=256, bounces=3, all_two=False):
     out["lamina_error"], out["lamina_seconds"] = _render_to(sc, path, multilayer=False)
     out["lamina"] = str(path)
     return out
+
+
+# name → (tangent-space normal of the map, Normal Map strength); None: no map
+NORMAL_PLANES = {"flat": None, "tilted +x 25°": ((0.4226, 0.0, 0.9063), 1.0),
+                 "tilted +y 30°, strength 0.6": ((0.0, 0.5, 0.8660), 0.6)}
+
+
+def _normal_mapped_material(name, normal, strength):
+    """A grey Diffuse BSDF whose Normal comes from a Normal Map node (tangent space) reading a
+    2 × 2 Non-Color float image of one normal."""
+    mat = build.diffuse_material(name, (0.6, 0.6, 0.6))
+    if normal is None:
+        return mat
+    tree = mat.node_tree
+    image = bpy.data.images.new(f"{name}Normal", 2, 2, alpha=True, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"
+    rgb = [(c + 1.0) / 2.0 for c in normal]
+    image.pixels.foreach_set([*rgb, 1.0] * 4)
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    nmap = tree.nodes.new("ShaderNodeNormalMap")
+    nmap.inputs["Strength"].default_value = strength
+    tree.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+    bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfDiffuse")
+    tree.links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
+    return mat
+
+
+def normal_mapped_planes(tmp, spp=64, bounces=2):
+    """Three grey planes side by side under a sun 40° from the zenith towards +x: no map, a
+    normal map tilted 25° towards +x (towards the sun: brighter), and one tilted 30° towards +y
+    at strength 0.6 (the map's green channel; darker)."""
+    import math
+    sc = build.scene()
+    sc.render.resolution_x, sc.render.resolution_y = 96, 32
+    build.camera(location=(0.0, -0.5, 9.0), target=(0.0, 0.0, 0.0), lens=50)
+    build.world_colour((0.02, 0.02, 0.02), 1.0)
+    build.light("Sun", "SUN", location=(0, 0, 5), rotation=(0.0, math.radians(40.0), 0.0), energy=3.0,
+                angle=0.0)
+    for i, (name, spec) in enumerate(NORMAL_PLANES.items()):
+        normal, strength = spec if spec is not None else (None, 1.0)
+        obj = build.plane(f"Plane{i}", size=1.8, material=_normal_mapped_material(f"N{i}", normal, strength))
+        obj.location = (-2.1 + 2.1 * i, 0.0, 0.0)
+    out = _render_both(sc, tmp, "normal_planes", spp, bounces)
+    out["names"] = list(NORMAL_PLANES)
+    return out

@@ -55,8 +55,8 @@ def _feature_scene():
     glow = build.plane("Glow", size=0.5, z=2.5, material=_emissive("Glowing"))
     glow.light_linking.receiver_collection = receivers
     glow.light_linking.blocker_collection = blockers
-    # Shader features the integrator does not render yet: Mix/Add Shader, normal/bump maps, a
-    # procedural texture, a Volume output.
+    # Shader features the integrator does not render yet: Mix/Add Shader, a procedural normal
+    # map, a Bump node, a procedural texture, a Volume output.
     mix = bpy.data.materials.new("Mixed")
     tree = mix.node_tree
     out = tree.nodes["Material Output"]
@@ -71,6 +71,8 @@ def _feature_scene():
     bumpy.node_tree.links.new(normal_map.outputs[0], bsdf.inputs["Normal"])
     noise = bumpy.node_tree.nodes.new("ShaderNodeTexNoise")
     bumpy.node_tree.links.new(noise.outputs["Color"], bsdf.inputs["Base Color"])
+    # a procedural normal map (only image textures are translated)
+    bumpy.node_tree.links.new(noise.outputs["Color"], normal_map.inputs["Color"])
     foggy = bpy.data.materials.new("Foggy")
     vol = foggy.node_tree.nodes.new("ShaderNodeVolumePrincipled")
     foggy.node_tree.links.new(vol.outputs[0], foggy.node_tree.nodes["Material Output"].inputs["Volume"])
