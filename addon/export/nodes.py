@@ -79,13 +79,54 @@ class NodeTranslator:
             "ShaderNodeBsdfGlass": self.glass,
             "ShaderNodeBsdfRefraction": self.glass,
             "ShaderNodeEmission": self.emission,
+            "ShaderNodeMixShader": self.mix_shader,
+            "ShaderNodeAddShader": self.add_shader,
         }.get(kind)
         if handler is None:
             self.note(f"{label(node)} (not supported: grey diffuse used)")
             return dict(DEFAULT_MATERIAL)
         out = handler(node)
-        if kind != "ShaderNodeEmission":
+        if kind not in ("ShaderNodeEmission", "ShaderNodeMixShader", "ShaderNodeAddShader"):
             self._normal_map(node, out)
+        return out
+
+    # ---------------------------------------------------------------- Mix / Add Shader
+
+    #: Nested Mix / Add Shaders the backend resolves (backend/materials/mix.py MAX_DEPTH).
+    MIX_DEPTH = 4
+
+    def mix_shader(self, node) -> dict:
+        """(1 − Fac)·first + Fac·second (backend/materials/mix.py)."""
+        factor = self.scalar(node, "Fac", 0.5, allow_texture=True)
+        if not isinstance(factor, dict):
+            factor = min(max(factor, 0.0), 1.0)
+        return {"type": "mix", "factor": factor,
+                "materials": [self._component(node, node.inputs[1]), self._component(node, node.inputs[2])]}
+
+    def add_shader(self, node) -> dict:
+        return {"type": "add",
+                "materials": [self._component(node, node.inputs[0]), self._component(node, node.inputs[1])]}
+
+    def _component(self, mixer, socket) -> dict:
+        """One shader input of a Mix / Add Shader: nothing connected adds no light (black)."""
+        src, _ = _follow(socket)
+        black = {"type": "diffuse", "color": [0.0, 0.0, 0.0]}
+        if src is None:
+            return black
+        self._mix_depth = getattr(self, "_mix_depth", 0) + 1
+        try:
+            if self._mix_depth > self.MIX_DEPTH and src.bl_idname in ("ShaderNodeMixShader", "ShaderNodeAddShader"):
+                self.note(f"{label(src)} nested more than {self.MIX_DEPTH} deep under {mixer.name} (black used)")
+                return black
+            out = self.shader(src)
+        finally:
+            self._mix_depth -= 1
+        if out.get("type") == "emission" or "emission" in out:
+            self.note(f"{label(src)}: emission inside {mixer.name} (not rendered: a mixed shader "
+                      f"does not emit in Lamina yet)")
+            if out.get("type") == "emission":
+                return black
+            out = {k: v for k, v in out.items() if k not in ("emission", "emission_sides")}
         return out
 
     # ---------------------------------------------------------------- inputs
@@ -236,16 +277,31 @@ class NodeTranslator:
         textured_emission = isinstance(emission, dict)
         if emission is not None and not textured_emission:
             params["emission"] = emission
-        out, notes = principled_material(params)
+        trans = params["transmission"]
+        if 0.0 < trans < 1.0 and params["metallic"] == 0.0 and emission is None:
+            # Partly transmissive: a Mix of its opaque and its glass translation by the weight
+            # (Cycles mixes the two lobes linearly too).
+            parts, notes = [], []
+            for t in (0.0, 1.0):
+                part, part_notes = principled_material(dict(params, transmission=t))
+                parts.append(self._textured_principled(node, part, roughness, base_colour, params))
+                notes += [n for n in part_notes if n not in notes]
+            out = {"type": "mix", "factor": trans, "materials": parts}
+        else:
+            out, notes = principled_material(params)
+            out = self._textured_principled(node, out, roughness, base_colour, params)
         for text in notes:
             self.note(f"{node.name}: {text}")
+        if textured_emission:
+            out["emission"] = emission
+        return out
+
+    def _textured_principled(self, node, out: dict, roughness, base_colour, params) -> dict:
         if isinstance(roughness, dict):
             self.note(f"{node.name}: textured Roughness (albedo matched at its value {params['roughness']:g})")
             self._set_roughness(out, roughness)
         if isinstance(base_colour, dict):
             out = self._textured_base(node, out, base_colour)
-        if textured_emission:
-            out["emission"] = emission
         return out
 
     def _value(self, node, name: str, default: float = 0.0) -> float:

@@ -35,7 +35,7 @@ from .layered import batch as layered
 from .lights import dispatch as ld
 from .lights import mesh as _mesh
 from .lights.common import C_POWER
-from .rng import DIM_NEXT_LIGHT, SLOT_BSDF, SLOT_LIGHT, SLOT_LIGHT_PICK, SLOT_RR, bounce_dim, uniform
+from .rng import DIM_NEXT_LIGHT, SLOT_BSDF, SLOT_LIGHT, SLOT_LIGHT_PICK, SLOT_MIX, SLOT_RR, bounce_dim, uniform
 from .sampler import get2, pixel_seed
 from .soup import ROW_EMIT, ROW_MAT, ROW_N, ROW_NG, ROW_TAN, ROW_UV, ROW_V
 
@@ -74,6 +74,8 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
 RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT = 1, 2, 4, 8
 NO_RECEIVER = 64
 NO_PARAMS = (0.0,) * 12      # km.bind's 12-tuple, for lanes that do not use it
+MAX_MIX_DEPTH = 4            # materials/mix.MAX_DEPTH: nested Mix / Add Shaders
+ONE_MINUS_EPS = 1.0 - 2.0 ** -53
 
 
 @kernel
@@ -173,6 +175,36 @@ def _valid_reflection_normal(wi, ns, ng):
     h = _normalize((wi[0] + rb[0], wi[1] + rb[1], wi[2] + rb[2]))
     sg = 1.0 if c > 0.0 else -1.0
     return (h[0] * sg, h[1] * sg, h[2] * sg)
+
+
+@inlined
+def _resolve_mix(MT, TX, m, u, v, r):
+    """The component row of a Mix / Add Shader material that shades this hit, and the factor its
+    contributions carry (materials/mix.py): a mix picks A with probability 1 − f and B with f
+    (factor 1: the expectation is the mixture); an add picks each of its n components with
+    probability 1/n (factor n: the expectation is the sum). r (uniform) is reused for nested
+    mixes by stretching the chosen interval back to [0, 1)."""
+    scale = 1.0
+    for _ in range(MAX_MIX_DEPTH + 1):
+        k = MT.kind[m]
+        if k == km.MIX:
+            f = min(max(km._scalar(MT, TX, m, km.MIX_FACTOR, u, v), 0.0), 1.0)
+            if r < 1.0 - f:
+                r = r / (1.0 - f)
+                m = np.int32(MT.values[m, km.MIX_C0])
+            else:
+                r = (r - (1.0 - f)) / f if f > 0.0 else 0.0
+                m = np.int32(MT.values[m, km.MIX_C0 + 1])
+        elif k == km.ADD:
+            n = int(MT.values[m, km.MIX_N])
+            j = min(int(r * n), n - 1)
+            r = r * n - j
+            scale *= n
+            m = np.int32(MT.values[m, km.MIX_C0 + j])
+        else:
+            break
+        r = min(max(r, 0.0), ONE_MINUS_EPS)
+    return m, scale
 
 
 @inlined
@@ -530,13 +562,17 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
             u = 0.0
             v = 0.0
         m = G.irows[pr, ROW_MAT]
+        m_surface = m                 # the object's material (passes); m: the one that shades
+        if MT.kind[m] >= km.MIX:
+            m, mix_scale = _resolve_mix(MT, TX, m, u, v, uniform(key[i], bounce_dim(segment, SLOT_MIX)))
+            bt = (bt[0] * mix_scale, bt[1] * mix_scale, bt[2] * mix_scale)
         wi = (-rd[0], -rd[1], -rd[2])
         tan = (np.float64(R[pr, ROW_TAN]), np.float64(R[pr, ROW_TAN + 1]), np.float64(R[pr, ROW_TAN + 2]))
         mapped = MT.nmode[m] != 0
         if mapped:
             ns = _mapped_normal(MT, TX, m, u, v, ns, tan)
         if camera and PS.active:
-            _write_passes(PS, aux, sl, p, ng, ns, wi, u, v, G.has_uvs, m, pr)
+            _write_passes(PS, aux, sl, p, ng, ns, wi, u, v, G.has_uvs, m_surface, pr)
         # Both faces emit (as Cycles' emission shader), or the front only (emission_sides).
         if MT.emits[m] and (not MT.emit_front[m] or _dot(wi, ng) > 0.0) and not (
                 gate_hits and S.links and G.irows[pr, ROW_EMIT] >= 0

@@ -4,7 +4,8 @@
   kind      int32   DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK (emission only: reflects nothing) or
                     LAYERED (a multi-interface layered stack: its id in the stack table
                     (kernels/layered/table.py) sits in slot LAYER_ID; shaded per lane by
-                    kernels/layered/batch.shade_lane)
+                    kernels/layered/batch.shade_lane), MIX or ADD (a Mix / Add Shader: the
+                    integrator picks one component row per hit, ``_resolve_mix``)
   dist, masking     microfacet codes (kernels/microfacet.py)
   two_sided bool    reflection-only materials are seen from both sides (the integrator turns the
                     frame towards the viewer); transmissive ones are not flipped
@@ -32,7 +33,7 @@ from .jit import inlined, kernel
 from .microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from .params import ParamPacker, param_rgb, param_scalar
 
-DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK, LAYERED = 0, 1, 2, 3, 4
+DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK, LAYERED, MIX, ADD = 0, 1, 2, 3, 4, 5, 6
 NSLOT = 20
 EMISSION = 0                 # RGB, every kind
 N_MAP, N_STRENGTH = 16, 19   # every kind: the normal map (RGB) and its strength
@@ -40,6 +41,7 @@ COLOR = 3                    # diffuse: RGB albedo
 ETA, K, TINT, AU, AV = 3, 6, 9, 12, 13         # conductor: relative eta, k (RGB), tint, α
 D_ETA, D_TINT, D_AU, D_AV = 3, 4, 7, 8           # dielectric: relative eta, transmission colour, α
 LAYER_ID = 3                 # layered: the stack's row in the stack table
+MIX_FACTOR, MIX_N, MIX_C0 = 3, 4, 5   # mix/add (materials/mix.py): factor, count, component rows (≤ 8)
 
 MaterialTable = namedtuple("MaterialTable", ["kind", "dist", "masking", "two_sided", "emits",
                                              "values", "tex", "emit_front", "nmode"])

@@ -15,6 +15,7 @@ MODULES = (
     "backend.materials.conductor",
     "backend.materials.dielectric",
     "backend.materials.emission",
+    "backend.materials.mix",
     "backend.layered.material",
 )
 

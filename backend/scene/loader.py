@@ -344,6 +344,8 @@ def parse_materials(node: Node | None):
     for name, mnode in node.entries():
         materials.append(parse_material(mnode))
         names.append(name)
+    from ..materials.mix import flatten
+    flatten(materials, names)        # a Mix/Add Shader's components become rows of their own
     return materials, names
 
 

@@ -25,6 +25,7 @@ PRINCIPLED = {
     "gold": {"Base Color": (1.0, 0.77, 0.34, 1), "Metallic": 1.0, "Roughness": 0.3},
     "IOR level, tint": {"Base Color": (0.5, 0.5, 0.5, 1), "Specular IOR Level": 0.8,
                         "Specular Tint": (1.0, 0.6, 0.3, 1), "Roughness": 0.35},
+    "mix shader": None,        # not a Principled BSDF: _mix_material
 }
 CELL = 24          # pixels per sphere
 FLOOR_TURN = 0.0
@@ -36,6 +37,24 @@ def _principled(name, inputs):
     node = mat.node_tree.nodes["Principled BSDF"]
     for key, value in inputs.items():
         node.inputs[key].default_value = value
+    return mat
+
+
+def _mix_material(name):
+    """A Mix Shader (Fac 0.4) of a red Diffuse BSDF and a Glossy BSDF (roughness 0.3)."""
+    mat = bpy.data.materials.new(name)
+    tree = mat.node_tree
+    tree.nodes.clear()
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.4
+    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (0.7, 0.15, 0.1, 1.0)
+    glossy = tree.nodes.new("ShaderNodeBsdfGlossy")
+    glossy.inputs["Roughness"].default_value = 0.3
+    tree.links.new(diffuse.outputs[0], mix.inputs[1])
+    tree.links.new(glossy.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], out.inputs["Surface"])
     return mat
 
 
@@ -91,7 +110,8 @@ def principled_spheres(tmp, spp=256, bounces=6):
     co.rotation_euler = (1.5707963, 0.0, 0.0)
     sc.camera = co
     for i, (name, inputs) in enumerate(PRINCIPLED.items()):
-        build.uv_sphere(name=f"S{i}", material=_principled(name, inputs), segments=64, rings=32,
+        mat = _mix_material(name) if inputs is None else _principled(name, inputs)
+        build.uv_sphere(name=f"S{i}", material=mat, segments=64, rings=32,
                         location=(SPACING * i, 0.0, 0.0))
     build.light("Sun", "SUN", (0, 0, 5), (0.9, 0.0, 0.5), energy=2.0, angle=0.05)
     build.light("Panel", "AREA", (SPACING * n / 2, -4.0, 4.0), (0.8, 0.0, 0.0), energy=1500.0,
