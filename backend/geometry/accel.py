@@ -75,11 +75,16 @@ def offset_origin(p: np.ndarray, ng: np.ndarray, d: np.ndarray) -> np.ndarray:
 
 
 def _embree_scene(vertices: np.ndarray):
-    """An embree scene over a (T, 3, 3) triangle soup (one mesh, geometry id 0)."""
-    from embreex import rtcore_scene as rtcs
-    from embreex.mesh_construction import TriangleMesh
-    scene = rtcs.EmbreeScene()
-    TriangleMesh(scene, np.ascontiguousarray(vertices, dtype=np.float32))
+    """An embree scene over a (T, 3, 3) triangle soup (one mesh, geometry id 0): filled by NumPy
+    (geometry/embree_fill.py), or by embreex's TriangleMesh where that route is unavailable."""
+    from .embree_fill import triangle_scene
+    vertices = np.ascontiguousarray(vertices, dtype=np.float32)
+    scene = triangle_scene(vertices)
+    if scene is None:
+        from embreex import rtcore_scene as rtcs
+        from embreex.mesh_construction import TriangleMesh
+        scene = rtcs.EmbreeScene()
+        TriangleMesh(scene, vertices)
     return scene
 
 

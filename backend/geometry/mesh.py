@@ -185,27 +185,31 @@ def _corner_attribute(value, name, width, idx, vcount, fail):
     a = np.asarray(value)
     if not _real(a):
         raise fail(name, f"{name}: expected real numbers, got {a.dtype}")
-    if a.shape == (vcount, width):
-        a = a[idx]
-    elif a.shape != (idx.shape[0], 3, width):
+    per_vertex = a.shape == (vcount, width)
+    if not per_vertex and a.shape != (idx.shape[0], 3, width):
         raise fail(name, f"{name}: expected shape ({vcount}, {width}) per vertex or "
                          f"({idx.shape[0]}, 3, {width}) per corner, got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        bad = int(np.argwhere(~np.isfinite(a.reshape(a.shape[0], -1)))[0, 0])
-        raise fail(name, f"{name} of triangle {bad} is not finite (NaN or Inf)")
-    if np.any(np.abs(a) > MAX_COORDINATE):
-        bad = int(np.argwhere(np.abs(a.reshape(a.shape[0], -1)) > MAX_COORDINATE)[0, 0])
-        raise fail(name, f"{name} of triangle {bad} lie outside ±{MAX_COORDINATE:g}")
-    return a.astype(np.float32)
+    # Checked before a per-vertex array is spread to the corners (a third of the work); the
+    # message names a triangle that uses the bad value.
+    flat = a.reshape(a.shape[0], -1)
+    for bad_rows, what in ((~np.isfinite(flat), "is not finite (NaN or Inf)"),
+                           (np.abs(flat) > MAX_COORDINATE, f"lie outside ±{MAX_COORDINATE:g}")):
+        if bad_rows.any():
+            bad = int(np.argwhere(bad_rows)[0, 0])
+            if per_vertex:
+                used = np.argwhere((idx == bad).any(axis=1))
+                if used.size == 0:
+                    continue                      # a vertex no triangle uses
+                bad = int(used[0, 0])
+            raise fail(name, f"{name} of triangle {bad} {what}")
+    a = a.astype(np.float32, copy=False)
+    return a[idx] if per_vertex else a
 
 
 def drop_degenerate(mesh: Mesh, node: Node | None = None) -> Mesh:
     """Remove zero-area triangles (they have no normal); warn with their count."""
-    p = mesh.positions.astype(np.float64)[mesh.indices]
-    area2 = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
-    scale = np.maximum(np.abs(p).max(axis=(1, 2)), 1e-30)
-    # Relative threshold: below float32 resolution the triangle has no usable normal.
-    keep = area2 > (scale * scale) * 1e-12
+    from ..kernels.soup import nondegenerate
+    keep = nondegenerate(mesh.positions, mesh.indices)
     if keep.all():
         return mesh
     dropped = int((~keep).sum())

@@ -108,3 +108,32 @@ def triangle_frames(vertices: np.ndarray, uvs: np.ndarray | None):
         uv = np.ascontiguousarray(uvs, np.float32) if uvs is not None else np.zeros((1, 3, 2), np.float32)
         _fill_frames(v, uv, uvs is not None, geo_normal, tangent, area)
     return geo_normal, tangent, area
+
+
+@kernel(nogil=True)
+def _fill_nondegenerate(positions, indices, keep):
+    for t in range(indices.shape[0]):
+        a, b, c = indices[t, 0], indices[t, 1], indices[t, 2]
+        scale = 0.0
+        for k in (a, b, c):
+            for j in range(3):
+                scale = max(scale, abs(np.float64(positions[k, j])))
+        scale = max(scale, 1e-30)
+        x0, y0, z0 = np.float64(positions[a, 0]), np.float64(positions[a, 1]), np.float64(positions[a, 2])
+        e1x, e1y, e1z = np.float64(positions[b, 0]) - x0, np.float64(positions[b, 1]) - y0, np.float64(positions[b, 2]) - z0
+        e2x, e2y, e2z = np.float64(positions[c, 0]) - x0, np.float64(positions[c, 1]) - y0, np.float64(positions[c, 2]) - z0
+        nx = e1y * e2z - e1z * e2y
+        ny = e1z * e2x - e1x * e2z
+        nz = e1x * e2y - e1y * e2x
+        # Relative threshold: below float32 resolution the triangle has no usable normal.
+        keep[t] = math.sqrt(nx * nx + ny * ny + nz * nz) > (scale * scale) * 1e-12
+
+
+def nondegenerate(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """(T,) bool: the indexed triangles whose doubled area, in float64 from the float32 corners,
+    exceeds 1e-12 × the square of their largest coordinate magnitude."""
+    keep = np.empty(indices.shape[0], np.bool_)
+    if indices.shape[0]:
+        _fill_nondegenerate(np.ascontiguousarray(positions, np.float32),
+                            np.ascontiguousarray(indices, np.int32), keep)
+    return keep

@@ -463,7 +463,8 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
             raise onode.fail(f"mesh {short(mesh_name)!r} placed by this matrix reaches the coordinate "
                              f"{reach:.3g}; world coordinates must lie within ±{MAX_COORDINATE:g}",
                              "to_world")
-        v = p[mesh.indices]
+        # Rounded to float32 (what embree traces) per vertex, before the corners are spread.
+        v = p.astype(np.float32)[mesh.indices]
         nrm = None
         if mesh.normals is not None:
             normal_matrix = np.linalg.inv(m[:3, :3]).T
@@ -492,7 +493,7 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
         soup.object_pass, soup.object_uv = object_pass, object_uv
         soup.object_names, soup.object_vis, soup.object_receivers = obj_names, np.array(obj_vis, np.uint8), obj_receivers
         return soup
-    vertices = np.concatenate(verts).astype(np.float32)
+    vertices = np.concatenate(verts)
     normals = None
     if any_normals:
         normals = np.concatenate([n if n is not None else _flat_normals(v) for n, v in zip(norms, verts)]).astype(np.float32)
@@ -553,6 +554,7 @@ def warn_unused_layered_options(root: Node, materials: list, ctx: LoadContext) -
 
 
 def _flat_normals(v: np.ndarray) -> np.ndarray:
+    v = v.astype(np.float64)
     n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
     return np.repeat(n[:, None, :], 3, axis=1)
@@ -593,7 +595,9 @@ def build_mesh_light(soup: TriangleSoup, materials: list):
 
 
 def scene_bounds(soup: TriangleSoup, lights: list, camera) -> tuple[np.ndarray, float]:
-    pts = [soup.vertices.reshape(-1, 3).astype(np.float64)] if soup.count else []
+    # The soup's extremes in float32 (exact), not a float64 copy of every corner.
+    pts = [np.stack([soup.vertices.min(axis=(0, 1)), soup.vertices.max(axis=(0, 1))]).astype(np.float64)] \
+        if soup.count else []
     pts.append(camera.to_world[:3, 3][None, :])
     for light in lights:
         pos = getattr(light, "position", None)
