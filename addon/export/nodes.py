@@ -376,17 +376,27 @@ class NodeTranslator:
 
     def _normal_map(self, node, out: dict) -> None:
         """A BSDF's Normal input: a Normal Map node in tangent space fed by an image texture
-        becomes the material's ``normal`` (+ ``normal_strength``; materials/normal.py in the
-        backend); anything else is named in the warning."""
+        becomes the material's ``normal`` (+ ``normal_strength``), a Bump node fed by an image
+        texture its ``bump`` (materials/normal.py in the backend), a Bump node over a Normal Map
+        both; anything else is named in the warning."""
         sock = node.inputs.get("Normal")
         if sock is None or not sock.is_linked:
             return
         src, _ = _follow(sock)
         if src is None:
             return
+        if src.bl_idname == "ShaderNodeBump":
+            self._bump(src, out)
+            inner, _ = _follow(src.inputs["Normal"])
+            if inner is None:
+                return
+            src, node = inner, src                   # the Bump node's own Normal input
         if src.bl_idname != "ShaderNodeNormalMap":
             self.note(f"{label(src)} → {node.name}.Normal (not supported: the surface normal used)")
             return
+        self._tangent_normal_map(src, out)
+
+    def _tangent_normal_map(self, src, out: dict) -> None:
         if src.space != "TANGENT":
             self.note(f"{src.name}: {src.space.lower()} space normal map (only tangent space: "
                       f"the surface normal used)")
@@ -412,6 +422,36 @@ class NodeTranslator:
         strength = float(strength_sock.default_value)
         if strength != 1.0:
             out["normal_strength"] = max(strength, 0.0)
+
+    def _bump(self, src, out: dict) -> None:
+        """A Bump node whose Height comes from an image texture's Color (its luminance, as Blender
+        converts a colour to a number) → ``"bump"``. The backend differentiates the bilinear texture exactly, where Cycles
+        takes differences over a fraction (Filter Width) of the pixel footprint: the same for
+        textures seen larger than their texels."""
+        height, socket = _follow(src.inputs["Height"])
+        if height is None:
+            return                                   # a constant height tilts nothing
+        if height.bl_idname != "ShaderNodeTexImage" or height.image is None:
+            self.note(f"{label(height)} → {src.name}.Height (only image textures: the bump is left out)")
+            return
+        if socket.name != "Color":
+            self.note(f"{height.name}.{socket.name} → {src.name}.Height (only the Color output: "
+                      f"the bump is left out)")
+            return
+        if height.inputs["Vector"].is_linked:
+            self.note(f"{height.name}: texture mapping (ignored; the active UV map is used)")
+        tex = self.images.texture(height.image)          # a scalar: the image's luminance
+        if tex is None:
+            return
+        self.images.label(tex, f"node '{height.name}' (image '{height.image.name}' → {src.name}.Height)")
+        for name in ("Strength", "Distance"):
+            if src.inputs[name].is_linked:
+                self.note(f"{src.name}.{name} is connected (value used)")
+        bump = {"height": tex, "distance": float(src.inputs["Distance"].default_value),
+                "strength": min(max(float(src.inputs["Strength"].default_value), 0.0), 1.0)}
+        if src.invert:
+            bump["invert"] = True
+        out["bump"] = bump
 
     def _conductor_from_f0(self, out: dict, colour) -> dict:
         if isinstance(colour, dict):

@@ -38,6 +38,8 @@ from .lights.common import C_POWER
 from .rng import DIM_NEXT_LIGHT, SLOT_BSDF, SLOT_LIGHT, SLOT_LIGHT_PICK, SLOT_MIX, SLOT_RR, bounce_dim, uniform
 from .sampler import get2, pixel_seed
 from .soup import ROW_EMIT, ROW_MAT, ROW_N, ROW_NG, ROW_TAN, ROW_UV, ROW_V
+from .textures import lookup_gradient
+from .vec import cross as _cross
 
 SHADOW_EPS = 1e-4   # shadow rays stop this fraction short of the light (not its own surface)
 # Ray offsets (geometry/accel.py): along the geometric normal by a multiple of the float32
@@ -220,6 +222,42 @@ def _mapped_normal(MT, TX, m, u, v, ns, tangent):
     w = _normalize((c[0] * s[0] + c[1] * t[0] + c[2] * ns[0], c[0] * s[1] + c[1] * t[1] + c[2] * ns[1],
                     c[0] * s[2] + c[1] * t[2] + c[2] * ns[2]))
     k = MT.values[m, km.N_STRENGTH]
+    if k != 1.0:
+        w = _normalize((ns[0] + k * (w[0] - ns[0]), ns[1] + k * (w[1] - ns[1]), ns[2] + k * (w[2] - ns[2])))
+    return w
+
+
+@inlined
+def _bumped_normal(MT, TX, R, pr, m, u, v, ns, side):
+    """ns tilted by material m's bump map (Blender's Bump node): normalize(ns − d·∇h), ∇h the
+    surface gradient of the height texture through the triangle's UV map (dP/du, dP/dv from its
+    corners), d the distance; then mixed with ns by the strength, normalize(ns + k·(bumped − ns)).
+    ``side`` −1 on a back face: seen from below a bump is a dent (Cycles bumps the normal it has
+    turned towards the viewer)."""
+    gu, gv = lookup_gradient(TX, MT.tex[m, km.B_HEIGHT], u, v)
+    scale = side * MT.values[m, km.B_HEIGHT]   # texture factor × distance (× −1: inverted)
+    x0, y0, z0 = np.float64(R[pr, ROW_V]), np.float64(R[pr, ROW_V + 1]), np.float64(R[pr, ROW_V + 2])
+    e1 = (np.float64(R[pr, ROW_V + 3]) - x0, np.float64(R[pr, ROW_V + 4]) - y0, np.float64(R[pr, ROW_V + 5]) - z0)
+    e2 = (np.float64(R[pr, ROW_V + 6]) - x0, np.float64(R[pr, ROW_V + 7]) - y0, np.float64(R[pr, ROW_V + 8]) - z0)
+    u0, v0 = np.float64(R[pr, ROW_UV]), np.float64(R[pr, ROW_UV + 1])
+    du1, dv1 = np.float64(R[pr, ROW_UV + 2]) - u0, np.float64(R[pr, ROW_UV + 3]) - v0
+    du2, dv2 = np.float64(R[pr, ROW_UV + 4]) - u0, np.float64(R[pr, ROW_UV + 5]) - v0
+    det = du1 * dv2 - du2 * dv1
+    if abs(det) < 1e-20:
+        return ns                              # no UV map on this triangle: no gradient
+    dpdu = ((e1[0] * dv2 - e2[0] * dv1) / det, (e1[1] * dv2 - e2[1] * dv1) / det, (e1[2] * dv2 - e2[2] * dv1) / det)
+    dpdv = ((e2[0] * du1 - e1[0] * du2) / det, (e2[1] * du1 - e1[1] * du2) / det, (e2[2] * du1 - e1[2] * du2) / det)
+    # Surface gradients of u and v: (dP/dv × n)/D and (n × dP/du)/D, D = dP/du · (dP/dv × n).
+    a = _cross(dpdv, ns)
+    b = _cross(ns, dpdu)
+    dd = _dot(dpdu, a)
+    if abs(dd) < 1e-30:
+        return ns
+    gx = scale * (gu * a[0] + gv * b[0]) / dd
+    gy = scale * (gu * a[1] + gv * b[1]) / dd
+    gz = scale * (gu * a[2] + gv * b[2]) / dd
+    w = _normalize((ns[0] - gx, ns[1] - gy, ns[2] - gz))
+    k = MT.values[m, km.B_STRENGTH]
     if k != 1.0:
         w = _normalize((ns[0] + k * (w[0] - ns[0]), ns[1] + k * (w[1] - ns[1]), ns[2] + k * (w[2] - ns[2])))
     return w
@@ -571,6 +609,9 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
         mapped = MT.nmode[m] != 0
         if mapped:
             ns = _mapped_normal(MT, TX, m, u, v, ns, tan)
+        if MT.bump[m] and G.has_uvs:           # on top of the normal map (Bump node's Normal input)
+            ns = _bumped_normal(MT, TX, R, pr, m, u, v, ns, 1.0 if _dot(wi, ng) >= 0.0 else -1.0)
+            mapped = True
         if camera and PS.active:
             _write_passes(PS, aux, sl, p, ng, ns, wi, u, v, G.has_uvs, m_surface, pr)
         # Both faces emit (as Cycles' emission shader), or the front only (emission_sides).

@@ -17,6 +17,8 @@
   nmode     int32   the material's normal map (materials/normal.py): 0 none, 1 a constant
                     normal (slots N_MAP, unit), 2 a texture (slots N_MAP: RGB · 2 − 1); its
                     strength in slot N_STRENGTH (kernels/integrator.py ``_mapped_normal``)
+  bump      bool    a bump map (materials/normal.Bump): height texture × distance in slot
+                    B_HEIGHT, strength in B_STRENGTH (kernels/integrator.py ``_bumped_normal``)
 
 Per lane, ``bind`` evaluates a row's parameters at a UV into a fixed 12-tuple ``p`` (so every
 kind returns the same Numba type): diffuse (colour); conductor (eta, k, tint, αu, αv, smooth);
@@ -34,9 +36,10 @@ from .microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from .params import ParamPacker, param_rgb, param_scalar
 
 DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK, LAYERED, MIX, ADD = 0, 1, 2, 3, 4, 5, 6
-NSLOT = 20
+NSLOT = 22
 EMISSION = 0                 # RGB, every kind
 N_MAP, N_STRENGTH = 16, 19   # every kind: the normal map (RGB) and its strength
+B_HEIGHT, B_STRENGTH = 20, 21   # every kind: the bump map's height × distance and its strength
 COLOR = 3                    # diffuse: RGB albedo
 ETA, K, TINT, AU, AV = 3, 6, 9, 12, 13         # conductor: relative eta, k (RGB), tint, α
 D_ETA, D_TINT, D_AU, D_AV = 3, 4, 7, 8           # dielectric: relative eta, transmission colour, α
@@ -44,7 +47,7 @@ LAYER_ID = 3                 # layered: the stack's row in the stack table
 MIX_FACTOR, MIX_N, MIX_C0 = 3, 4, 5   # mix/add (materials/mix.py): factor, count, component rows (≤ 8)
 
 MaterialTable = namedtuple("MaterialTable", ["kind", "dist", "masking", "two_sided", "emits",
-                                             "values", "tex", "emit_front", "nmode"])
+                                             "values", "tex", "emit_front", "nmode", "bump"])
 
 
 class MaterialRow:
@@ -62,6 +65,7 @@ class MaterialRow:
         self.values = np.zeros(NSLOT)
         self.tex = np.full(NSLOT, -1, np.int32)
         self.nmode = 0
+        self.bump = False
 
     def set(self, slot: int, param, channels: int, factor=1.0) -> None:
         values, tex = self.packer.pack(param, channels, factor)
@@ -86,6 +90,11 @@ def build_material_table(materials: list, packer: ParamPacker, stacks=None) -> M
             row.emits = True
             row.emit_front = bool(getattr(m, "emission_front_only", False))
         _pack_normal_map(row, getattr(m, "normal_map", None), getattr(m, "normal_strength", 1.0))
+        bump = getattr(m, "bump", None)
+        if bump is not None:
+            row.set(B_HEIGHT, bump.height, 1, bump.distance)
+            row.values[B_STRENGTH] = bump.strength
+            row.bump = True
         rows.append(row)
     if not rows:
         rows.append(MaterialRow(packer, stacks))
@@ -93,7 +102,7 @@ def build_material_table(materials: list, packer: ParamPacker, stacks=None) -> M
                          np.array([r.masking for r in rows], np.int32), np.array([r.two_sided for r in rows]),
                          np.array([r.emits for r in rows]), np.stack([r.values for r in rows]),
                          np.stack([r.tex for r in rows]), np.array([r.emit_front for r in rows]),
-                         np.array([r.nmode for r in rows], np.int32))
+                         np.array([r.nmode for r in rows], np.int32), np.array([r.bump for r in rows]))
 
 
 def _pack_normal_map(row: MaterialRow, normal, strength: float) -> None:

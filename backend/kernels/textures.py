@@ -76,6 +76,35 @@ def lookup(tx, t, u, v):
             (a[2] * gx + b[2] * fx) * gy + (c[2] * gx + d[2] * fx) * fy)
 
 
+@inlined
+def lookup_gradient(tx, t, u, v):
+    """(∂/∂u, ∂/∂v) of the first channel of ``lookup`` at (u, v): the slopes of the bilinear
+    patch the point lies in (a bump map's height gradient, kernels/integrator.py)."""
+    w = tx.width[t]
+    h = tx.height[t]
+    x = u * w - 0.5
+    y = (1.0 - v) * h - 0.5
+    fx0 = math.floor(x)
+    fy0 = math.floor(y)
+    if not (math.isfinite(fx0) and math.isfinite(fy0)):
+        return (0.0, 0.0)
+    fx = x - fx0
+    fy = y - fy0
+    x0 = int(fx0) % w
+    y0 = int(fy0) % h
+    x1 = (x0 + 1) % w
+    y1 = (y0 + 1) % h
+    c = tx.channels[t]
+    base = tx.offset[t]
+    a = np.float64(tx.texels[base + (y0 * w + x0) * c])
+    b = np.float64(tx.texels[base + (y0 * w + x1) * c])
+    cc = np.float64(tx.texels[base + (y1 * w + x0) * c])
+    d = np.float64(tx.texels[base + (y1 * w + x1) * c])
+    d_dx = (b - a) * (1.0 - fy) + (d - cc) * fy
+    d_dy = (cc - a) * (1.0 - fx) + (d - b) * fx
+    return (d_dx * w, -d_dy * h)            # x = u·w − ½, y = (1 − v)·h − ½
+
+
 @kernel
 def lookup_batch(tx, t, uv, out):
     """out[i] = lookup at uv[i] (out has 1 or 3 columns)."""

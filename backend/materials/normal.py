@@ -1,10 +1,14 @@
-"""A shading normal given in the material's local frame — on a whole material (scene-file
+"""Shading normals of a material: a normal given in the material's local frame — on a whole material (scene-file
 ``"normal"`` on any material, loader.parse_material) or on one interface of a layered stack.
 
 Local frame: x = the UV tangent dP/du, y = n × x, z = the surface's (interpolated) normal; so a
 tangent-space normal map is Blender's Normal Map node in Tangent Space for UVs that are not
 mirrored. The value is a constant vector (z > 0), or an image texture whose RGB encodes
 (x, y, z) = RGB · 2 − 1 (OpenGL convention: green = +y; a "Non-Color" image).
+
+A bump map (scene-file ``"bump"`` on any material; Blender's Bump node): a height field h(u, v)
+tilts the normal against its surface gradient, n' = normalize(n − d·∇h), d the distance; the
+gradient follows the mesh's UV map, so the same texture on a larger object tilts less.
 """
 from __future__ import annotations
 
@@ -46,3 +50,32 @@ def parse_normal(inode: Node) -> NormalParam | None:
         if v[2] <= 0 or not np.any(v):
             raise inode.fail("expected a normal [x, y, z] pointing out of the surface (z > 0)", "normal")
     return NormalParam(p, texture)
+
+
+class Bump:
+    """A material's bump map: ``height`` (a Param: a texture, or a constant that tilts nothing)
+    times ``distance`` [scene units per unit of the height value, negative when inverted], mixed
+    with the unbumped normal by ``strength`` in [0, 1] (kernels/integrator.py ``_bumped_normal``)."""
+
+    def __init__(self, height, distance: float, strength: float):
+        self.height = height
+        self.distance = distance
+        self.strength = strength
+
+
+def parse_bump(node: Node) -> Bump | None:
+    """``"bump": {"height": number or texture, "distance": 1.0, "strength": 1.0, "invert": false}``;
+    None when absent or when it cannot tilt the normal (constant height, zero distance or
+    strength)."""
+    if not node.has("bump"):
+        return None
+    b = node.child("bump")
+    b.require_object()
+    height = b.param("height", channels=1, lo=None, color=False)
+    distance = b.number("distance", 1.0)
+    strength = b.number("strength", 1.0, lo=0.0, hi=1.0)
+    invert = b.boolean("invert", False)
+    b.finish()
+    if height.is_constant or distance == 0.0 or strength == 0.0:
+        return None
+    return Bump(height, -distance if invert else distance, strength)

@@ -217,6 +217,13 @@ def test_node_materials_translation(results):
     assert plain["type"] == "diffuse" and "normal_strength" not in plain
     assert plain["normal"]["texture"] == mapped["normal"]["texture"]
     assert "Normal Map" not in warning and "normal/bump" not in warning
+    # A Bump node (image height) over a Normal Map: both, with the Bump node's settings.
+    bumped = mats["Bumped"]
+    assert bumped["normal"]["texture"] == mapped["normal"]["texture"]
+    bump = bumped["bump"]
+    assert bump["distance"] == pytest.approx(0.02) and bump["strength"] == pytest.approx(0.8)
+    assert bump["invert"] is True and bump["height"]["texture"] and "channel" not in bump["height"]
+    assert "Bump" not in warning
 
 
 def test_million_triangle_export_time(results):

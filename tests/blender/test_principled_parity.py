@@ -110,13 +110,14 @@ def test_one_and_two_sided_emission_match_cycles(tmp_path):
     assert lam[back].min() < 0.05 * lam.max() and cyc[back].min() < 0.05 * cyc.max()
 
 
-def test_normal_mapped_planes_match_cycles(tmp_path):
-    """A Normal Map node (tangent space, image texture, Strength) on a Diffuse BSDF: three planes
-    under a sun (no map, tilted towards the sun, tilted sideways at strength 0.6), each plane's
-    central region within 2 % / 4σ of Cycles; the maps change the brightness by far more than
-    the tolerance, so a map that is ignored or read in the wrong frame fails."""
-    r = result_of(run_cases("parity_cases", ["normal_mapped_planes"], tmp=tmp_path, timeout=900),
-                  "normal_mapped_planes")
+@pytest.mark.parametrize("case", ["normal_mapped_planes", "bumped_planes"])
+def test_normal_mapped_and_bumped_planes_match_cycles(tmp_path, case):
+    """A Normal Map node (tangent space, image texture, Strength) or a Bump node (image height,
+    Distance, Strength, Invert) on a Diffuse BSDF: three planes under a sun (none, tilted towards
+    the sun, tilted sideways at strength 0.6), each plane's central region within 2 % / 4σ of
+    Cycles; the maps change the brightness by far more than the tolerance, so a map that is
+    ignored, read in the wrong frame or with the wrong sign or scale fails."""
+    r = result_of(run_cases("parity_cases", [case], tmp=tmp_path, timeout=900), case)
     assert r["cycles_error"] is None and r["lamina_error"] is None, r
     cyc = channels_named(read_exr_parts(r["cycles"]), ["R", "G", "B"]).astype(np.float64) @ LUMINANCE
     lam = channels_named(read_exr_parts(r["lamina"]), ["R", "G", "B"]).astype(np.float64) @ LUMINANCE
@@ -129,7 +130,7 @@ def test_normal_mapped_planes_match_cycles(tmp_path):
         se = diff.std(ddof=1) / np.sqrt(diff.size) / c.mean()
         rows.append((name, l.mean() / c.mean(), se, c.mean()))
         lines.append(f"  {name:28s} Lamina/Cycles {l.mean() / c.mean():.4f} ± {se:.4f} (Cycles {c.mean():.4f})")
-    print("\nNormal-map parity:\n" + "\n".join(lines))
+    print(f"\n{case}:\n" + "\n".join(lines))
     assert all(within(ratio, se) for _, ratio, se, _ in rows), "\n".join(lines)
     flat, toward, sideways = (c for *_, c in rows)
     assert toward > 1.15 * flat and sideways < 0.97 * flat       # the maps matter in Cycles too

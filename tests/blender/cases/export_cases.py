@@ -187,6 +187,21 @@ def node_materials(tmp):
     tree.links.new(ntex.outputs["Color"], nmap.inputs["Color"])
     tree.links.new(nmap.outputs["Normal"], dif.inputs["Normal"])
     mats["DiffuseNormalMapped"] = diffuse_mat
+    # A Bump node over a Normal Map, its Height from an image texture.
+    mat, node = principled("Bumped", **{"Base Color": (0.5, 0.5, 0.5, 1)})
+    bump = mat.node_tree.nodes.new("ShaderNodeBump")
+    bump.invert = True
+    bump.inputs["Distance"].default_value = 0.02
+    bump.inputs["Strength"].default_value = 0.8
+    htex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    htex.image = bumps
+    mat.node_tree.links.new(htex.outputs["Color"], bump.inputs["Height"])
+    nmap = mat.node_tree.nodes.new("ShaderNodeNormalMap")
+    ntex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    ntex.image = bumps
+    mat.node_tree.links.new(ntex.outputs["Color"], nmap.inputs["Color"])
+    mat.node_tree.links.new(nmap.outputs["Normal"], bump.inputs["Normal"])
+    mat.node_tree.links.new(bump.outputs["Normal"], node.inputs["Normal"])
     mat, node = principled("Unsupported")
     noise = mat.node_tree.nodes.new("ShaderNodeTexNoise")
     mat.node_tree.links.new(noise.outputs["Color"], node.inputs["Base Color"])

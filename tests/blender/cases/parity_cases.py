@@ -8,6 +8,8 @@ bounce limit for every kind of bounce).
 from __future__ import annotations
 
 import time
+
+import numpy as np
 from pathlib import Path
 
 import bpy
@@ -215,6 +217,58 @@ def _normal_mapped_material(name, normal, strength):
     bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfDiffuse")
     tree.links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
     return mat
+
+
+# Bump node planes: (ramp direction, Distance, Strength, Invert). Each plane (1.8 m, UVs [0, 1]²)
+# reads a 16 × 16 float height image rising by 1/16 per texel along u or v, so ∂h/∂u = 1 and the
+# surface gradient is 1/1.8 per metre: Distance 1.8·tan 25° tilts the normal by 25°.
+BUMP_PLANES = {"flat": None, "ramp u, inverted (towards +x 25°)": ("u", 0.8394, 1.0, True),
+               "ramp v, strength 0.6 (towards -y)": ("v", 1.0392, 0.6, False)}
+
+
+def _bumped_material(name, spec):
+    """A grey Diffuse BSDF whose Normal comes from a Bump node over a ramp height image."""
+    mat = build.diffuse_material(name, (0.6, 0.6, 0.6))
+    if spec is None:
+        return mat
+    along, distance, strength, invert = spec
+    tree = mat.node_tree
+    n = 16
+    image = bpy.data.images.new(f"{name}Height", n, n, alpha=True, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"
+    ramp = np.arange(n, dtype=np.float32) / n
+    h = np.broadcast_to(ramp[None, :] if along == "u" else ramp[:, None], (n, n))   # rows bottom-up
+    image.pixels.foreach_set(np.stack([h, h, h, np.ones_like(h)], -1).ravel())
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    tex.interpolation = "Linear"
+    bump = tree.nodes.new("ShaderNodeBump")
+    bump.invert = invert
+    bump.inputs["Distance"].default_value = distance
+    bump.inputs["Strength"].default_value = strength
+    tree.links.new(tex.outputs["Color"], bump.inputs["Height"])
+    bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfDiffuse")
+    tree.links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+    return mat
+
+
+def bumped_planes(tmp, spp=64, bounces=2):
+    """Three grey planes under a sun 40° from the zenith towards +x: no bump, a height ramp along
+    u inverted (the normal leans towards the sun: brighter) and one along v at strength 0.6
+    (sideways: darker)."""
+    import math
+    sc = build.scene()
+    sc.render.resolution_x, sc.render.resolution_y = 96, 32
+    build.camera(location=(0.0, -0.5, 9.0), target=(0.0, 0.0, 0.0), lens=50)
+    build.world_colour((0.02, 0.02, 0.02), 1.0)
+    build.light("Sun", "SUN", location=(0, 0, 5), rotation=(0.0, math.radians(40.0), 0.0), energy=3.0,
+                angle=0.0)
+    for i, spec in enumerate(BUMP_PLANES.values()):
+        obj = build.plane(f"Plane{i}", size=1.8, material=_bumped_material(f"B{i}", spec))
+        obj.location = (-2.1 + 2.1 * i, 0.0, 0.0)
+    out = _render_both(sc, tmp, "bump_planes", spp, bounces)
+    out["names"] = list(BUMP_PLANES)
+    return out
 
 
 def normal_mapped_planes(tmp, spp=64, bounces=2):

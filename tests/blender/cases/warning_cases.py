@@ -55,8 +55,9 @@ def _feature_scene():
     glow = build.plane("Glow", size=0.5, z=2.5, material=_emissive("Glowing"))
     glow.light_linking.receiver_collection = receivers
     glow.light_linking.blocker_collection = blockers
-    # Shader features the integrator does not render yet: Mix/Add Shader, a procedural normal
-    # map, a Bump node, a procedural texture, a Volume output.
+    # Shader features the integrator does not render (or no longer names): Mix/Add Shader, a
+    # procedural normal map, a Bump node over a procedural height, a procedural texture, a
+    # Volume output.
     mix = bpy.data.materials.new("Mixed")
     tree = mix.node_tree
     out = tree.nodes["Material Output"]
@@ -79,6 +80,9 @@ def _feature_scene():
     bump_mat = bpy.data.materials.new("Bumped")
     bump = bump_mat.node_tree.nodes.new("ShaderNodeBump")
     bump_mat.node_tree.links.new(bump.outputs[0], bump_mat.node_tree.nodes["Principled BSDF"].inputs["Normal"])
+    # a procedural height (only image textures are translated)
+    wave = bump_mat.node_tree.nodes.new("ShaderNodeTexWave")
+    bump_mat.node_tree.links.new(wave.outputs["Fac"], bump.inputs["Height"])
     for i, mat in enumerate((mix, add, bumpy, foggy, bump_mat)):
         build.uv_sphere(f"Ball{i}", radius=0.3, segments=8, rings=4, material=mat, location=(i - 2, 0, 0.5))
     return sc
