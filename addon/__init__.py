@@ -18,6 +18,7 @@ _MODULES = (
     "ops.stack",
     "ops.presets",
     "ops.export",
+    "ops.bake",
     "engine.engine",
     "engine.viewport",
     "ui.compat",

@@ -9,6 +9,7 @@ silently dropped; the value typed into the socket is used instead.
 from __future__ import annotations
 
 from ..util import f0_to_conductor_k, rgb
+from . import baked
 from .stack import alpha
 
 CLEAR_MEDIUM = {"thickness": 1.0, "sigma_t": 0.0}
@@ -45,6 +46,10 @@ class NodeTranslator:
         self.images = images
         self.notes = notes
         self._where = ""
+        self._material = None
+        #: (node, input name) of every input fed by something other than an image texture that
+        #: a baked image could stand for (ops/bake.py bakes them; export/baked.py finds them).
+        self.bakeable: list = []
 
     def note(self, what: str) -> None:
         self.notes.append(f"{self._where}: {what}" if self._where else what)
@@ -53,6 +58,7 @@ class NodeTranslator:
 
     def material(self, mat) -> dict:
         self._where = f"material '{mat.name}'"
+        self._material = mat
         tree = mat.node_tree if getattr(mat, "node_tree", None) is not None else None
         if tree is None or not _uses_nodes(mat):
             return {"type": "diffuse", "color": rgb(mat.diffuse_color)}
@@ -160,10 +166,21 @@ class NodeTranslator:
             self.note(f"{label(src)} → {node.name}.{name} (only constants here: value used)")
         return alpha(value) if squared else value
 
+    def _baked(self, node, name: str, src, what: str, squared: bool = False):
+        """The baked image standing for the procedural ``src`` → ``node.name``, or None (and a
+        note naming the input, with ``what`` Lamina uses instead)."""
+        self.bakeable.append((node, name))
+        image, why = baked.lookup(self._material, node, name)
+        if image is None:
+            self.note(f"{label(src)} → {node.name}.{name} ({why or 'procedural, not baked'}: {what}; "
+                      f"Bake Procedural Textures in Lamina's material panel)")
+            return None
+        return self.images.label(self.images.texture(image, squared=squared),
+                                 f"image '{image.name}' (baked from {label(src)} → {node.name}.{name})")
+
     def _image_input(self, node, name: str, src, squared: bool = False):
         if src.bl_idname != "ShaderNodeTexImage":
-            self.note(f"{label(src)} → {node.name}.{name} (not supported: value used)")
-            return None
+            return self._baked(node, name, src, "value used", squared)
         if src.image is None:
             return None
         if src.inputs["Vector"].is_linked:
@@ -404,17 +421,19 @@ class NodeTranslator:
         colour, _ = _follow(src.inputs["Color"])
         if colour is None:
             return                                   # an unconnected colour is the flat normal
-        if colour.bl_idname != "ShaderNodeTexImage" or colour.image is None:
-            self.note(f"{label(colour)} → {src.name}.Color (only image textures: the surface normal used)")
-            return
         if src.uv_map:
             self.note(f"{src.name}: UV map '{src.uv_map}' (the active UV map is used)")
-        if colour.inputs["Vector"].is_linked:
-            self.note(f"{colour.name}: texture mapping (ignored; the active UV map is used)")
-        tex = self.images.texture(colour.image)
+        if colour.bl_idname != "ShaderNodeTexImage":
+            tex = self._baked(src, "Color", colour, "the surface normal used")
+        elif colour.image is None:
+            return
+        else:
+            if colour.inputs["Vector"].is_linked:
+                self.note(f"{colour.name}: texture mapping (ignored; the active UV map is used)")
+            tex = self.images.texture(colour.image)
+            self.images.label(tex, f"node '{colour.name}' (image '{colour.image.name}' → {src.name}.Color)")
         if tex is None:
             return
-        self.images.label(tex, f"node '{colour.name}' (image '{colour.image.name}' → {src.name}.Color)")
         out["normal"] = tex
         strength_sock = src.inputs["Strength"]
         if strength_sock.is_linked:
@@ -431,19 +450,21 @@ class NodeTranslator:
         height, socket = _follow(src.inputs["Height"])
         if height is None:
             return                                   # a constant height tilts nothing
-        if height.bl_idname != "ShaderNodeTexImage" or height.image is None:
-            self.note(f"{label(height)} → {src.name}.Height (only image textures: the bump is left out)")
+        if height.bl_idname != "ShaderNodeTexImage":
+            tex = self._baked(src, "Height", height, "the bump is left out")
+        elif height.image is None:
             return
-        if socket.name != "Color":
+        elif socket.name != "Color":
             self.note(f"{height.name}.{socket.name} → {src.name}.Height (only the Color output: "
                       f"the bump is left out)")
             return
-        if height.inputs["Vector"].is_linked:
-            self.note(f"{height.name}: texture mapping (ignored; the active UV map is used)")
-        tex = self.images.texture(height.image)          # a scalar: the image's luminance
+        else:
+            if height.inputs["Vector"].is_linked:
+                self.note(f"{height.name}: texture mapping (ignored; the active UV map is used)")
+            tex = self.images.texture(height.image)          # a scalar: the image's luminance
+            self.images.label(tex, f"node '{height.name}' (image '{height.image.name}' → {src.name}.Height)")
         if tex is None:
             return
-        self.images.label(tex, f"node '{height.name}' (image '{height.image.name}' → {src.name}.Height)")
         for name in ("Strength", "Distance"):
             if src.inputs[name].is_linked:
                 self.note(f"{src.name}.{name} is connected (value used)")

@@ -261,6 +261,10 @@ def draw_nodes(layout, material) -> None:
     col.use_property_split = True
     col.prop(material.lamina, "emission_sides", text="Emission From")
     draw_findings(layout, node_findings(material))
+    from ..ops.bake import bakeable_inputs
+    if bakeable_inputs(material):
+        op = layout.operator("lamina.bake_procedurals", icon="TEXTURE")
+        op.material = material.name
 
 
 # ------------------------------------------------------------------ panels

@@ -41,8 +41,8 @@ def test_one_warning_names_every_unrendered_feature(results):
     assert warning.startswith("Lamina ignored or approximated:") and "\n" not in warning
     missing = [k for k, needle in NAMED.items() if needle not in warning]
     assert not missing, f"not named: {missing}\n{warning}"
-    assert "Noise Texture → Normal Map.Color (only image textures" in warning
-    assert "Wave Texture → Bump.Height (only image textures: the bump is left out)" in warning
+    assert "Noise Texture → Normal Map.Color (procedural, not baked: the surface normal used" in warning
+    assert "Wave Texture → Bump.Height (procedural, not baked: the bump is left out" in warning
     assert "shadow catcher" not in warning            # nothing is named that the scene does not use
     # Rendered now (the feature scene switches them on): never named.
     for rendered in ("stereo", "multi-view", "Depth", "Mist", "Position", "UV", "Object Index",
