@@ -31,6 +31,14 @@ class Camera:
         # Directions transform with the rotation part; normalise afterwards (matrix may scale).
         self._rot = rot
         self._origin = self.to_world[:3, 3]
+        #: Motion blur: the rigid change from ``to_world`` to the camera's transform at K equally
+        #: spaced times over the shutter, M_k · to_world⁻¹, as (K, 12) rows of 3 × 4 (empty: the
+        #: camera does not move; kernels/camera.py applies it to each ray).
+        self.motion_delta = np.zeros((0, 12))
+
+    def set_motion(self, matrices: list) -> None:
+        inv = np.linalg.inv(self.to_world)
+        self.motion_delta = np.array([(np.asarray(m, np.float64) @ inv)[:3].ravel() for m in matrices])
 
     def generate_rays(self, st: np.ndarray, lens_u: np.ndarray | None = None):
         """Film positions (n, 2) → world rays (o, d unit, tmin, tmax), all float64.
@@ -52,6 +60,7 @@ def parse_camera(node: Node) -> Camera:
     node.require_object()
     kind = node.string("type", choices=("perspective", "orthographic"))
     to_world = node.matrix4("to_world")
+    motion = node.motion()
     frame_node = node.child("frame")
     corners = frame_node.items()
     if len(corners) != 4:
@@ -84,7 +93,10 @@ def parse_camera(node: Node) -> Camera:
         ratio = dof.number("ratio", 1.0, lo=0, lo_open=True, hi=1000.0)
         dof.finish()
     node.finish()
-    return Camera(kind, to_world, frame, clip_start, clip_end, focus, aperture, blades, rotation, ratio)
+    camera = Camera(kind, to_world, frame, clip_start, clip_end, focus, aperture, blades, rotation, ratio)
+    if motion is not None:
+        camera.set_motion(motion)
+    return camera
 
 
 def _corner(node: Node) -> np.ndarray:

@@ -24,6 +24,7 @@ from .kernels.layered.table import H_MAXV, StackBuilder
 from .kernels.lights.table import build_light_table
 from .kernels.params import ParamPacker
 from .kernels.sampler import SAMPLERS
+from .geometry.accel import NO_TIMES
 from .kernels.soup import shading_rows
 from .passes import NO_LANES, PassLayout
 from .scene.links import CAMERA, NO_RECEIVER
@@ -74,6 +75,7 @@ class _Scratch:
         self.n = n
         self.queues = (_Queue(n), _Queue(n))
         self.tmax32 = np.empty(n, np.float32)
+        self.lane_time = np.empty(n, np.float32)       # shutter time of each lane (motion blur)
         m = n * shadows_per_lane
         self.sh_slot = np.empty(m, np.int64)
         self.sh_o32 = np.empty((m, 3), np.float32)
@@ -122,9 +124,20 @@ class PathTracer:
         count = soup.count
         rows, irows = shading_rows(soup.vertices, soup.normals, soup.uvs, soup.geo_normal, soup.tangent,
                                    soup.material, emitter[:count])
+        # Motion blur: the moving triangles' corners (and normals) at each time step, one row of
+        # 9 per triangle; the lanes' shutter times (camera_rays writes them) reach embree and
+        # the shading of moving triangles. No motion: empty tables, no times.
+        self.motion = soup.motion is not None or scene.camera.motion_delta.shape[0] > 0
+        if soup.motion is not None:
+            mv = np.ascontiguousarray(np.stack(soup.motion).reshape(len(soup.motion), -1, 9), np.float32)
+            mn = np.ascontiguousarray(np.stack(soup.motion_normals).reshape(mv.shape), np.float32) \
+                if soup.motion_normals is not None else np.zeros((1, 1, 9), np.float32)
+        else:
+            mv = mn = np.zeros((1, 1, 9), np.float32)
         self.geometry = ki.Geometry(rows, irows,
                                     np.ascontiguousarray(soup.holdout, bool) if count else np.zeros(1, bool),
-                                    soup.normals is not None, soup.uvs is not None)
+                                    soup.normals is not None, soup.uvs is not None,
+                                    soup.moving_start if soup.motion is not None else max(count, 1), mv, mn)
         # How many lights next-event estimation samples at once at an analytic material's vertex
         # (0: it picks one): every one with local selection (the table's flag: 2 or more lights)
         # and at most ALL_LIGHTS_MAX of them.
@@ -140,6 +153,10 @@ class PathTracer:
             np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights] or [False]),
             SAMPLERS[s.sampler], STRATIFIED_BOUNCES, nee_all, *self.vis.kernel_fields())
         self.camera = camera_vector(scene.camera)
+        self.camera_motion = np.ascontiguousarray(scene.camera.motion_delta, np.float64)
+        if self.motion and (self.vis.filter_shadows or self.vis.skip_hits):
+            scene.warnings.append("motion blur with ray visibility, light or shadow linking filters: "
+                                  "the filtered rays see moving objects where they are when the shutter opens")
         self.passes = getattr(scene, "passes", None)
         if self.passes is not None and not self.passes.active:
             self.passes = None
@@ -193,9 +210,10 @@ class PathTracer:
         sc = self._scratch(n)
         cur, nxt = sc.queues
         tmax32 = sc.tmax32
-        camera_rays(self.camera, *self.filter, W, H, self.settings.seed, self.settings.sampler,
-                    pixels, spp, sample0,
-                    cur.key[:n], cur.o[:n], cur.d[:n], cur.o32[:n], cur.d32[:n], tmax32[:n])
+        lane_time = sc.lane_time[:n] if self.motion else NO_TIMES
+        camera_rays(self.camera, self.camera_motion, *self.filter, W, H, self.settings.seed,
+                    self.settings.sampler, pixels, spp, sample0,
+                    cur.key[:n], cur.o[:n], cur.d[:n], cur.o32[:n], cur.d32[:n], tmax32[:n], lane_time)
         cur.slot[:n] = np.arange(n)
         cur.beta[:n] = 1.0
         cur.pdf[:n] = 0.0
@@ -221,7 +239,8 @@ class PathTracer:
             # embree writes each hit's distance into the tmax array it is given: re-tracing past
             # hidden objects needs the rays' own limits (and shading then sees those too).
             t_ray = t_in.copy() if skip else t_in
-            prim, t, b1, b2 = self.accel.intersect32(o32, d32, t_in)
+            times = lane_time[cur.slot[:active]] if self.motion else NO_TIMES
+            prim, t, b1, b2 = self.accel.intersect32(o32, d32, t_in, times)
             rays += active
             if skip:
                 t_in = t_ray
@@ -229,7 +248,7 @@ class PathTracer:
                                                        prim, t, b1, b2)
             counts[:] = 0
             ki.shade(self.geometry, self.materials, self.textures, self.light_table, self.settings,
-                     self.pass_params, segment, pixels, spp, sample0,
+                     self.pass_params, segment, pixels, spp, sample0, lane_time,
                      cur.slot[:active], cur.key[:active], cur.o[:active], cur.d[:active], cur.beta[:active],
                      cur.pdf[:active], cur.delta[:active], cur.rtype[:active], cur.recv[:active],
                      t_in, prim, t, b1, b2,
@@ -240,7 +259,8 @@ class PathTracer:
                 if self.vis.filter_shadows:
                     blocked = self.vis.occluded(sh_o32[:ns], sh_d32[:ns], sh_t32[:ns], sc.sh_mask[:ns])
                 else:
-                    blocked = self.accel.occluded32(sh_o32[:ns], sh_d32[:ns], sh_t32[:ns])
+                    blocked = self.accel.occluded32(sh_o32[:ns], sh_d32[:ns], sh_t32[:ns],
+                                                    lane_time[sh_slot[:ns]] if self.motion else NO_TIMES)
                 rays += ns
                 ki.add_unoccluded(sh_slot[:ns], sh_c[:ns], blocked, L)
             killed += int(counts[3])

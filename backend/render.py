@@ -361,9 +361,7 @@ class _ProcessItems:
             self.ctx = multiprocessing.get_context("fork")
             _setup_local(source, options, scene)
             # embree builds the BVH on the first query: build it here, once, before forking.
-            accel = _WORKER["accel"]
-            if not getattr(accel._scene, "is_committed", 1):
-                accel.intersect(np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]))
+            _WORKER["accel"].commit()
         else:
             self.ctx = _spawn_context()
         self.source, self.options, self.warn = source, options, warn

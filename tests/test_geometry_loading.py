@@ -4,7 +4,6 @@ import json
 import numpy as np
 import pytest
 
-from backend.geometry.embree_fill import triangle_scene
 from backend.kernels.soup import nondegenerate
 
 
@@ -13,33 +12,45 @@ def _soup(rng, count):
     return (centres + rng.normal(0, 0.03, (count, 3, 3))).astype(np.float32)
 
 
-def test_embree_scene_filled_by_numpy_gives_the_hits_of_embreex_triangle_mesh():
+def test_compiled_queries_on_the_numpy_filled_scene_give_embreex_answers():
+    """The scene filled by NumPy (geometry/embree_lib.py) queried by the compiled loops
+    (kernels/trace.py) answers as embreex's TriangleMesh queried by embreex's run: same triangle,
+    distance and barycentrics, same occlusion."""
     from embreex import rtcore_scene as rtcs
     from embreex.mesh_construction import TriangleMesh
+
+    from backend.geometry.accel import EmbreeQueries
     rng = np.random.default_rng(3)
     v = _soup(rng, 20000)
-    fast = triangle_scene(v)
-    # The pinned embreex on this platform must take the fast route (else 1 M triangles cost 2.7 s).
-    assert fast is not None
+    fast = EmbreeQueries(v)
+    # The pinned embreex on this platform must take the direct route (else 1 M triangles cost
+    # 2.7 s to build and rays cannot carry a time).
+    assert fast.direct is not None
     slow = rtcs.EmbreeScene()
     TriangleMesh(slow, v)
     o = rng.uniform(-2, 2, (50000, 3)).astype(np.float32)
     d = rng.normal(size=(50000, 3)).astype(np.float32)
-    a, b = fast.run(o, d, output=True), slow.run(o, d, output=True)
-    assert (a["primID"] >= 0).mean() > 0.1
-    for key in ("primID", "geomID", "tfar", "u", "v"):
-        assert np.array_equal(a[key], b[key]), key
-    tmax = rng.uniform(0, 3, 50000).astype(np.float32)
-    occ_a = fast.run(o, d, dists=tmax.copy(), query="OCCLUDED")
-    occ_b = slow.run(o, d, dists=tmax.copy(), query="OCCLUDED")
-    assert np.array_equal(occ_a, occ_b)
+    tmax = np.where(rng.uniform(size=50000) < 0.5, 3e38, rng.uniform(0, 3, 50000)).astype(np.float32)
+    prim, t, b1, b2 = fast.intersect(o, d, tmax.copy())
+    ref = slow.run(o, d, dists=tmax.copy(), output=True)
+    hit = ref["primID"] >= 0
+    assert 0.1 < hit.mean() < 0.9
+    assert np.array_equal(prim, ref["primID"])
+    for mine, theirs in ((t, ref["tfar"]), (b1, ref["u"]), (b2, ref["v"])):
+        assert np.array_equal(mine[hit], theirs[hit])
+    assert np.array_equal(t[~hit], tmax[~hit])             # misses keep their limit
+    occ = fast.occluded(o, d, tmax.copy())
+    assert np.array_equal(occ, slow.run(o, d, dists=tmax.copy(), query="OCCLUDED"))
+    assert 0.05 < (occ == 0).mean() < 0.95
 
 
 def test_embree_scene_of_no_triangles_misses_everything():
-    scene = triangle_scene(np.zeros((0, 3, 3), np.float32))
-    assert scene is not None
-    hits = scene.run(np.zeros((4, 3), np.float32), np.ones((4, 3), np.float32), output=True)
-    assert np.all(hits["primID"] == -1)
+    from backend.geometry.accel import EmbreeQueries
+    q = EmbreeQueries(np.zeros((0, 3, 3), np.float32))
+    assert q.direct is not None
+    prim, *_ = q.intersect(np.zeros((4, 3), np.float32), np.ones((4, 3), np.float32),
+                           np.full(4, 3e38, np.float32))
+    assert np.all(prim == -1)
 
 
 def test_degenerate_triangle_test_matches_the_float64_formula():

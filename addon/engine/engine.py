@@ -188,7 +188,8 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         exported = export_scene(depsgraph, workdir / "scene",
                                 camera_object=camera_object,
                                 samples=_preview_samples() if preview else None,
-                                seed_offset=seed_offset, preview=preview, views=views)
+                                seed_offset=seed_offset, preview=preview, views=views,
+                                frame_set=lambda f, sub: self.frame_set(f, subframe=sub))
         self._exported = exported                # its notes are reported with the renderer's, once
         if not preview:
             print(f"Lamina: exported {exported.stats['triangles']} triangles "

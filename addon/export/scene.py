@@ -18,6 +18,7 @@ from .images import ImageExporter, safe_name
 from .lights import light_json
 from .linking import LIGHT_RAYS, linking_source, resolve, visibility_fields
 from .mesh import mesh_arrays, sanitise, write_npz
+from .motion import deformation_note, motion_rows
 from .names import FieldNames
 from .nodes import DEFAULT_MATERIAL, NodeTranslator, volume_note
 from .passes import passes_json
@@ -120,6 +121,9 @@ class SceneExporter:
         self._linking: list = []          # (entry, collections) resolved once all are exported
         self.stats = {"triangles": 0, "meshes": 0, "instances": 0}
         self.names = FieldNames()
+        #: Motion blur: {object name: matrices over the shutter} (export/motion.py), or None.
+        self.motion: dict | None = None
+        self._instances_noted = False
 
     # ---------------------------------------------------------------- materials
 
@@ -220,6 +224,9 @@ class SceneExporter:
             return
         if kind == "LIGHT":
             entry = light_json(obj, inst.matrix_world.copy(), self.notes)
+            if self.motion and not inst.is_instance and motion_rows(self.motion.get(obj.name)):
+                self.notes.append(f"light '{obj.name}': moving lights are not motion-blurred "
+                                  f"(rendered where it is at the frame)")
             if entry is not None:
                 entry.update(visibility_fields(obj, LIGHT_RAYS))
                 self._linking.append((entry, linking_source(obj, blockers=True)))
@@ -246,6 +253,19 @@ class SceneExporter:
                  "to_world": matrix_rows(inst.matrix_world.copy()), "materials": slots}
         if holdout:
             entry["holdout"] = True
+        if self.motion is not None:
+            if inst.is_instance:
+                if not self._instances_noted:
+                    self._instances_noted = True
+                    self.notes.append("instances (particles, collection instances, geometry nodes "
+                                      "instances) are not motion-blurred (rendered at the frame)")
+            else:
+                rows = motion_rows(self.motion.get(obj.name))
+                if rows is not None:
+                    entry["motion"] = rows
+                note = deformation_note(original)
+                if note and not self.preview:
+                    self.notes.append(note)
         if int(getattr(original, "pass_index", 0)) > 0:
             entry["pass_index"] = int(original.pass_index)      # the Object Index pass
         hidden_floor = self.preview and any(
@@ -275,6 +295,10 @@ class SceneExporter:
                 camera = camera_json(camera_object, scene)
             except CameraError as exc:
                 raise ExportError(str(exc)) from None
+            if self.motion is not None:
+                rows = motion_rows(self.motion.get(camera_object.name), rigid=True)
+                if rows is not None:
+                    camera["motion"] = rows
         if film is None:
             width, height = film_size(scene.render)
             film = film_json(scene, width, height)
@@ -286,6 +310,10 @@ class SceneExporter:
                 entry["light_linking"] = resolve(source, exported)
         if not self.preview:
             self.notes.extend(scene_notes(scene, getattr(self.depsgraph, "view_layer", None)))
+            if getattr(scene.render, "use_motion_blur", False) and self.motion is None \
+                    and scene.render.motion_blur_shutter > 0:
+                self.notes.append(f"scene '{scene.name}': motion blur (not rendered here: the "
+                                  f"viewport shows the frame's instant)")
         doc = {"format": "lamina-scene", "version": 1,
                "_generator": "Lamina Blender add-on",
                "film": film,
@@ -319,13 +347,19 @@ def dumps(doc: dict) -> str:
 def export_scene(depsgraph, directory, *, camera_object=None, samples: int | None = None,
                  copy_textures: bool = False, seed_offset: int = 0,
                  filename: str = "scene.json", mesh_folder: str = "meshes",
-                 preview: bool = False, views: dict | None = None) -> ExportResult:
-    """Write the scene of ``depsgraph`` into ``directory``; raises ExportError for fatal problems."""
+                 preview: bool = False, views: dict | None = None, frame_set=None) -> ExportResult:
+    """Write the scene of ``depsgraph`` into ``directory``; raises ExportError for fatal problems.
+    ``frame_set(frame, subframe)`` evaluates the scene at another time (RenderEngine.frame_set,
+    Scene.frame_set): with motion blur on, objects and the camera are sampled over the shutter."""
     t0 = time.perf_counter()
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     exporter = SceneExporter(depsgraph, directory, copy_textures=copy_textures, mesh_folder=mesh_folder,
                              preview=preview)
+    from .motion import sample, shutter_times
+    times = shutter_times(depsgraph.scene) if frame_set is not None and not preview else None
+    if times:
+        exporter.motion = sample(depsgraph, frame_set, times)
     camera_object = camera_object if camera_object is not None else depsgraph.scene.camera
     doc = exporter.build(camera_object, samples=samples, seed_offset=seed_offset, views=views)
     path = directory / filename

@@ -2,7 +2,7 @@
 
 Every note is ``"<kind> '<name>': <what> (<what Lamina does instead>)"``, so the render's one
 warning (``scene.warning_text``) groups them by object, material, light, view layer or scene.
-Checked here: motion blur, a light object's shadow ray visibility, shadow linking set on an
+Checked here: a light object's shadow ray visibility, shadow linking set on an
 emissive object, light groups, shadow catchers, a light's shadow/contribution switches, and render
 passes other than Combined, the denoising passes and the data passes of passes.py. (Ray
 visibility of objects and lights and light linking of lights and emissive objects are rendered:
@@ -41,10 +41,6 @@ RAY_VISIBILITY = {"object": (), "light": (("visible_shadow", "shadow"),)}
 def scene_notes(scene, view_layer) -> list[str]:
     """Scene- and view-layer-wide settings Lamina does not render."""
     notes = []
-    render = scene.render
-    if getattr(render, "use_motion_blur", False):
-        notes.append(f"scene '{scene.name}': motion blur (not rendered: every object and the camera "
-                     f"are rendered at the frame's instant)")
     if view_layer is not None:
         on = [label for prop, label in PASSES if getattr(view_layer, prop, False)]
         cycles = getattr(view_layer, "cycles", None)

@@ -47,7 +47,8 @@ class LAMINA_OT_export_scene(bpy.types.Operator, ExportHelper):
                 depsgraph = context.evaluated_depsgraph_get()
                 seed = frame if scene.lamina.use_animated_seed else 0
                 result = export_scene(depsgraph, path.parent, copy_textures=self.copy_textures,
-                                      seed_offset=seed, filename=filename, mesh_folder=meshes)
+                                      seed_offset=seed, filename=filename, mesh_folder=meshes,
+                                      frame_set=lambda f, sub: scene.frame_set(f, subframe=sub))
                 notes.extend(result.notes)
                 triangles = result.stats["triangles"]
         except ExportError as exc:

@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from .jit import kernel
-from .rng import DIM_FILTER, DIM_LENS, path_key
+from .rng import BOUNCE_BASE, DIM_FILTER, DIM_LENS, SLOT_TIME, path_key
 from .sampler import get2, pixel_seed
 from .warp import disk_concentric
 
@@ -156,12 +156,38 @@ def filter_batch(cdf, grid, inverse, kinked, width, u, out):
         out[i, 1] = filter_offset(cdf, grid, inverse, kinked, width, u[i, 1])
 
 
+@kernel
+def _moved(cm, tt, ro, rd):
+    """A camera ray moved with the camera to shutter time tt: the change from the camera's
+    transform interpolated between the two motion steps around tt, applied to the ray."""
+    K = cm.shape[0]
+    x = tt * (K - 1)
+    k0 = min(int(x), K - 2)
+    a = x - k0
+    r0 = cm[k0]
+    r1 = cm[k0 + 1]
+    o = ((r0[0] + a * (r1[0] - r0[0])) * ro[0] + (r0[1] + a * (r1[1] - r0[1])) * ro[1]
+         + (r0[2] + a * (r1[2] - r0[2])) * ro[2] + (r0[3] + a * (r1[3] - r0[3])),
+         (r0[4] + a * (r1[4] - r0[4])) * ro[0] + (r0[5] + a * (r1[5] - r0[5])) * ro[1]
+         + (r0[6] + a * (r1[6] - r0[6])) * ro[2] + (r0[7] + a * (r1[7] - r0[7])),
+         (r0[8] + a * (r1[8] - r0[8])) * ro[0] + (r0[9] + a * (r1[9] - r0[9])) * ro[1]
+         + (r0[10] + a * (r1[10] - r0[10])) * ro[2] + (r0[11] + a * (r1[11] - r0[11])))
+    dx = (r0[0] + a * (r1[0] - r0[0])) * rd[0] + (r0[1] + a * (r1[1] - r0[1])) * rd[1] + (r0[2] + a * (r1[2] - r0[2])) * rd[2]
+    dy = (r0[4] + a * (r1[4] - r0[4])) * rd[0] + (r0[5] + a * (r1[5] - r0[5])) * rd[1] + (r0[6] + a * (r1[6] - r0[6])) * rd[2]
+    dz = (r0[8] + a * (r1[8] - r0[8])) * rd[0] + (r0[9] + a * (r1[9] - r0[9])) * rd[1] + (r0[10] + a * (r1[10] - r0[10])) * rd[2]
+    n = math.sqrt(dx * dx + dy * dy + dz * dz)
+    return o, (dx / n, dy / n, dz / n)
+
+
 @kernel(nogil=True)
-def camera_rays(cam, cdf, grid, inverse, kinked, fwidth, width, height, seed, sampler, pixels, spp,
-                sample0, key, o, d, o32, d32, tmax32):
+def camera_rays(cam, cam_motion, cdf, grid, inverse, kinked, fwidth, width, height, seed, sampler,
+                pixels, spp, sample0, key, o, d, o32, d32, tmax32, lane_time):
     """The primary rays of a work item: lane i is sample ``sample0 + i % spp`` of pixel
     ``pixels[i // spp]`` (flat index, row 0 = top). Writes the lane's random-number key, the ray
-    in float64 (shading) and float32 (embree, with its clipped length)."""
+    in float64 (shading) and float32 (embree, with its clipped length). Motion blur (``lane_time``
+    not empty): each lane's shutter time in [0, 1), stratified per pixel; the ray moves with the
+    camera by ``cam_motion`` (K rows of a 3 × 4 change from the camera's transform, at K equally
+    spaced times, interpolated linearly; empty: the camera does not move)."""
     lens = cam[28] > 0.0 and cam[27] > 0.0
     inv_w = 1.0 / width
     inv_h = 1.0 / height
@@ -183,6 +209,11 @@ def camera_rays(cam, cdf, grid, inverse, kinked, fwidth, width, height, seed, sa
             t = (py + 0.5 + oy_) * inv_h
             l0, l1 = get2(sampler, ps, k, smp, DIM_LENS) if lens else (0.5, 0.5)
             ro, rd, tmin, tm = generate(cam, s, t, lens, l0, l1)
+            if lane_time.shape[0] > 0:
+                tt = get2(sampler, ps, k, smp, BOUNCE_BASE + SLOT_TIME)[0]
+                lane_time[i] = min(np.float32(tt), np.float32(0.99999994))
+                if cam_motion.shape[0] > 0:
+                    ro, rd = _moved(cam_motion, tt, ro, rd)
             # Start at the near clip plane.
             for c in range(3):
                 o[i, c] = ro[c] + rd[c] * tmin

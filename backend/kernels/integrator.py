@@ -51,7 +51,10 @@ INF = np.inf
 # Scene geometry for shading: one float32 row per triangle (kernels/soup.py, ``ROW_*``: corners,
 # corner normals and UVs, geometric normal, tangent) and the same memory as int32 (material,
 # emitter); a value at barycentrics (b1, b2) is c0 + b1·(c1 − c0) + b2·(c2 − c0) in float64.
-Geometry = namedtuple("Geometry", ["rows", "irows", "holdout", "has_normals", "has_uvs"])
+# moving_start: the first moving triangle (motion blur; past the last triangle when none moves);
+# mv, mn: their corners and shading normals at each motion step, float32 (K, M, 9).
+Geometry = namedtuple("Geometry", ["rows", "irows", "holdout", "has_normals", "has_uvs",
+                                   "moving_start", "mv", "mn"])
 # Render settings the kernels read (scalars; one Numba type per field).
 Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", "transparent",
                                    "has_lights", "mesh_light", "hittable", "infinite",
@@ -225,6 +228,52 @@ def _mapped_normal(MT, TX, m, u, v, ns, tangent):
     if k != 1.0:
         w = _normalize((ns[0] + k * (w[0] - ns[0]), ns[1] + k * (w[1] - ns[1]), ns[2] + k * (w[2] - ns[2])))
     return w
+
+
+@inlined
+def _lerp_corner(A, k0, j, c, a):
+    """Corner c (3 values at 3c) of moving triangle j between motion steps k0 and k0 + 1."""
+    return (np.float64(A[k0, j, 3 * c]) + a * (np.float64(A[k0 + 1, j, 3 * c]) - np.float64(A[k0, j, 3 * c])),
+            np.float64(A[k0, j, 3 * c + 1]) + a * (np.float64(A[k0 + 1, j, 3 * c + 1]) - np.float64(A[k0, j, 3 * c + 1])),
+            np.float64(A[k0, j, 3 * c + 2]) + a * (np.float64(A[k0 + 1, j, 3 * c + 2]) - np.float64(A[k0, j, 3 * c + 2])))
+
+
+@inlined
+def _moving_surface(G, R, pr, tm, b1, b2):
+    """(point, unit geometric normal (CCW), shading normal, UV tangent) of moving triangle pr at
+    shutter time tm in [0, 1): its corners and normals interpolated linearly between the two
+    motion steps around tm, as embree interpolates the vertices it traces (embree_lib.py)."""
+    K = G.mv.shape[0]
+    j = pr - G.moving_start
+    x = tm * (K - 1)
+    k0 = min(int(x), K - 2)
+    a = x - k0
+    c0 = _lerp_corner(G.mv, k0, j, 0, a)
+    c1 = _lerp_corner(G.mv, k0, j, 1, a)
+    c2 = _lerp_corner(G.mv, k0, j, 2, a)
+    e1 = (c1[0] - c0[0], c1[1] - c0[1], c1[2] - c0[2])
+    e2 = (c2[0] - c0[0], c2[1] - c0[1], c2[2] - c0[2])
+    p = (c0[0] + b1 * e1[0] + b2 * e2[0], c0[1] + b1 * e1[1] + b2 * e2[1], c0[2] + b1 * e1[2] + b2 * e2[2])
+    ng = _normalize(_cross(e1, e2))
+    ns = ng
+    if G.has_normals:
+        n0 = _lerp_corner(G.mn, k0, j, 0, a)
+        n1 = _lerp_corner(G.mn, k0, j, 1, a)
+        n2 = _lerp_corner(G.mn, k0, j, 2, a)
+        ns = _normalize((n0[0] + b1 * (n1[0] - n0[0]) + b2 * (n2[0] - n0[0]),
+                         n0[1] + b1 * (n1[1] - n0[1]) + b2 * (n2[1] - n0[1]),
+                         n0[2] + b1 * (n1[2] - n0[2]) + b2 * (n2[2] - n0[2])))
+    tan = (0.0, 0.0, 0.0)
+    if G.has_uvs:
+        # dP/du from the UV differences (as kernels/soup.py's frames).
+        u0, w0 = np.float64(R[pr, ROW_UV]), np.float64(R[pr, ROW_UV + 1])
+        du1, dv1 = np.float64(R[pr, ROW_UV + 2]) - u0, np.float64(R[pr, ROW_UV + 3]) - w0
+        du2, dv2 = np.float64(R[pr, ROW_UV + 4]) - u0, np.float64(R[pr, ROW_UV + 5]) - w0
+        det = du1 * dv2 - du2 * dv1
+        if abs(det) > 1e-20:
+            tan = _normalize(((e1[0] * dv2 - e2[0] * dv1) / det, (e1[1] * dv2 - e2[1] * dv1) / det,
+                              (e1[2] * dv2 - e2[2] * dv1) / det))
+    return p, ng, ns, tan
 
 
 @inlined
@@ -487,7 +536,7 @@ def _write_passes(PS, aux, sl, p, ng, ns, wi, u, v, has_uvs, m, pr):
 
 
 @kernel(nogil=True)
-def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
+def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
           slot, key, o, d, beta, prev_pdf, prev_delta, rtype, recv, tmax32, prim, t32, b1_32, b2_32,
           L, albedo, normal, alpha, aux,
           nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, nx_rtype, nx_recv,
@@ -497,7 +546,8 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
     ``sample0 + sl % spp`` of pixel ``pixels[sl // spp]`` (for the path sampler). ``counts``
     (int64[5]) gets [next rays, shadow rays, layered lanes, non-finite paths killed, 0].
     ``PS``, ``aux``: the data passes' table and per-lane columns (backend/passes.py; untouched
-    when ``PS.active`` is false).
+    when ``PS.active`` is false). ``lane_time``: each lane's shutter time in [0, 1) (motion
+    blur; read only for moving triangles, ``G.moving_start`` …).
     ``ST``: the layered stack table; ``LW``, ``LB``, ``LR``, ``LC``: the layered walks' scratch
     and counters (kernels/layered/batch.py). ``rtype``/``recv``: each ray's type and the receiver
     set of the vertex it left (ray visibility, light linking: ``Settings``); ``sh_mask``: each
@@ -583,14 +633,18 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
         b1 = np.float64(b1_32[i])
         b2 = np.float64(b2_32[i])
         R = G.rows
-        p = _interp3(R, pr, ROW_V, b1, b2)
-        ng = (np.float64(R[pr, ROW_NG]), np.float64(R[pr, ROW_NG + 1]), np.float64(R[pr, ROW_NG + 2]))
-        if G.has_normals:
-            ns = _interp3(R, pr, ROW_N, b1, b2)
-            ln = math.sqrt(_dot(ns, ns))
-            ns = (ns[0] / ln, ns[1] / ln, ns[2] / ln) if ln > 0.0 else ng
+        if pr >= G.moving_start:
+            p, ng, ns, tan = _moving_surface(G, R, pr, np.float64(lane_time[sl]), b1, b2)
         else:
-            ns = ng
+            p = _interp3(R, pr, ROW_V, b1, b2)
+            ng = (np.float64(R[pr, ROW_NG]), np.float64(R[pr, ROW_NG + 1]), np.float64(R[pr, ROW_NG + 2]))
+            if G.has_normals:
+                ns = _interp3(R, pr, ROW_N, b1, b2)
+                ln = math.sqrt(_dot(ns, ns))
+                ns = (ns[0] / ln, ns[1] / ln, ns[2] / ln) if ln > 0.0 else ng
+            else:
+                ns = ng
+            tan = (np.float64(R[pr, ROW_TAN]), np.float64(R[pr, ROW_TAN + 1]), np.float64(R[pr, ROW_TAN + 2]))
         if G.has_uvs:
             u0 = np.float64(R[pr, ROW_UV])
             v0 = np.float64(R[pr, ROW_UV + 1])
@@ -605,7 +659,6 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0,
             m, mix_scale = _resolve_mix(MT, TX, m, u, v, uniform(key[i], bounce_dim(segment, SLOT_MIX)))
             bt = (bt[0] * mix_scale, bt[1] * mix_scale, bt[2] * mix_scale)
         wi = (-rd[0], -rd[1], -rd[2])
-        tan = (np.float64(R[pr, ROW_TAN]), np.float64(R[pr, ROW_TAN + 1]), np.float64(R[pr, ROW_TAN + 2]))
         mapped = MT.nmode[m] != 0
         if mapped:
             ns = _mapped_normal(MT, TX, m, u, v, ns, tan)

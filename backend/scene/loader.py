@@ -147,7 +147,15 @@ def rebase_sections(data: dict, offset: np.ndarray) -> dict:
             raise ValueError("to_world is not a 4x4 matrix")
         m = m.copy()
         m[:3, 3] -= offset
-        return {**node, "to_world": m.tolist()}
+        out = {**node, "to_world": m.tolist()}
+        if isinstance(node.get("motion"), list):          # motion blur: every step moves too
+            steps = [np.array(k, dtype=np.float64) for k in node["motion"]]
+            if any(k.shape != (4, 4) for k in steps):
+                raise ValueError("motion holds a matrix that is not 4x4")
+            for k in steps:
+                k[:3, 3] -= offset
+            out["motion"] = [k.tolist() for k in steps]
+        return out
 
     out = dict(data)
     if "camera" in data:
@@ -410,6 +418,8 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
     object_uv: list[bool] = []             # whether its mesh has a UV map (UV pass)
     obj_names, obj_vis, obj_receivers = [], [], []      # per object (scene/links.py)
     any_normals = any_uvs = False
+    moving: list = []                      # per object: [(corners, normals) per motion step] or None
+    motion_steps = None
     default_index = None
     items = node.items() if node is not None else []
     from ..limits import geometry_memory_problem
@@ -426,6 +436,7 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
             raise onode.fail(f"unknown mesh {short(mesh_name)!r} (known: {known(sorted(meshes))})", "mesh")
         mesh = meshes[mesh_name]
         m = onode.matrix4("to_world", np.eye(4).tolist())
+        motion = onode.motion()
         visible = onode.boolean("visible_camera", True)
         holdout = onode.boolean("holdout", False)
         from ..passes import MAX_PASS_INDEX
@@ -460,29 +471,29 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
         lut = np.array(slot_index + [default_index if default_index is not None else 0], dtype=np.int32)
         tri_mat = lut[np.minimum(tri_slots, len(slot_index))]
 
-        p = mesh.positions.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
-        reach = float(np.max(np.abs(p))) if p.size else 0.0
-        if not reach <= MAX_COORDINATE:
-            raise onode.fail(f"mesh {short(mesh_name)!r} placed by this matrix reaches the coordinate "
-                             f"{reach:.3g}; world coordinates must lie within ±{MAX_COORDINATE:g}",
-                             "to_world")
-        # Rounded to float32 (what embree traces) per vertex, before the corners are spread.
-        v = p.astype(np.float32)[mesh.indices]
-        nrm = None
-        if mesh.normals is not None:
-            normal_matrix = np.linalg.inv(m[:3, :3]).T
-            nrm = mesh.normals.astype(np.float64) @ normal_matrix.T
-            nrm /= np.maximum(np.linalg.norm(nrm, axis=2, keepdims=True), 1e-30)
+        v, nrm, mirrored = _placed(mesh, m, onode, mesh_name, "to_world")
+        if nrm is not None:
             any_normals = True
         uv = mesh.uvs
         object_uv.append(uv is not None)
         if uv is not None:
             any_uvs = True
-        if np.linalg.det(m[:3, :3]) < 0:
-            # A mirroring transform reverses the winding: swap two corners to keep CCW = front.
-            v = v[:, [0, 2, 1]]
-            nrm = None if nrm is None else nrm[:, [0, 2, 1]]
-            uv = None if uv is None else uv[:, [0, 2, 1]]
+            if mirrored:
+                uv = uv[:, [0, 2, 1]]
+        moving.append(None)
+        if motion is not None:
+            if any(getattr(materials[k], "emission", None) is not None for k in np.unique(tri_mat)):
+                ctx.warn(f"objects[{oi}].motion", "an emitting object is not motion-blurred (its "
+                                                  "light is sampled where it is at the frame): ignored")
+            elif motion_steps is not None and len(motion) != motion_steps:
+                raise onode.fail(f"{len(motion)} motion steps, but another object has {motion_steps}: "
+                                 f"every moving object needs the same number", "motion")
+            else:
+                motion_steps = len(motion)
+                steps = [_placed(mesh, mk, onode, mesh_name, f"motion[{k}]") for k, mk in enumerate(motion)]
+                if any(st[2] != mirrored for st in steps):
+                    raise onode.fail("the transform mirrors at some times and not at others", "motion")
+                moving[-1] = [(st[0], st[1]) for st in steps]
         verts.append(v)
         norms.append(nrm)
         uvs.append(uv)
@@ -496,6 +507,10 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
         soup.object_pass, soup.object_uv = object_pass, object_uv
         soup.object_names, soup.object_vis, soup.object_receivers = obj_names, np.array(obj_vis, np.uint8), obj_receivers
         return soup
+    # Moving objects' triangles last (geometry/embree_lib.py traces them at each ray's time).
+    order = [k for k in range(len(verts)) if moving[k] is None] + [k for k in range(len(verts)) if moving[k]]
+    verts, norms, uvs, mats, objs, cam, hold, moving = ([a[k] for k in order] for a in
+                                                        (verts, norms, uvs, mats, objs, cam, hold, moving))
     vertices = np.concatenate(verts)
     normals = None
     if any_normals:
@@ -506,6 +521,13 @@ def flatten_objects(node: Node | None, meshes: dict[str, Mesh], materials: list,
                                  for u, v in zip(uvs, verts)]).astype(np.float32)
     soup = TriangleSoup(vertices, normals, uv_all, np.concatenate(mats), np.concatenate(objs), np.concatenate(cam),
                         np.concatenate(hold))
+    moved = [mv for mv in moving if mv]
+    if moved:
+        soup.motion = [np.concatenate([mv[k][0] for mv in moved]) for k in range(motion_steps)]
+        if any_normals:
+            soup.motion_normals = [np.concatenate([n if n is not None else _flat_normals(v) for v, n in
+                                                   (mv[k] for mv in moved)]).astype(np.float32)
+                                   for k in range(motion_steps)]
     soup.object_pass, soup.object_uv = object_pass, object_uv
     soup.object_names, soup.object_vis, soup.object_receivers = obj_names, np.array(obj_vis, np.uint8), obj_receivers
     return soup
@@ -556,6 +578,28 @@ def warn_unused_layered_options(root: Node, materials: list, ctx: LoadContext) -
                                    "uses these options: they change nothing")
 
 
+def _placed(mesh: Mesh, m: np.ndarray, onode: Node, mesh_name: str, field: str):
+    """(float32 world corners (T, 3, 3), float64 unit world normals per corner or None,
+    mirrored) of ``mesh`` placed by ``m``; a mirroring matrix swaps two corners (CCW = front)."""
+    p = mesh.positions.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+    reach = float(np.max(np.abs(p))) if p.size else 0.0
+    if not reach <= MAX_COORDINATE:
+        raise onode.fail(f"mesh {short(mesh_name)!r} placed by this matrix reaches the coordinate "
+                         f"{reach:.3g}; world coordinates must lie within ±{MAX_COORDINATE:g}", field)
+    # Rounded to float32 (what embree traces) per vertex, before the corners are spread.
+    v = p.astype(np.float32)[mesh.indices]
+    nrm = None
+    if mesh.normals is not None:
+        normal_matrix = np.linalg.inv(m[:3, :3]).T
+        nrm = mesh.normals.astype(np.float64) @ normal_matrix.T
+        nrm /= np.maximum(np.linalg.norm(nrm, axis=2, keepdims=True), 1e-30)
+    mirrored = bool(np.linalg.det(m[:3, :3]) < 0)
+    if mirrored:
+        v = v[:, [0, 2, 1]]
+        nrm = None if nrm is None else nrm[:, [0, 2, 1]]
+    return v, nrm, mirrored
+
+
 def _flat_normals(v: np.ndarray) -> np.ndarray:
     v = v.astype(np.float64)
     n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
@@ -598,9 +642,10 @@ def build_mesh_light(soup: TriangleSoup, materials: list):
 
 
 def scene_bounds(soup: TriangleSoup, lights: list, camera) -> tuple[np.ndarray, float]:
-    # The soup's extremes in float32 (exact), not a float64 copy of every corner.
-    pts = [np.stack([soup.vertices.min(axis=(0, 1)), soup.vertices.max(axis=(0, 1))]).astype(np.float64)] \
-        if soup.count else []
+    # The soup's extremes in float32 (exact), not a float64 copy of every corner; moving
+    # triangles at every motion step.
+    pts = [np.stack([v.min(axis=(0, 1)), v.max(axis=(0, 1))]).astype(np.float64)
+           for v in [soup.vertices] + list(getattr(soup, "motion", None) or []) if v.shape[0]]
     pts.append(camera.to_world[:3, 3][None, :])
     for light in lights:
         pos = getattr(light, "position", None)

@@ -318,24 +318,19 @@ class Node:
         """A 4×4 affine matrix given as 4 rows of 4 numbers (row-major, column vectors:
         p' = M p): entries within ±MAX_COORDINATE, last row [0, 0, 0, 1] (as Blender's
         matrix_world; a projective matrix has no meaning for an object), not singular."""
-        value = self._get(key, default)
+        return check_matrix4(self._get(key, default), self.sub(key), self.ctx)
+
+    def motion(self, key: str = "motion") -> list[np.ndarray] | None:
+        """Motion blur: ``to_world`` at 2 … MAX_MOTION_STEPS equally spaced times over the
+        shutter, as a list of 4×4 matrices (each as ``matrix4``); None when absent."""
+        if not self.has(key):
+            return None
+        value = self._get(key, None)
         path = self.sub(key)
-        if not (isinstance(value, list) and len(value) == 4 and
-                all(isinstance(r, list) and len(r) == 4 for r in value)):
-            raise self.ctx.error(path, f"expected a 4×4 matrix (4 rows of 4 numbers), got {_describe(value)}")
-        rows = [check_vector(r, 4, f"{path}[{i}]", self.ctx, -MAX_COORDINATE, MAX_COORDINATE)
-                for i, r in enumerate(value)]
-        m = np.array(rows, dtype=np.float64)
-        if np.max(np.abs(m[3] - [0.0, 0.0, 0.0, 1.0])) > 1e-6:
-            raise self.ctx.error(f"{path}[3]", f"expected [0, 0, 0, 1] (an affine transform, as Blender's "
-                                               f"matrix_world), got {[_fmt_g(v) for v in m[3]]}")
-        m[3] = [0.0, 0.0, 0.0, 1.0]
-        m[np.abs(m) < 1e-300] = 0.0             # subnormal entries only make LAPACK warn
-        with np.errstate(all="ignore"):          # subnormal entries: det may warn
-            det = float(np.linalg.det(m[:3, :3]))
-        if not abs(det) >= 1e-12:
-            raise self.ctx.error(path, "matrix is singular (zero scale?)")
-        return m
+        if not (isinstance(value, list) and 2 <= len(value) <= MAX_MOTION_STEPS):
+            raise self.ctx.error(path, f"expected a list of 2 to {MAX_MOTION_STEPS} 4×4 matrices "
+                                       f"(the transform over the shutter), got {_describe(value)}")
+        return [check_matrix4(m, f"{path}[{i}]", self.ctx) for i, m in enumerate(value)]
 
     def param(self, key: str, default: Any = _MISSING, channels: int = 1, lo: float | None = None,
               hi: float | None = None, lo_open: bool = False, color: bool | None = None):
@@ -361,6 +356,29 @@ def dispatch(node: Node, parsers: dict[str, Callable]):
     result = parsers[kind](node)
     node.finish()
     return result
+
+
+MAX_MOTION_STEPS = 64
+
+
+def check_matrix4(value: Any, path: str, ctx: LoadContext) -> np.ndarray:
+    """See ``Node.matrix4``."""
+    if not (isinstance(value, list) and len(value) == 4 and
+            all(isinstance(r, list) and len(r) == 4 for r in value)):
+        raise ctx.error(path, f"expected a 4×4 matrix (4 rows of 4 numbers), got {_describe(value)}")
+    rows = [check_vector(r, 4, f"{path}[{i}]", ctx, -MAX_COORDINATE, MAX_COORDINATE)
+            for i, r in enumerate(value)]
+    m = np.array(rows, dtype=np.float64)
+    if np.max(np.abs(m[3] - [0.0, 0.0, 0.0, 1.0])) > 1e-6:
+        raise ctx.error(f"{path}[3]", f"expected [0, 0, 0, 1] (an affine transform, as Blender's "
+                                      f"matrix_world), got {[_fmt_g(v) for v in m[3]]}")
+    m[3] = [0.0, 0.0, 0.0, 1.0]
+    m[np.abs(m) < 1e-300] = 0.0             # subnormal entries only make LAPACK warn
+    with np.errstate(all="ignore"):          # subnormal entries: det may warn
+        det = float(np.linalg.det(m[:3, :3]))
+    if not abs(det) >= 1e-12:
+        raise ctx.error(path, "matrix is singular (zero scale?)")
+    return m
 
 
 def check_number(value: Any, path: str, ctx: LoadContext, lo=None, hi=None,

@@ -17,7 +17,7 @@ pytestmark = [pytest.mark.blender, requires_bpy]
 
 # Every feature of issue 19 the integrator does not render yet, and how the warning names it.
 NAMED = {
-    "motion blur": "scene 'Scene' (motion blur",
+    "deforming motion": "object 'Floor' (deforming modifiers are not motion-blurred",
     "passes": "view layer 'ViewLayer' (Vector, Ambient Occlusion passes (not rendered: left empty)",
     "light groups": "light group",
     "light object's shadow visibility": "light 'Lamp' (ray visibility off for shadow rays",
@@ -57,6 +57,7 @@ RENDERED = {
     "object ray visibility": "object 'Blocker'",
     "ray visibility other than a light's shadow": "ray visibility off for diffuse",
     "light linking (the light's and the emissive object's)": "light linking",
+    "motion blur of objects and the camera": "motion blur (not rendered",
 }
 
 
@@ -73,7 +74,7 @@ def test_a_render_reports_one_warning_with_the_renderers(tmp_path):
     assert result_of(r, "render_warning")["message"] is None
     lines = [l for l in r["_stderr"].splitlines() if l.startswith("Lamina ignored or approximated:")]
     assert len(lines) == 1, r["_stderr"][-3000:]
-    assert "fake warning from the renderer" in lines[0] and "motion blur" in lines[0]
+    assert "fake warning from the renderer" in lines[0] and "not motion-blurred" in lines[0]
 
 
 @pytest.mark.skipif(not backend_renders(("diffuse",), ("point",), ("constant",)), reason="needs the renderer")

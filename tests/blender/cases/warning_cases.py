@@ -30,6 +30,7 @@ def _feature_scene():
     build.camera()
     floor = build.plane("Floor", material=build.diffuse_material("Grey"))
     sc.render.use_motion_blur = True
+    floor.modifiers.new("Rig", "ARMATURE")      # a deforming modifier: its motion is not blurred
     sc.render.use_multiview = True
     vl = bpy.context.view_layer
     for prop in ("use_pass_z", "use_pass_mist", "use_pass_normal", "use_pass_position", "use_pass_uv",
@@ -91,7 +92,8 @@ def _feature_scene():
 def export_warning(tmp):
     from lamina.addon.export import export_scene
     _feature_scene()
-    result = export_scene(bpy.context.evaluated_depsgraph_get(), Path(tmp) / "features")
+    result = export_scene(bpy.context.evaluated_depsgraph_get(), Path(tmp) / "features",
+                          frame_set=lambda f, sub: bpy.context.scene.frame_set(f, subframe=sub))
     return {"warning": result.warning_text(limit=100), "notes": result.notes}
 
 
