@@ -54,3 +54,12 @@ def test_baked_checker_renders_like_cycles(tmp_path):
     print("\nBaked checker:\n" + "\n".join(lines))
     assert not bad, "\n".join(bad)
     assert cyc[16:48, 16:48].max() > 3 * cyc[16:48, 16:48].min()      # the checker shows
+
+
+def test_bake_writes_only_the_material_faces_and_skips_objects_without_uvs(tmp_path):
+    r = result_of(run_cases("bake_cases", ["bake_awkward"], tmp=tmp_path), "bake_awkward")
+    assert r["image"]
+    assert r["left_values"] == [0.1, 0.8]          # the checker where its faces lie
+    assert r["right_values"] == [0.0]              # the other material's faces: not baked over
+    assert not r["no_uv_baked"]
+    assert "Lamina bake object" not in r["objects"] and r["meshes"] == 2

@@ -79,3 +79,34 @@ def checker_parity(tmp, spp=64, bounces=2):
     out = {"operator": sorted(bpy.ops.lamina.bake_procedurals(resolution=512))}
     out.update(_render_both(sc, tmp, "checker", spp, bounces))
     return out
+
+
+def bake_awkward(tmp):
+    """A two-material object (the checker on the left half's faces, plain grey on the right
+    half's, one UV map over both), and a material used only by an object without UVs."""
+    build.scene()
+    build.camera()
+    checkered, _ = _checker_material("Left")
+    plain = build.diffuse_material("Right", (0.5, 0.5, 0.5))
+    # Two quads side by side; UVs from x, y over both: the left quad fills u < 0.5.
+    verts = [(-1, -1, 0), (0, -1, 0), (0, 1, 0), (-1, 1, 0), (1, -1, 0), (1, 1, 0)]
+    obj = build.mesh_object("Split", verts, [(0, 1, 2, 3), (1, 4, 5, 2)])
+    obj.data.materials.append(checkered)
+    obj.data.materials.append(plain)
+    obj.data.polygons[1].material_index = 1
+    no_uv_mat, _ = _checker_material("NoUV")
+    build.mesh_object("Bare", [(0, 0, 1), (1, 0, 1), (1, 1, 1)], [(0, 1, 2)], material=no_uv_mat, uv=False)
+    out = {}
+    bpy.ops.lamina.bake_procedurals(material="", resolution=64)
+    image = bpy.data.images.get("Lamina bake: Left / Diffuse BSDF / Color")
+    out["image"] = image is not None
+    if image is not None:
+        px = np.empty(64 * 64 * 4, np.float32)
+        image.pixels.foreach_get(px)
+        px = px.reshape(64, 64, 4)[..., 0]
+        out["left_values"] = sorted({round(float(v), 3) for v in px[8:56, 4:28].ravel()})
+        out["right_values"] = sorted({round(float(v), 3) for v in px[8:56, 40:60].ravel()})
+    out["no_uv_baked"] = bpy.data.images.get("Lamina bake: NoUV / Diffuse BSDF / Color") is not None
+    out["objects"] = sorted(o.name for o in bpy.data.objects)
+    out["meshes"] = len(bpy.data.meshes)
+    return out
