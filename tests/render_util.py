@@ -81,3 +81,19 @@ def region_means(image: np.ndarray, var_of_mean: np.ndarray, mask: np.ndarray, b
         se = np.sqrt(var_of_mean[ys, xs][m].sum(axis=0)) / k
         out.append((by, bx, mean, se, (ys, xs)))
     return out
+
+
+def assert_no_gain_in_white_furnace(material: dict, spp: int = 64) -> None:
+    """``material`` on a closed sphere under a constant white world (24², 64 bounces, no
+    roulette): no pixel above the world's radiance by more than 4σ (σ from the pixel's own
+    sample variance), no NaN, and the sphere is not black."""
+    data = scene(24, 24, look_down_ortho(1.2), {"m": material},
+                 {"ball": {"shape": "sphere", "radius": 1.0, "segments": 48}},
+                 [{"mesh": "ball", "materials": ["m"]}], world={"type": "constant", "color": [1, 1, 1]},
+                 render={"spp": spp, "max_bounces": 64, "seed": 5, "rr_depth": 64})
+    r = render(data)
+    img = r.film.combined()[..., :3]
+    se = np.sqrt(r.film.variance_of_mean())
+    assert np.all(np.isfinite(img))
+    assert np.all(img <= 1.0 + 4.0 * se + 1e-6), float((img - 1.0 - 4.0 * se).max())
+    assert img[8:16, 8:16].mean() > 0.3

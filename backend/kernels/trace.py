@@ -18,7 +18,7 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-from .jit import kernel
+from .jit import inlined, kernel
 
 RAYHIT_WORDS = 32                  # 128 bytes: RTCRayHit (84 used) plus alignment slack
 _INVALID = np.uint32(0xFFFFFFFF)
@@ -50,6 +50,17 @@ def _aligned_block(scratch):
     return f, f.view(np.uint32), addr + 4 * skip
 
 
+@inlined
+def _load_ray(f, w, o32, d32, tmax32, time32, i):
+    """Ray i into the RTCRay words: origin, tnear 0, direction, time (0 without times), tfar,
+    mask all ones, id and flags 0 (as embreex sets them)."""
+    f[0], f[1], f[2], f[3] = o32[i, 0], o32[i, 1], o32[i, 2], np.float32(0.0)
+    f[4], f[5], f[6] = d32[i, 0], d32[i, 1], d32[i, 2]
+    f[7] = time32[i] if time32.shape[0] > 0 else np.float32(0.0)
+    f[8] = tmax32[i]
+    w[9], w[10], w[11] = _INVALID, np.uint32(0), np.uint32(0)
+
+
 @kernel(nogil=True)
 def intersect_rays(fn, scene, offset1, scratch, o32, d32, tmax32, time32, prim, b1, b2):
     """Closest hits: prim (int32 scene triangle index, −1 = miss), b1, b2 (float32), and each
@@ -57,13 +68,8 @@ def intersect_rays(fn, scene, offset1, scratch, o32, d32, tmax32, time32, prim, 
     triangles offset1 … (the moving ones, geometry/embree_lib.py). ``time32`` empty: every ray
     at time 0."""
     f, w, addr = _aligned_block(scratch)
-    timed = time32.shape[0] > 0
     for i in range(o32.shape[0]):
-        f[0], f[1], f[2], f[3] = o32[i, 0], o32[i, 1], o32[i, 2], np.float32(0.0)
-        f[4], f[5], f[6] = d32[i, 0], d32[i, 1], d32[i, 2]
-        f[7] = time32[i] if timed else np.float32(0.0)
-        f[8] = tmax32[i]
-        w[9], w[10], w[11] = _INVALID, np.uint32(0), np.uint32(0)
+        _load_ray(f, w, o32, d32, tmax32, time32, i)
         w[17], w[18], w[19] = _INVALID, _INVALID, _INVALID
         _call_embree(fn, scene, addr)
         g = w[18]
@@ -83,12 +89,7 @@ def occluded_rays(fn, scene, scratch, o32, d32, tmax32, time32, blocked):
     """blocked[i] = 0 (embree's geometry id answer of embreex) where something lies on the
     segment (0, tmax), −1 where it is free."""
     f, w, addr = _aligned_block(scratch)
-    timed = time32.shape[0] > 0
     for i in range(o32.shape[0]):
-        f[0], f[1], f[2], f[3] = o32[i, 0], o32[i, 1], o32[i, 2], np.float32(0.0)
-        f[4], f[5], f[6] = d32[i, 0], d32[i, 1], d32[i, 2]
-        f[7] = time32[i] if timed else np.float32(0.0)
-        f[8] = tmax32[i]
-        w[9], w[10], w[11] = _INVALID, np.uint32(0), np.uint32(0)
+        _load_ray(f, w, o32, d32, tmax32, time32, i)
         _call_embree(fn, scene, addr)
         blocked[i] = np.int32(0) if f[8] < 0.0 else np.int32(-1)

@@ -252,10 +252,9 @@ def _bumped_material(name, spec):
     return mat
 
 
-def bumped_planes(tmp, spp=64, bounces=2):
-    """Three grey planes under a sun 40° from the zenith towards +x: no bump, a height ramp along
-    u inverted (the normal leans towards the sun: brighter) and one along v at strength 0.6
-    (sideways: darker)."""
+def _three_planes(tmp, name, materials, spp, bounces):
+    """Three 1.8 m planes side by side with ``materials``, under a sun 40° from the zenith
+    towards +x and a dark world, seen from above; rendered by Cycles and Lamina."""
     import math
     sc = build.scene()
     sc.render.resolution_x, sc.render.resolution_y = 96, 32
@@ -263,30 +262,29 @@ def bumped_planes(tmp, spp=64, bounces=2):
     build.world_colour((0.02, 0.02, 0.02), 1.0)
     build.light("Sun", "SUN", location=(0, 0, 5), rotation=(0.0, math.radians(40.0), 0.0), energy=3.0,
                 angle=0.0)
-    for i, spec in enumerate(BUMP_PLANES.values()):
-        obj = build.plane(f"Plane{i}", size=1.8, material=_bumped_material(f"B{i}", spec))
+    for i, mat in enumerate(materials):
+        obj = build.plane(f"Plane{i}", size=1.8, material=mat)
         obj.location = (-2.1 + 2.1 * i, 0.0, 0.0)
-    out = _render_both(sc, tmp, "bump_planes", spp, bounces)
+    return _render_both(sc, tmp, name, spp, bounces)
+
+
+def bumped_planes(tmp, spp=64, bounces=2):
+    """No bump, a height ramp along u inverted (the normal leans towards the sun: brighter) and
+    one along v at strength 0.6 (sideways: darker)."""
+    mats = [_bumped_material(f"B{i}", spec) for i, spec in enumerate(BUMP_PLANES.values())]
+    out = _three_planes(tmp, "bump_planes", mats, spp, bounces)
     out["names"] = list(BUMP_PLANES)
     return out
 
 
 def normal_mapped_planes(tmp, spp=64, bounces=2):
-    """Three grey planes side by side under a sun 40° from the zenith towards +x: no map, a
-    normal map tilted 25° towards +x (towards the sun: brighter), and one tilted 30° towards +y
-    at strength 0.6 (the map's green channel; darker)."""
-    import math
-    sc = build.scene()
-    sc.render.resolution_x, sc.render.resolution_y = 96, 32
-    build.camera(location=(0.0, -0.5, 9.0), target=(0.0, 0.0, 0.0), lens=50)
-    build.world_colour((0.02, 0.02, 0.02), 1.0)
-    build.light("Sun", "SUN", location=(0, 0, 5), rotation=(0.0, math.radians(40.0), 0.0), energy=3.0,
-                angle=0.0)
-    for i, (name, spec) in enumerate(NORMAL_PLANES.items()):
+    """No map, a normal map tilted 25° towards +x (towards the sun: brighter), and one tilted 30°
+    towards +y at strength 0.6 (the map's green channel; darker)."""
+    mats = []
+    for i, spec in enumerate(NORMAL_PLANES.values()):
         normal, strength = spec if spec is not None else (None, 1.0)
-        obj = build.plane(f"Plane{i}", size=1.8, material=_normal_mapped_material(f"N{i}", normal, strength))
-        obj.location = (-2.1 + 2.1 * i, 0.0, 0.0)
-    out = _render_both(sc, tmp, "normal_planes", spp, bounces)
+        mats.append(_normal_mapped_material(f"N{i}", normal, strength))
+    out = _three_planes(tmp, "normal_planes", mats, spp, bounces)
     out["names"] = list(NORMAL_PLANES)
     return out
 
