@@ -32,7 +32,7 @@ class _FingerprintImages:
 
 def fingerprint(material) -> str:
     try:
-        doc = stack_json(material, _FingerprintImages(), links=False)
+        doc = stack_json(material, _FingerprintImages())
     except StackError:
         return ""
     return json.dumps(doc, sort_keys=True)
@@ -119,6 +119,11 @@ def linked_material(material, images) -> dict | None:
         return None
     place = images.file if images is not None and hasattr(images, "file") else str
     return rebase_textures(doc, base_dirs(settings), place)
+
+
+def linked_json(images):
+    """``stack_json``'s ``linked`` for an export writing textures through ``images``."""
+    return lambda material: linked_material(material, images)
 
 
 def edited_note(material) -> str | None:

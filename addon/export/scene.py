@@ -22,7 +22,7 @@ from .motion import deformation_note, motion_rows
 from .names import FieldNames
 from .nodes import DEFAULT_MATERIAL, NodeTranslator, volume_note
 from .passes import passes_json
-from .preset_link import edited_note
+from .preset_link import edited_note, linked_json
 from .stack import StackError, stack_json
 from .unsupported import light_data_notes, object_notes, scene_notes
 from .world import world_json
@@ -160,7 +160,7 @@ class SceneExporter:
             if note:
                 self.notes.append(note)
             try:
-                return stack_json(mat, self.images)
+                return stack_json(mat, self.images, linked=linked_json(self.images))
             except StackError as exc:
                 raise ExportError(f"material '{mat.name}': {exc}") from None
         return self.nodes.material(mat)

@@ -55,7 +55,7 @@ def _microfacet(layer, images) -> dict:
     return out
 
 
-def interface_json(layer, images, visiting: tuple, links: bool = True) -> dict:
+def interface_json(layer, images, visiting: tuple, linked=None) -> dict:
     kind = layer.kind
     if kind == "DIELECTRIC":
         return {"type": "dielectric", "ior": f32(layer.ior), **_microfacet(layer, images)}
@@ -78,7 +78,7 @@ def interface_json(layer, images, visiting: tuple, links: bool = True) -> dict:
         nested = layer.material
         if nested is None:
             raise StackError(f"interface '{layer.name or 'Nested'}' has no material set")
-        return stack_json(nested, images, visiting, links=links)
+        return stack_json(nested, images, visiting, linked=linked)
     raise StackError(f"unknown interface kind {kind!r}")
 
 
@@ -149,27 +149,27 @@ def _first_opaque(interfaces: list[dict]) -> int | None:
     return None
 
 
-def stack_json(material, images, visiting: tuple = (), *, links: bool = True) -> dict:
+def stack_json(material, images, visiting: tuple = (), *, linked=None) -> dict:
     """The material JSON of a material with ``lamina.use_stack``; nested materials recurse.
 
-    With ``links`` (export), a stack unchanged since a preset was applied is written as that
-    preset's own material JSON (export/preset_link.py); ``links=False`` always writes the stack
-    as edited (the preset link's fingerprint).
+    ``linked(material)``: the JSON to write instead of the stack, or None — export passes
+    ``preset_link.linked_json`` (a stack unchanged since a preset was applied is written as that
+    preset's own material JSON); without it the stack is always written as edited (the preset
+    link's fingerprint).
     """
     if material.name in visiting:
         chain = " → ".join([*visiting, material.name])
         raise StackError(f"nested materials form a cycle: {chain}")
-    if links:
-        from .preset_link import linked_material       # (imports this module)
-        linked = linked_material(material, images)
-        if linked is not None:
-            return linked
+    if linked is not None:
+        doc = linked(material)
+        if doc is not None:
+            return doc
     visiting = (*visiting, material.name)
     settings = material.lamina
     layers = list(settings.layers)
     if not layers:
         raise StackError(f"material '{material.name}' has an empty layer stack")
-    interfaces = [interface_json(layer, images, visiting, links) for layer in layers]
+    interfaces = [interface_json(layer, images, visiting, linked) for layer in layers]
     cut = _first_opaque(interfaces)
     if cut is not None and cut < len(layers) - 1:
         # Nothing below an opaque interface is ever reached; the renderer would refuse the stack.

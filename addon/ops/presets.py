@@ -95,7 +95,8 @@ def save_preset(material, name: str, folder: Path, *, overwrite: bool = False, *
     was_exact = preset_link.state(material) == preset_link.EXACT
     dropped = preset_link.dropped(material) if was_exact else []
     try:
-        doc = stack_json(material, _PresetImages(folder, textures, staging, notes))
+        images = _PresetImages(folder, textures, staging, notes)
+        doc = stack_json(material, images, linked=preset_link.linked_json(images))
     except StackError as exc:
         shutil.rmtree(staging, ignore_errors=True)
         raise PresetError(str(exc)) from None

@@ -54,7 +54,8 @@ def stack_findings(material) -> list[tuple[str, str]]:
     """What the panel warns about: export errors and odd-stack checks on the exported JSON."""
     notes: list[str] = []
     try:
-        doc = stack_json(material, ImageExporter(None, False, notes))
+        images = ImageExporter(None, False, notes)
+        doc = stack_json(material, images, linked=preset_link.linked_json(images))
     except StackError as exc:
         return [("ERROR", str(exc))]
     return check_material(doc) + [("WARNING", n) for n in notes]

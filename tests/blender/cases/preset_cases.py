@@ -44,7 +44,8 @@ def export_dir(tmp, name) -> Path:
 def stack_export(material, directory: Path | None, links: bool) -> dict:
     """A material's JSON as the scene exporter writes it (textures copied into ``directory``)."""
     images = mod("export.images").ImageExporter(directory, directory is not None, [])
-    return mod("export.stack").stack_json(material, images, links=links)
+    linked = mod("export.preset_link").linked_json(images) if links else None
+    return mod("export.stack").stack_json(material, images, linked=linked)
 
 
 # ------------------------------------------------------------------ images
