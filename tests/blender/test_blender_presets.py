@@ -225,7 +225,9 @@ def test_user_presets_live_in_the_extension_user_directory(results):
 def test_saved_preset_gets_a_thumbnail_in_the_background(results):
     r = result_of(results, "user_thumbnail")
     assert r["status"] == [["FINISHED"], ["FINISHED"]]
-    assert r["returned_after"] < 5.0                 # saving does not wait for the render (≈ 8 s)
+    # Saving does not wait for the render: it is still running when the operator returns
+    # (checked by the job's state, not by a clock a loaded machine would fail).
+    assert r["busy_after_save"], r["returned_after"]
     assert r["idle"]
     ended = [f for f in r["finished"] if f["path"].endswith("thumb-test.json")]
     # The second save replaced the first render: at most one was stopped, exactly one completed.

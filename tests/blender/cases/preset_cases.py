@@ -326,7 +326,9 @@ def user_thumbnail(tmp):
     with bpy.context.temp_override(material=mat):
         first = bpy.ops.lamina.preset_save(name="Thumb Test")
         second = bpy.ops.lamina.preset_save(name="Thumb Test", overwrite=True)   # replaces the first render
-    returned_after = time.monotonic() - t0          # the operator does not wait for the render
+    returned_after = time.monotonic() - t0
+    # The operator does not wait for the render: when it returns, the render is still running.
+    busy_after_save = jobs.busy()
     idle = jobs.wait(timeout=240)
     entry = next(e for e in library.entries() if e.name == "thumb-test")
     thumb = str(entry.thumbnail) if entry.thumbnail else None
@@ -335,7 +337,8 @@ def user_thumbnail(tmp):
         from backend.textures import read_image
         size = list(read_image(Path(thumb))[0].shape)
     deleted = list(bpy.ops.lamina.preset_delete(name="thumb-test"))
-    return {"status": [list(first), list(second)], "returned_after": returned_after, "idle": idle,
+    return {"status": [list(first), list(second)], "returned_after": returned_after,
+            "busy_after_save": busy_after_save, "idle": idle,
             "finished": jobs.finished(), "thumbnail": thumb, "size": size,
             "user_dir": str(library.user_dir()), "deleted": deleted,
             "thumbnail_after_delete": bool(thumb) and Path(thumb).exists()}
