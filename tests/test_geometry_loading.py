@@ -1,5 +1,6 @@
 """Mesh loading and the embree scene: the fast paths agree with the straightforward ones."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -104,3 +105,36 @@ def test_a_nan_normal_names_a_triangle_that_uses_it(tmp_path, per_vertex):
     with pytest.raises(SceneError) as err:
         load_scene(scene("bad"))
     assert "normals of triangle 1 is not finite" in str(err.value)
+
+
+def test_direct_calls_reach_embreex_embree_even_with_another_embree_loaded(tmp_path):
+    """bpy bundles its own embree: a process holding both (the Blender tests import bpy) must
+    still call the library embreex's scene belongs to (the other one deadlocked in its task
+    scheduler when it committed embreex's scene). In a fresh process: load bpy's embree first,
+    then check where the functions resolve and that a scene commits and traces."""
+    import importlib.util
+    import subprocess
+    import sys
+    spec = importlib.util.find_spec("bpy")
+    others = sorted((Path(spec.origin).parent / "lib").glob("libembree4*")) if spec and spec.origin else []
+    if not others:
+        pytest.skip("no second embree library (bpy) on this machine")
+    code = f"""
+import ctypes, numpy as np
+ctypes.CDLL({str(others[0])!r})
+from backend.geometry.embree_lib import _embree
+from backend.geometry.accel import EmbreeQueries
+addr = ctypes.cast(_embree().rtcCommitScene, ctypes.c_void_p).value
+owner = [l.split()[-1] for l in open('/proc/self/maps')
+         if int(l.split('-')[0], 16) <= addr < int(l.split()[0].split('-')[1], 16)]
+q = EmbreeQueries(np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]], np.float32))
+prim, *_ = q.intersect(np.array([[0.2, 0.2, 1]], np.float32), np.array([[0, 0, -1]], np.float32),
+                       np.full(1, 3e38, np.float32))
+print(owner[0], int(prim[0]))
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                         cwd=Path(__file__).resolve().parent.parent)
+    assert out.returncode == 0, out.stderr[-2000:]
+    owner, prim = out.stdout.split()
+    assert "embreex" in owner and "bpy" not in owner, owner
+    assert prim == "0"

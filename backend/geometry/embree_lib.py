@@ -36,28 +36,27 @@ _SCENE_LAYOUT = (_HEAD, _HEAD + 8, _HEAD + 16)      # scene handle, is_committed
 _MARK = 0x5A17C0DE
 
 
-def _library_paths() -> list[str]:
-    """Where the embree library embreex loaded may be: the process's mapped files (Linux), then
-    the folders wheels put bundled libraries in (auditwheel, delocate, delvewheel)."""
-    paths = []
-    try:
-        with open("/proc/self/maps") as maps:
-            paths += sorted({line.split()[-1] for line in maps if "libembree4" in line})
-    except OSError:
-        pass
+def _libraries():
+    """Handles through which to reach the embree library embreex's own modules use. POSIX: the
+    extension module itself (dlsym on its handle searches the libraries it links against, so the
+    answer is its embree even when another one is loaded too — bpy bundles its own, and calling
+    that one with embreex's scene deadlocks in its task scheduler). Windows, where a module does
+    not re-export what it imports: the DLL that delvewheel put next to embreex."""
+    from embreex import rtcore_scene
+    if os.name != "nt":
+        yield rtcore_scene.__file__
+        return
     import embreex
     base = os.path.dirname(embreex.__file__)
-    for folder in (base, os.path.join(base, ".dylibs"), base + ".libs"):
-        for pattern in ("libembree4*.so*", "libembree4*.dylib", "embree4*.dll"):
-            paths += sorted(glob.glob(os.path.join(folder, pattern)))
-    return paths
+    for folder in (base + ".libs", base):
+        yield from sorted(glob.glob(os.path.join(folder, "embree4*.dll")))
 
 
 @lru_cache(maxsize=1)
 def _embree():
     """The embree library's functions, or None."""
     import embreex.rtcore_scene  # noqa: F401  (loads the library first, with its dependencies)
-    for path in _library_paths():
+    for path in _libraries():
         try:
             lib = ctypes.CDLL(path)
             fns = (lib.rtcNewGeometry, lib.rtcSetNewGeometryBuffer, lib.rtcCommitGeometry,
