@@ -16,6 +16,7 @@ import threading
 import numpy as np
 
 from . import stats
+from .geometry.accel import NO_TIMES
 from .kernels import integrator as ki
 from .kernels import materials as km
 from .kernels.camera import camera_rays, camera_vector
@@ -24,7 +25,6 @@ from .kernels.layered.table import H_MAXV, StackBuilder
 from .kernels.lights.table import build_light_table
 from .kernels.params import ParamPacker
 from .kernels.sampler import SAMPLERS
-from .geometry.accel import NO_TIMES
 from .kernels.soup import shading_rows
 from .passes import NO_LANES, PassLayout
 from .scene.links import CAMERA, NO_RECEIVER
@@ -182,6 +182,7 @@ class PathTracer:
         nothing else depends on the camera)."""
         self.scene.camera = camera
         self.camera = camera_vector(camera)
+        self.camera_motion = np.ascontiguousarray(camera.motion_delta, np.float64)
         self.pass_params = self._pass_params(camera)
 
     def _pass_params(self, camera):
