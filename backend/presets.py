@@ -271,12 +271,14 @@ def check_document(doc: dict, path: Path) -> None:
 
 def parse_material_document(material: dict, where: str, base_dir: Path | None,
                             layered_defaults: dict | None = None, path: str = "material"):
-    """Parse a material dict with the scene loader's validation; returns (Material, warnings)."""
-    from .materials import load_all
-    from .scene.reader import LoadContext, Node, dispatch
+    """Parse a material dict as the scene loader parses a scene's material (the fields every
+    material takes included: normal and bump maps, emission sides, pass index); returns
+    (Material, warnings)."""
+    from .scene.loader import parse_material
+    from .scene.reader import LoadContext, Node
     ctx = LoadContext(where, base_dir)
     ctx.cache["layered_defaults"] = layered_defaults or {}
-    material = dispatch(Node(material, path, ctx), load_all())
+    material = parse_material(Node(material, path, ctx))
     return material, ctx.warnings
 
 

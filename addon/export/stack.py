@@ -55,7 +55,40 @@ def _microfacet(layer, images) -> dict:
     return out
 
 
+def _detail(layer, images) -> dict:
+    """The interface's normal and bump maps ("normal", "normal_strength", "bump"; the same keys
+    as a whole material's, so a one-interface stack, written as its interface, keeps them)."""
+    out = {}
+    if images is None:
+        return out
+    if layer.normal_texture is not None and layer.normal_strength > 0.0:
+        tex = images.texture(layer.normal_texture)
+        if tex is not None:
+            out["normal"] = _labelled(images, tex, _source(layer, layer.normal_texture))
+            if layer.normal_strength != 1.0:
+                out["normal_strength"] = f32(layer.normal_strength)
+    if layer.bump_texture is not None and layer.bump_distance != 0.0 and layer.bump_strength > 0.0:
+        tex = images.texture(layer.bump_texture)
+        if tex is not None:
+            bump = {"height": _labelled(images, tex, _source(layer, layer.bump_texture)),
+                    "distance": f32(layer.bump_distance), "strength": f32(layer.bump_strength)}
+            if layer.bump_invert:
+                bump["invert"] = True
+            out["bump"] = bump
+    return out
+
+
 def interface_json(layer, images, visiting: tuple, linked=None) -> dict:
+    kind = layer.kind
+    if kind == "MATERIAL":
+        nested = layer.material
+        if nested is None:
+            raise StackError(f"interface '{layer.name or 'Nested'}' has no material set")
+        return stack_json(nested, images, visiting, linked=linked)
+    return {**_interface_json(layer, images), **_detail(layer, images)}
+
+
+def _interface_json(layer, images) -> dict:
     kind = layer.kind
     if kind == "DIELECTRIC":
         return {"type": "dielectric", "ior": f32(layer.ior), **_microfacet(layer, images)}
@@ -74,11 +107,6 @@ def interface_json(layer, images, visiting: tuple, linked=None) -> dict:
         return {"type": "diffuse", "color": _colour(layer.color, layer.color_texture, images, layer)}
     if kind == "NULL":
         return {"type": "null"}
-    if kind == "MATERIAL":
-        nested = layer.material
-        if nested is None:
-            raise StackError(f"interface '{layer.name or 'Nested'}' has no material set")
-        return stack_json(nested, images, visiting, linked=linked)
     raise StackError(f"unknown interface kind {kind!r}")
 
 

@@ -210,7 +210,39 @@ class Converter:
             self.nested_material(layer, itf, path, f"{self.name} {path}", self.base_dir)
         else:
             raise PresetError(f"{self.name}: {path}: interface type {kind!r} cannot be edited as a stack")
+        if kind != "layered":
+            used |= self.detail(layer, itf, path)
         self.unknown(itf, used, path)
+
+    def detail(self, layer, itf: dict, path: str) -> set:
+        """The interface's normal map and bump map (a texture each; a constant normal or height is
+        not editable here and is reported). Returns the keys read."""
+        layer.normal_texture = None
+        layer.normal_strength = 1.0
+        layer.bump_texture = None
+        layer.bump_distance, layer.bump_strength, layer.bump_invert = 1.0, 1.0, False
+        normal = itf.get("normal")
+        if isinstance(normal, dict):
+            if normal.get("scale", 1.0) not in (1, 1.0, [1, 1, 1], [1.0, 1.0, 1.0]):
+                self.drop(f"{path}.normal.scale", "a scaled normal map")
+            layer.normal_texture = self.image(normal, f"{path}.normal", colour=False)
+            self.scalar(layer, "normal_strength", None, itf.get("normal_strength", 1.0),
+                        f"{path}.normal_strength", 1.0)
+        elif normal is not None:
+            self.drop(f"{path}.normal", "a constant normal (the editor takes a normal-map image)")
+        bump = itf.get("bump")
+        if isinstance(bump, dict) and isinstance(bump.get("height"), dict):
+            height = bump["height"]
+            if height.get("scale", 1.0) not in (1, 1.0):
+                self.drop(f"{path}.bump.height.scale", "a scaled height (fold it into the distance)")
+            layer.bump_texture = self.image(height, f"{path}.bump.height", colour=False)
+            self.scalar(layer, "bump_distance", None, bump.get("distance", 1.0), f"{path}.bump.distance", 1.0)
+            self.scalar(layer, "bump_strength", None, bump.get("strength", 1.0), f"{path}.bump.strength", 1.0)
+            layer.bump_invert = bool(bump.get("invert", False))
+            self.unknown(bump, {"height", "distance", "strength", "invert"}, f"{path}.bump")
+        elif bump is not None:
+            self.drop(f"{path}.bump", "a constant height tilts nothing")
+        return {"normal", "normal_strength", "bump"}
 
     def nested_material(self, layer, doc: dict, path: str, label: str, base_dir: Path) -> None:
         nested = bpy.data.materials.new(f"{label} (nested)")

@@ -75,6 +75,21 @@ class LaminaLayer(PropertyGroup):
                                min=0.0, max=1.0, description="Diffuse albedo (linear RGB)")
     color_texture: _image_prop("Color Texture", "the diffuse colour (multiplied by Color)")
 
+    # --- surface detail of the interface (not of a nested material: its own interfaces have theirs)
+    normal_texture: _image_prop("Normal Map", "this interface's tangent-space normal map (RGB·2 − 1, "
+                                              "a Non-Color image, as Blender's Normal Map node)")
+    normal_strength: FloatProperty(name="Normal Strength", default=1.0, min=0.0, soft_max=1.0, max=10.0,
+                                   description="Mix between the surface normal (0) and the mapped one "
+                                               "(1), as the Normal Map node's Strength")
+    bump_texture: _image_prop("Bump Height", "this interface's height for bump mapping (its luminance, "
+                                             "as the Bump node's Height fed by an image)")
+    bump_distance: FloatProperty(name="Bump Distance", default=1.0, soft_min=0.0, soft_max=1.0, precision=3,
+                                 description="Height multiplier in scene units, as the Bump node's Distance")
+    bump_strength: FloatProperty(name="Bump Strength", default=1.0, min=0.0, max=1.0, subtype='FACTOR',
+                                 description="Mix between the unbumped (0) and the bumped normal (1)")
+    bump_invert: BoolProperty(name="Invert Bump", default=False,
+                              description="Dents where the height rises, as the Bump node's Invert")
+
     # --- nested material
     material: PointerProperty(name="Material", type=bpy.types.Material, poll=_nested_poll,
                               description="A material with a Lamina stack, used as this interface")

@@ -121,6 +121,23 @@ def draw_interface(layout, layer, index: int) -> None:
         texture = (" (× texture)" if layer.roughness_texture_alpha else " (× texture²)") \
             if layer.roughness_texture else ""
         col.label(text=f"α = r² = {alpha(layer.roughness):.4g}{texture}")
+    if kind != "MATERIAL":
+        draw_surface_detail(box, layer)
+
+
+def draw_surface_detail(layout, layer) -> None:
+    """The interface's own normal and bump maps (Blender's Normal Map and Bump nodes)."""
+    col = layout.column()
+    col.use_property_split = True
+    col.use_property_decorate = False
+    col.prop(layer, "normal_texture")
+    if layer.normal_texture:
+        col.prop(layer, "normal_strength")
+    col.prop(layer, "bump_texture")
+    if layer.bump_texture:
+        col.prop(layer, "bump_distance")
+        col.prop(layer, "bump_strength")
+        col.prop(layer, "bump_invert")
 
 
 def draw_medium(layout, layer, index: int) -> None:

@@ -29,9 +29,11 @@ from collections import namedtuple
 
 import numpy as np
 
+from . import bump as _bump
 from . import materials as km
 from .jit import inlined, kernel
 from .layered import batch as layered
+from .layered.table import H_BUMP
 from .lights import dispatch as ld
 from .lights import mesh as _mesh
 from .lights.common import C_POWER
@@ -79,6 +81,7 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
 RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT = 1, 2, 4, 8
 NO_RECEIVER = 64
 NO_PARAMS = (0.0,) * 12      # km.bind's 12-tuple, for lanes that do not use it
+_NO_DUV = (0.0,) * 6         # a layered lane's dP/du, dP/dv where its stack has no bump map
 MAX_MIX_DEPTH = 4            # materials/mix.MAX_DEPTH: nested Mix / Add Shaders
 ONE_MINUS_EPS = 1.0 - 2.0 ** -53
 
@@ -277,39 +280,39 @@ def _moving_surface(G, R, pr, tm, b1, b2):
 
 
 @inlined
-def _bumped_normal(MT, TX, R, pr, m, u, v, ns, side):
-    """ns tilted by material m's bump map (Blender's Bump node): normalize(ns − d·∇h), ∇h the
-    surface gradient of the height texture through the triangle's UV map (dP/du, dP/dv from its
-    corners), d the distance; then mixed with ns by the strength, normalize(ns + k·(bumped − ns)).
-    ``side`` −1 on a back face: seen from below a bump is a dent (Cycles bumps the normal it has
-    turned towards the viewer)."""
-    gu, gv = lookup_gradient(TX, MT.tex[m, km.B_HEIGHT], u, v)
-    scale = side * MT.values[m, km.B_HEIGHT]   # texture factor × distance (× −1: inverted)
+def _uv_derivatives(R, pr):
+    """(dP/du, dP/dv, ok) of triangle pr from its corners and UVs (kernels/bump.py)."""
     x0, y0, z0 = np.float64(R[pr, ROW_V]), np.float64(R[pr, ROW_V + 1]), np.float64(R[pr, ROW_V + 2])
     e1 = (np.float64(R[pr, ROW_V + 3]) - x0, np.float64(R[pr, ROW_V + 4]) - y0, np.float64(R[pr, ROW_V + 5]) - z0)
     e2 = (np.float64(R[pr, ROW_V + 6]) - x0, np.float64(R[pr, ROW_V + 7]) - y0, np.float64(R[pr, ROW_V + 8]) - z0)
     u0, v0 = np.float64(R[pr, ROW_UV]), np.float64(R[pr, ROW_UV + 1])
-    du1, dv1 = np.float64(R[pr, ROW_UV + 2]) - u0, np.float64(R[pr, ROW_UV + 3]) - v0
-    du2, dv2 = np.float64(R[pr, ROW_UV + 4]) - u0, np.float64(R[pr, ROW_UV + 5]) - v0
-    det = du1 * dv2 - du2 * dv1
-    if abs(det) < 1e-20:
+    return _bump.uv_derivatives(e1, e2, np.float64(R[pr, ROW_UV + 2]) - u0, np.float64(R[pr, ROW_UV + 3]) - v0,
+                                np.float64(R[pr, ROW_UV + 4]) - u0, np.float64(R[pr, ROW_UV + 5]) - v0)
+
+
+@inlined
+def _bumped_normal(MT, TX, R, pr, m, u, v, ns, side):
+    """ns tilted by material m's bump map (Blender's Bump node, kernels/bump.py): the height
+    texture's gradient through the triangle's UV map, times the distance (the height slot's
+    factor), mixed by the strength. ``side`` −1 on a back face: seen from below a bump is a dent
+    (Cycles bumps the normal it has turned towards the viewer)."""
+    dpdu, dpdv, ok = _uv_derivatives(R, pr)
+    if not ok:
         return ns                              # no UV map on this triangle: no gradient
-    dpdu = ((e1[0] * dv2 - e2[0] * dv1) / det, (e1[1] * dv2 - e2[1] * dv1) / det, (e1[2] * dv2 - e2[2] * dv1) / det)
-    dpdv = ((e2[0] * du1 - e1[0] * du2) / det, (e2[1] * du1 - e1[1] * du2) / det, (e2[2] * du1 - e1[2] * du2) / det)
-    # Surface gradients of u and v: (dP/dv × n)/D and (n × dP/du)/D, D = dP/du · (dP/dv × n).
-    a = _cross(dpdv, ns)
-    b = _cross(ns, dpdu)
-    dd = _dot(dpdu, a)
-    if abs(dd) < 1e-30:
-        return ns
-    gx = scale * (gu * a[0] + gv * b[0]) / dd
-    gy = scale * (gu * a[1] + gv * b[1]) / dd
-    gz = scale * (gu * a[2] + gv * b[2]) / dd
-    w = _normalize((ns[0] - gx, ns[1] - gy, ns[2] - gz))
-    k = MT.values[m, km.B_STRENGTH]
-    if k != 1.0:
-        w = _normalize((ns[0] + k * (w[0] - ns[0]), ns[1] + k * (w[1] - ns[1]), ns[2] + k * (w[2] - ns[2])))
-    return w
+    gu, gv = lookup_gradient(TX, MT.tex[m, km.B_HEIGHT], u, v)
+    return _bump.tilt(ns, dpdu, dpdv, gu, gv, side * MT.values[m, km.B_HEIGHT], MT.values[m, km.B_STRENGTH])
+
+
+@inlined
+def _local_uv_derivatives(R, pr, fs, ft, ns):
+    """dP/du and dP/dv of triangle pr in the lane's shading frame, for the bump maps of a
+    layered stack's interfaces (zeros without a UV map: the interfaces stay unbumped)."""
+    dpdu, dpdv, ok = _uv_derivatives(R, pr)
+    if not ok:
+        return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    a = _local(fs, ft, ns, dpdu)
+    b = _local(fs, ft, ns, dpdv)
+    return (a[0], a[1], a[2], b[0], b[1], b[2])
 
 
 @kernel
@@ -748,8 +751,12 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
         if kind == km.LAYERED:
             # 4b + 5 for a layered stack: one per-lane call (shared walks).
             counts[2] += 1
+            sid = int(MT.values[m, km.LAYER_ID])
+            duv = _NO_DUV
+            if ST.head[sid, H_BUMP] != 0.0:
+                duv = _local_uv_derivatives(R, pr, fs, ft, ns)
             f, bpdf, wo, weight, spdf, sdelta, alb = layered.shade_lane(
-                ST, TX, int(MT.values[m, km.LAYER_ID]), u, v, wi_l, wo_n, live, not is_delta,
+                ST, TX, sid, u, v, duv, wi_l, wo_n, live, not is_delta,
                 not last, camera, key[i], segment, LW, LB, LR, LC)
             if camera:
                 albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = alb

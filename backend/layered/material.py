@@ -22,7 +22,7 @@ import numpy as np
 
 from ..materials import REGISTRY, register
 from ..materials.base import Material, ShadingContext
-from ..materials.normal import parse_normal
+from ..materials.normal import parse_detail
 from ..scene.reader import Node, _describe
 from .bsdf import LayeredBSDF, Options, new_stats
 from .medium import parse_medium
@@ -73,7 +73,7 @@ class LayeredMaterial(Material):
     def __init__(self, interfaces: list, media: list, eta_slab: list[float], eta_bottom: float,
                  options: Options, emission=None, eta_top: float = 1.0, normals: list | None = None):
         self.interfaces = interfaces        # Materials (bind → BSDF)
-        self.normals = normals or [None] * len(interfaces)  # per interface: None or a NormalParam
+        self.normals = normals or [None] * len(interfaces)  # per interface: None or a SurfaceDetail
         self.media = media                  # MediumSpecs
         self.eta_slab = eta_slab
         self.eta_bottom = eta_bottom
@@ -170,27 +170,31 @@ def _constant_ior(material, inode: Node) -> float:
     return float(np.asarray(p.bind(None)).reshape(-1)[0])
 
 
+# An interface's own normal and bump maps (materials/normal.parse_detail).
+DETAIL_KEYS = ("normal", "normal_strength", "bump")
+
+
 def parse_interface(inode: Node, eta_above: float):
-    """One interface; returns (material, index below it, shading normal or None)."""
+    """One interface; returns (material, index below it, its SurfaceDetail or None)."""
     inode.require_object()
     kind = inode.value.get("type")
     if kind not in INTERFACE_TYPES:
         raise inode.fail(f"expected one of {', '.join(map(repr, INTERFACE_TYPES))}, got {_describe(kind)}", "type")
     if kind == "null":
         inode.string("type")
-        normal = parse_normal(inode)
+        detail = parse_detail(inode)
         inode.finish()
-        return NullMaterial(), eta_above, normal
+        return NullMaterial(), eta_above, detail
     if kind == "layered":
-        if inode.has("normal"):
-            raise inode.fail("a nested stack takes normal maps on its own interfaces", "normal")
+        for key in DETAIL_KEYS:
+            if inode.has(key):
+                raise inode.fail("a nested stack takes normal and bump maps on its own interfaces", key)
         inode.string("type")
         nested = parse_layered(inode, eta_above)
         return nested, (nested.eta_bottom if nested.transmissive else eta_above), None
-    normal = parse_normal(inode)
+    detail = parse_detail(inode)
     implied = {"dielectric": "ior_above", "conductor": "eta_above"}.get(kind)
-    value = dict(inode.value)
-    value.pop("normal", None)
+    value = {k: v for k, v in inode.value.items() if k not in DETAIL_KEYS}
     if implied is not None:
         if implied in value:
             raise inode.fail("implied by the stack (the index below the interface above); "
@@ -204,8 +208,8 @@ def parse_interface(inode: Node, eta_above: float):
         raise inode.fail("an interface of a layered stack cannot emit; put \"emission\" on the "
                          "layered material", "emission")
     if kind == "dielectric":
-        return material, _constant_ior(material, inode), normal
-    return material, eta_above, normal
+        return material, _constant_ior(material, inode), detail
+    return material, eta_above, detail
 
 
 def parse_layered(node: Node, eta_above: float = 1.0) -> LayeredMaterial:
@@ -273,8 +277,9 @@ def _parse_layered(node: Node, eta_above: float) -> LayeredMaterial:
     node.finish()
     eta_slab = etas[:-1] if n_media else []
     if len(interfaces) == 1 and normals[0] is not None:
-        raise inodes[0].fail("a one-interface stack is that interface's BSDF: use the scene's "
-                             "normal map instead of a per-interface one", "normal")
+        key = next(k for k in DETAIL_KEYS if inodes[0].has(k))
+        raise inodes[0].fail("a one-interface stack is that interface's BSDF: put the normal or "
+                             "bump map on the material instead of its interface", key)
     return LayeredMaterial(interfaces, media, list(eta_slab), etas[-1], options, emission, eta_above,
                            normals)
 

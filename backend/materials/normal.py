@@ -79,3 +79,33 @@ def parse_bump(node: Node) -> Bump | None:
     if height.is_constant or distance == 0.0 or strength == 0.0:
         return None
     return Bump(height, -distance if invert else distance, strength)
+
+
+class SurfaceDetail:
+    """What tilts the shading normal of a material or of one interface of a layered stack: a
+    normal map (``normal``, mixed with the surface normal by ``strength``, Blender's Normal Map
+    Strength) and a bump map on top of it. A material's goes into its row of the material table
+    (the integrator tilts the lane's normal); an interface's into the stack table
+    (kernels/layered/table.py ``bind_iface`` tilts the interface in the lane's frame)."""
+
+    def __init__(self, normal: NormalParam | None, strength: float, bump: Bump | None):
+        self.normal = normal
+        self.strength = strength
+        self.bump = bump
+
+    @property
+    def is_constant(self) -> bool:
+        return self.bump is None and (self.normal is None or self.normal.is_constant)
+
+
+def parse_detail(node: Node) -> SurfaceDetail | None:
+    """``"normal"``, ``"normal_strength"`` and ``"bump"`` of a material or an interface; None when
+    nothing tilts the normal."""
+    normal = parse_normal(node)
+    strength = node.number("normal_strength", 1.0, lo=0.0)
+    bump = parse_bump(node)
+    if normal is not None and strength == 0.0:
+        normal = None
+    if normal is None and bump is None:
+        return None
+    return SurfaceDetail(normal, strength, bump)

@@ -326,20 +326,19 @@ def parse_material(node: Node):
     pass_index = node.integer("pass_index", 0, lo=0, hi=MAX_PASS_INDEX) if isinstance(node.value, dict) else 0
     # "normal" / "normal_strength" (any material): a normal map of the whole material
     # (materials/normal.py; Blender's Normal Map node); a stack's interfaces take their own.
-    normal, strength, bump = None, 1.0, None
+    detail = None
     if isinstance(node.value, dict):
-        from ..materials.normal import parse_bump, parse_normal
-        normal = parse_normal(node)
-        strength = node.number("normal_strength", 1.0, lo=0.0)
-        bump = parse_bump(node)
+        from ..materials.normal import parse_detail
+        detail = parse_detail(node)
     material = dispatch(node, load_all())
     if pass_index:
         material.pass_index = pass_index
-    if normal is not None and strength > 0.0:
-        material.normal_map = normal
-        material.normal_strength = strength
-    if bump is not None:
-        material.bump = bump
+    if detail is not None:
+        if detail.normal is not None:
+            material.normal_map = detail.normal
+            material.normal_strength = detail.strength
+        if detail.bump is not None:
+            material.bump = detail.bump
     if sides == "front":
         if getattr(material, "emission", None) is None:
             node.ctx.warn(node.sub("emission_sides"), "the material emits nothing: ignored")

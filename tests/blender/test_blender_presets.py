@@ -150,6 +150,19 @@ def test_user_preset_round_trip_reproduces_the_stack(results):
     assert r["Rich A"]["original"]["media"][0]["sigma_t"] == [2.0, 1.0, 0.5]
     assert r["Rich C"]["original"]["interfaces"][1]["eta"] == [0.2, 0.9, 1.1]
     assert r["Plain Gold"]["original"]["type"] == "conductor"
+    # The layers' normal and bump maps: on the interfaces of a stack, and on the material where
+    # a one-interface stack is written as its interface; the backend loads both.
+    coat, metal = r["Rich C"]["original"]["interfaces"]
+    assert coat["normal"]["texture"].endswith("ripples.png") and coat["normal_strength"] == pytest.approx(0.6)
+    assert metal["bump"]["height"]["texture"].endswith("hammered.png")
+    assert (metal["bump"]["distance"], metal["bump"]["strength"], metal["bump"]["invert"]) == \
+        (pytest.approx(0.02), pytest.approx(0.7), True)
+    gold = r["Plain Gold"]["original"]
+    assert gold["bump"]["height"]["texture"].endswith("brushed.png") and "invert" not in gold["bump"]
+    rich_c = parse(r["Rich C"]["original"], "Rich C", Path(r["Rich C"]["orig_dir"]))
+    assert rich_c.normals[0].normal is not None and rich_c.normals[0].strength == pytest.approx(0.6)
+    assert rich_c.normals[1].bump is not None and rich_c.normals[1].bump.distance == pytest.approx(-0.02)
+    assert parse(gold, "Plain Gold", Path(r["Plain Gold"]["orig_dir"])).bump.distance == pytest.approx(0.01)
 
 
 def test_shipped_presets_apply_and_export_as_the_backend_loads_them(results):

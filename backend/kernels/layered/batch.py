@@ -18,7 +18,7 @@ import numpy as np
 from ..jit import kernel
 from ..rng import SLOT_SPARE, bounce_dim, path_key, stream_key
 from . import estimators as es
-from .table import BSIZE, H_EST, H_PDF, bind_into
+from .table import BSIZE, H_EST, H_PDF, UNIT_DUV, bind_into
 
 OP_EVAL, OP_PDF, OP_SAMPLE, OP_NEE, OP_ALBEDO = 0, 1, 2, 3, 4
 CAPACITY = 4096      # recorded vertices per walk at most (min with the stack's max_vertices)
@@ -32,15 +32,17 @@ def scratch(max_vertices: int = 1024):
 
 
 @kernel
-def shade_lane(ST, TX, s, u, v, wi, wo, nee, nee_pdf, do_continue, camera, key, segment, W, Bs, R, C):
+def shade_lane(ST, TX, s, u, v, duv, wi, wo, nee, nee_pdf, do_continue, camera, key, segment, W, Bs, R, C):
     """The layered part of one bounce of one lane (RADIANCE transport): (f, pdf of the light
     direction, continuation wo, weight, pdf, delta, albedo AOV estimate). At a camera hit the AOV
     is the continuation's reflected weight (it averages to the directional albedo at the viewing
-    angle, delta lobes included, at no extra cost), else a one-sample normal-incidence walk."""
+    angle, delta lobes included, at no extra cost), else a one-sample normal-incidence walk.
+    ``duv``: the surface's dP/du and dP/dv in the lane's shading frame (the interfaces' bump maps;
+    table.H_BUMP)."""
     R[0] = stream_key(key, bounce_dim(segment, SLOT_SPARE))
     R[1] = 0
     if ST.textured[s]:
-        bind_into(ST, TX, s, u, v, Bs)
+        bind_into(ST, TX, s, u, v, duv, Bs)
         B = Bs
     else:
         B = ST.bound[s]
@@ -69,7 +71,7 @@ def run(op, ST, TX, s, uv, wi, wo, nee, mode, est, kind, want_pdf, nee_pdf, want
         R[0] = path_key(seed, i, 0)
         R[1] = 0
         if ST.textured[s]:
-            bind_into(ST, TX, s, uv[a, 0], uv[a, 1], Bs)
+            bind_into(ST, TX, s, uv[a, 0], uv[a, 1], UNIT_DUV, Bs)
             B = Bs
         else:
             B = ST.bound[s]

@@ -12,8 +12,12 @@
             the interfaces' texturable parameters in the material table's slot layout
             (kernels/materials.py), written by each interface material's ``pack``; NULL rows hold
             their tint in the dielectric's tint slots
-  if_nmode  int32 (I,) 0 no normal map, 1 a constant shading normal (``if_nval``, unit), 2 a
-            normal-map texture (``if_nval`` its scale, ``if_ntex`` its id; RGB · 2 − 1)
+  if_nmode  int32 (I,) 0 no normal map, 1 a constant shading normal (``if_nval``, unit, its
+            strength applied), 2 a normal-map texture (``if_nval`` its scale, ``if_ntex`` its id;
+            RGB · 2 − 1; mixed by the strength in ``if_values[:, N_STRENGTH]``)
+  if_bump   bool (I,) a bump map on top of it: height × distance and strength in the
+            material slots B_HEIGHT / B_STRENGTH (kernels/bump.py), along the lane's dP/du, dP/dv
+            in its shading frame (``duv``; the head's H_BUMP says a stack needs them)
   md_kind   int32 (M,) EMPTY / ABSORBING / SCATTERING (decided at load from constants)
   md_grey   bool (M,); md_values float64 (M, MSLOT), md_tex int32 (M, MSLOT): thickness,
             σt (1 or 3 slots: ``md_sigma3``), albedo, phase parameters (layout ``M_*``)
@@ -41,10 +45,12 @@ from collections import namedtuple
 
 import numpy as np
 
+from .. import bump as _bump
 from .. import materials as km
 from ..jit import inlined, kernel
 from ..microfacet import ALPHA_MIN
 from ..params import param_rgb, param_scalar
+from ..textures import lookup_gradient
 from . import iface as ki
 from . import phase as ph
 
@@ -56,7 +62,11 @@ APPROX, STOCHASTIC = 0, 1
 # head
 H_N, H_TRANS, H_ETA_TOP, H_ETA_BOTTOM, H_ETA_SLAB = 0, 1, 2, 3, 4
 H_EST, H_PDF, H_PDFC, H_MIS, H_MAXV, H_CHROM, H_IF0, H_MD0, H_NESTED = 20, 21, 22, 23, 24, 25, 26, 27, 28
+H_BUMP = 29          # 1: an interface has a bump map (bind per lane, with the surface's dP/du, dP/dv)
 HEAD = 32
+# Without a surface (the BSDF inspector, tests), bump maps are read over UVs that run along the
+# shading frame's x and y at one unit per metre: dP/du = x, dP/dv = y.
+UNIT_DUV = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0)
 MED0 = HEAD + MAX_INTERFACES * ki.STRIDE
 # medium block
 M_KIND, M_GREY, M_TAU, M_ALB, M_DIR, M_PH = 0, 1, 2, 5, 8, 9
@@ -69,7 +79,7 @@ F_TEX_ORIENT, F_FLAKE, F_MATRIX = 1, 2, 4
 
 StackTable = namedtuple("StackTable", [
     "head", "textured", "bound",
-    "if_kind", "if_dist", "if_mask", "if_values", "if_tex", "if_nmode", "if_nval", "if_ntex",
+    "if_kind", "if_dist", "if_mask", "if_values", "if_tex", "if_nmode", "if_nval", "if_ntex", "if_bump",
     "md_kind", "md_grey", "md_sigma3", "md_values", "md_tex", "md_phase", "md_flags", "md_s6",
     "md_row", "FT"])
 
@@ -130,8 +140,9 @@ def _iface_params(values, tex, kind, r, TX, u, v):
 
 
 @kernel
-def bind_iface(kind, dist, mask, iv, it, r, mode, nval, ntex, TX, u, v, B, o):
-    """Interface row r of the slot arrays (iv, it) at (u, v) into B[o:o + iface.STRIDE]."""
+def bind_iface(kind, dist, mask, iv, it, r, mode, nval, ntex, bump, TX, u, v, duv, B, o):
+    """Interface row r of the slot arrays (iv, it) at (u, v) into B[o:o + iface.STRIDE]; ``duv``
+    the surface's dP/du, dP/dv in the lane's frame (for a bump map)."""
     B[o + ki.IF_KIND] = kind
     B[o + ki.IF_DIST] = dist
     B[o + ki.IF_MASK] = mask
@@ -149,13 +160,17 @@ def bind_iface(kind, dist, mask, iv, it, r, mode, nval, ntex, TX, u, v, B, o):
         B[o + ki.IF_DELTA] = 1.0 if km.is_delta_only(kind, p) else 0.0
         B[o + ki.IF_TRANS] = 1.0 if kind == km.DIELECTRIC else 0.0
     B[o + ki.IF_FRAMED] = 0.0
-    if mode > 0:
-        n = nval
-        if mode == 2:
-            t = _p3(TX, n, ntex, u, v)
-            n = (2.0 * t[0] - 1.0, 2.0 * t[1] - 1.0, max(2.0 * t[2] - 1.0, 1e-3))
-            ln = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
-            n = (n[0] / ln, n[1] / ln, n[2] / ln)
+    if mode > 0 or bump:
+        n = (0.0, 0.0, 1.0)
+        if mode == 1:
+            n = nval
+        elif mode == 2:
+            t = _p3(TX, nval, ntex, u, v)
+            n = _mixed(_above((2.0 * t[0] - 1.0, 2.0 * t[1] - 1.0, 2.0 * t[2] - 1.0)), iv[r, km.N_STRENGTH])
+        if bump:
+            gu, gv = _height_gradient(TX, it[r, km.B_HEIGHT], u, v)
+            n = _above(_bump.tilt(n, (duv[0], duv[1], duv[2]), (duv[3], duv[4], duv[5]), gu, gv,
+                                  iv[r, km.B_HEIGHT], iv[r, km.B_STRENGTH]))
         st = ki.frame_of_normal(n)
         B[o + ki.IF_FRAMED] = 1.0
         for j in range(3):
@@ -165,8 +180,31 @@ def bind_iface(kind, dist, mask, iv, it, r, mode, nval, ntex, TX, u, v, B, o):
 
 
 @kernel
-def bind_into(ST, TX, s, u, v, B):
-    """Evaluate stack ``s`` at (u, v) into the block B (see the module docstring)."""
+def _height_gradient(TX, t, u, v):
+    return lookup_gradient(TX, t, u, v)
+
+
+@kernel
+def _above(n):
+    """A unit normal kept above the surface (z ≥ 10⁻³), as the normal maps' (materials/normal.py)."""
+    z = max(n[2], 1e-3)
+    ln = np.sqrt(n[0] * n[0] + n[1] * n[1] + z * z)
+    return (n[0] / ln, n[1] / ln, z / ln)
+
+
+@kernel
+def _mixed(n, k):
+    """A normal map's normal mixed with the surface's (0, 0, 1) by the strength k, as Blender's
+    Normal Map node: normalize(z + k (n − z))."""
+    if k == 1.0:
+        return n
+    return _above((k * n[0], k * n[1], 1.0 + k * (n[2] - 1.0)))
+
+
+@kernel
+def bind_into(ST, TX, s, u, v, duv, B):
+    """Evaluate stack ``s`` at (u, v) into the block B (see the module docstring); ``duv`` the
+    surface's dP/du, dP/dv in the lane's frame (UNIT_DUV without a surface)."""
     for j in range(HEAD):
         B[j] = ST.head[s, j]
     N = int(ST.head[s, H_N])
@@ -176,7 +214,7 @@ def bind_into(ST, TX, s, u, v, B):
         r = f0 + l
         bind_iface(ST.if_kind[r], ST.if_dist[r], ST.if_mask[r], ST.if_values, ST.if_tex, r,
                    ST.if_nmode[r], (ST.if_nval[r, 0], ST.if_nval[r, 1], ST.if_nval[r, 2]),
-                   ST.if_ntex[r], TX, u, v, B, HEAD + l * ki.STRIDE)
+                   ST.if_ntex[r], ST.if_bump[r], TX, u, v, duv, B, HEAD + l * ki.STRIDE)
     mv, mt = ST.md_values, ST.md_tex
     for k in range(N - 1):
         r = m0 + k
@@ -221,7 +259,7 @@ def bind_into(ST, TX, s, u, v, B):
 def bind_constant_rows(ST, TX):
     for s in range(ST.head.shape[0]):
         if not ST.textured[s]:
-            bind_into(ST, TX, s, 0.0, 0.0, ST.bound[s])
+            bind_into(ST, TX, s, 0.0, 0.0, UNIT_DUV, ST.bound[s])
 
 
 @kernel
@@ -271,10 +309,11 @@ class StackBuilder:
         head[H_IF0] = len(self.ifaces)
         head[H_MD0] = len(self.media)
         textured = False
-        for m, normal in zip(flat.interfaces, flat.normals):
-            row, tex = self._interface(m, normal)
+        for m, detail in zip(flat.interfaces, flat.normals):
+            row, tex = self._interface(m, detail)
             self.ifaces.append(row)
             textured |= tex
+            head[H_BUMP] = 1.0 if (row["bump"] or head[H_BUMP]) else 0.0
         chromatic = False
         for spec in flat.media:
             row, tex = self._medium(spec)
@@ -286,7 +325,7 @@ class StackBuilder:
         self._ids[key] = sid
         return sid
 
-    def _interface(self, material, normal):
+    def _interface(self, material, detail):
         from ...layered.material import NullMaterial
         from ...materials.dielectric import DielectricMaterial
         row = km.MaterialRow(self.packer)
@@ -301,8 +340,12 @@ class StackBuilder:
                 # Equal indices on both sides: every microfacet refracts straight through, a
                 # delta transmission (the microfacet BTDF's half vector degenerates to 0/0).
                 row.kind = ki.NULL
-        out = {"row": row, "nmode": 0, "nval": np.zeros(3), "ntex": -1}
+        out = {"row": row, "nmode": 0, "nval": np.zeros(3), "ntex": -1, "bump": False}
+        if detail is None:
+            return out, textured
+        normal = detail.normal
         if normal is not None:
+            row.values[km.N_STRENGTH] = detail.strength
             if normal.texture:
                 values, tex = self.packer.pack(normal.param, 3)
                 out.update(nmode=2, nval=values, ntex=tex)
@@ -311,8 +354,18 @@ class StackBuilder:
                 n = np.asarray(normal.param.bind(None), dtype=np.float64).reshape(3).copy()
                 n[2] = max(n[2], 1e-3)
                 n /= np.linalg.norm(n)
+                k = detail.strength                 # Blender's Normal Map Strength, as _mixed
+                n = np.array([k * n[0], k * n[1], 1.0 + k * (n[2] - 1.0)])
+                n[2] = max(n[2], 1e-3)
+                n /= np.linalg.norm(n)
                 if not np.allclose(n, [0.0, 0.0, 1.0], atol=1e-12):
                     out.update(nmode=1, nval=n)
+        bump = detail.bump
+        if bump is not None:
+            row.set(km.B_HEIGHT, bump.height, 1, bump.distance)
+            row.values[km.B_STRENGTH] = bump.strength
+            out["bump"] = True
+            textured = True
         return out, textured
 
     def _medium(self, spec):
@@ -388,11 +441,12 @@ class StackBuilder:
         if_nmode = np.zeros(I, np.int32)
         if_nval = np.zeros((I, 3))
         if_ntex = np.full(I, -1, np.int32)
+        if_bump = np.zeros(I, bool)
         for i, f in enumerate(self.ifaces):
             r = f["row"]
             if_kind[i], if_dist[i], if_mask[i] = r.kind, r.dist, r.masking
             if_values[i], if_tex[i] = r.values, r.tex
-            if_nmode[i], if_nval[i], if_ntex[i] = f["nmode"], f["nval"], f["ntex"]
+            if_nmode[i], if_nval[i], if_ntex[i], if_bump[i] = f["nmode"], f["nval"], f["ntex"], f["bump"]
         M = max(len(self.media), 1)
         md_kind = np.zeros(M, np.int32)
         md_grey = np.ones(M, bool)
@@ -408,7 +462,7 @@ class StackBuilder:
             md_values[i], md_tex[i] = m["values"], m["tex"]
             md_phase[i], md_flags[i], md_s6[i], md_row[i] = m["phase"], m["flags"], m["s6"], m["row"]
         ST = StackTable(head, textured, np.zeros((S, BSIZE)), if_kind, if_dist, if_mask, if_values,
-                        if_tex, if_nmode, if_nval, if_ntex, md_kind, md_grey, md_sigma3, md_values,
+                        if_tex, if_nmode, if_nval, if_ntex, if_bump, md_kind, md_grey, md_sigma3, md_values,
                         md_tex, md_phase, md_flags, md_s6, md_row, FT)
         if self.stacks:
             bind_constant_rows(ST, TX)

@@ -130,12 +130,17 @@ def rich_stacks(tmp) -> dict:
     metal = add_layer(s, "CONDUCTOR", 1)
     metal.metal, metal.eta, metal.k = "CUSTOM", (0.2, 0.9, 1.1), (3.9, 2.4, 2.1)
     metal.tint, metal.roughness = (0.9, 0.8, 0.7), 0.35
+    # The interfaces' own normal and bump maps (Blender's Normal Map and Bump nodes on a layer).
+    coat.normal_texture, coat.normal_strength = png(tmp, "ripples", pattern(8, 8, 8, 0.4, 0.6), "Non-Color"), 0.6
+    metal.bump_texture = png(tmp, "hammered", pattern(8, 8, 9), "Non-Color")
+    metal.bump_distance, metal.bump_strength, metal.bump_invert = 0.02, 0.7, True
     s.use_stack = True
 
     d = bpy.data.materials.new("Plain Gold")
     s = d.lamina
     gold = add_layer(s, "CONDUCTOR", 0)
     gold.metal, gold.roughness = "Au", 0.25
+    gold.bump_texture, gold.bump_distance = png(tmp, "brushed", pattern(8, 8, 10), "Non-Color"), 0.01
     s.use_stack = True
     return {"Rich A": a, "Rich C": c, "Plain Gold": d}
 
