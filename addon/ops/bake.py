@@ -128,6 +128,42 @@ def bake_input(context, material, node, input_name: str, obj, resolution: int):
     return image
 
 
+def scene_materials(scene) -> list:
+    """The materials of the scene's mesh objects, each once."""
+    return list(dict.fromkeys(s.material for o in scene.objects if o.type == "MESH"
+                              for s in o.material_slots if s.material is not None))
+
+
+def bake_materials(context, materials, resolution: int, only_missing: bool = False):
+    """Bake every bakeable input of ``materials`` (stacks have none); with ``only_missing`` only
+    the inputs without an up-to-date baked image (never baked, or changed since). Returns (inputs
+    baked, problems: one line each, naming the material, node and input)."""
+    scene = context.scene
+    done, problems = 0, []
+    for material in materials:
+        if getattr(material, "lamina", None) is not None and material.lamina.use_stack:
+            continue
+        inputs = bakeable_inputs(material)
+        if only_missing:
+            inputs = [(node, name) for node, name in inputs if baked.lookup(material, node, name)[0] is None]
+        if not inputs:
+            continue
+        users = _users(scene, material)
+        if not users or len(users[0].data.uv_layers) == 0:
+            problems.append(f"material '{material.name}': no object of the scene with a UV map uses it")
+            continue
+        if len(users) > 1:
+            problems.append(f"material '{material.name}': baked on '{users[0].name}' (also used by "
+                            f"{len(users) - 1} other object(s): right for them only with UV coordinates)")
+        for node, name in inputs:
+            try:
+                bake_input(context, material, node, name, users[0], resolution)
+                done += 1
+            except RuntimeError as exc:
+                problems.append(f"material '{material.name}', {node.name}.{name}: {exc}")
+    return done, problems
+
+
 class LAMINA_OT_bake_procedurals(bpy.types.Operator):
     bl_idname = "lamina.bake_procedurals"
     bl_label = "Bake Procedural Textures"
@@ -142,35 +178,14 @@ class LAMINA_OT_bake_procedurals(bpy.types.Operator):
                             description="Width and height of each baked image, in pixels")
 
     def execute(self, context):
-        scene = context.scene
         if self.material:
             materials = [bpy.data.materials.get(self.material)]
             if materials[0] is None:
                 self.report({"ERROR"}, f"Lamina: no material '{self.material}'")
                 return {"CANCELLED"}
         else:
-            materials = list(dict.fromkeys(s.material for o in scene.objects if o.type == "MESH"
-                                           for s in o.material_slots if s.material is not None))
-        done, problems = 0, []
-        for material in materials:
-            if getattr(material, "lamina", None) is not None and material.lamina.use_stack:
-                continue
-            inputs = bakeable_inputs(material)
-            if not inputs:
-                continue
-            users = _users(scene, material)
-            if not users or len(users[0].data.uv_layers) == 0:
-                problems.append(f"material '{material.name}': no object of the scene with a UV map uses it")
-                continue
-            if len(users) > 1:
-                problems.append(f"material '{material.name}': baked on '{users[0].name}' (also used by "
-                                f"{len(users) - 1} other object(s): right for them only with UV coordinates)")
-            for node, name in inputs:
-                try:
-                    bake_input(context, material, node, name, users[0], self.resolution)
-                    done += 1
-                except RuntimeError as exc:
-                    problems.append(f"material '{material.name}', {node.name}.{name}: {exc}")
+            materials = scene_materials(context.scene)
+        done, problems = bake_materials(context, materials, self.resolution)
         if problems:
             self.report({"WARNING"}, "Lamina: " + "; ".join(problems))
         self.report({"INFO"}, f"Lamina: baked {done} input(s)")

@@ -4,11 +4,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import bpy
-from bpy.props import BoolProperty, StringProperty
+from bpy.props import BoolProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
 from ..export import export_scene
 from ..export.scene import ExportError, warning_text
+from .bake import bake_materials, scene_materials
 
 
 class LAMINA_OT_export_scene(bpy.types.Operator, ExportHelper):
@@ -26,6 +27,13 @@ class LAMINA_OT_export_scene(bpy.types.Operator, ExportHelper):
                                             "otherwise reference them where they are")
     animation: BoolProperty(name="Animation", default=False,
                             description="Export every frame of the frame range as NAME_####.json")
+    bake_procedurals: BoolProperty(
+        name="Bake Procedural Textures", default=True,
+        description="Before writing, bake the procedural textures and node chains the export cannot "
+                    "translate into images (those not baked yet, or changed since), as the material "
+                    "panel's Bake Procedural Textures does; once, at the current frame")
+    bake_resolution: IntProperty(name="Bake Resolution", default=1024, min=16, max=8192,
+                                 description="Width and height of each baked image, in pixels")
 
     def execute(self, context):
         path = Path(self.filepath)
@@ -35,6 +43,13 @@ class LAMINA_OT_export_scene(bpy.types.Operator, ExportHelper):
         original_frame = scene.frame_current
         notes: list[str] = []
         triangles = 0
+        if self.bake_procedurals:
+            # Blender bakes only outside a render, so the export (not F12) can bake by itself.
+            done, problems = bake_materials(context, scene_materials(scene), self.bake_resolution,
+                                            only_missing=True)
+            notes.extend(f"bake: {p}" for p in problems)
+            if done:
+                self.report({"INFO"}, f"Lamina: baked {done} procedural input(s) at {self.bake_resolution}²")
         try:
             for frame in frames:
                 if self.animation:

@@ -63,3 +63,14 @@ def test_bake_writes_only_the_material_faces_and_skips_objects_without_uvs(tmp_p
     assert r["right_values"] == [0.0]              # the other material's faces: not baked over
     assert not r["no_uv_baked"]
     assert "Lamina bake object" not in r["objects"] and r["meshes"] == 2
+
+
+def test_export_operator_bakes_what_is_missing(tmp_path):
+    r = result_of(run_cases("bake_cases", ["export_operator_bakes"], tmp=tmp_path), "export_operator_bakes")
+    assert r["first"] == ["FINISHED"]
+    assert isinstance(r["color"], dict) and r["color"]["texture"]       # the baked image, not 0.5
+    assert r["size"] == [32, 32]
+    assert r["again"] == 0                     # up to date: nothing baked twice
+    assert r["off"] == ["FINISHED"] and r["off_color"] == [0.5, 0.5, 0.5]
+    assert "changed since it was baked" in r["off_warning"]
+    assert r["stale_baked"] == 1               # a changed input is baked again

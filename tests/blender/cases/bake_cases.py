@@ -110,3 +110,28 @@ def bake_awkward(tmp):
     out["objects"] = sorted(o.name for o in bpy.data.objects)
     out["meshes"] = len(bpy.data.meshes)
     return out
+
+
+def export_operator_bakes(tmp):
+    """File > Export bakes what is not baked yet (and only that), at its resolution; without the
+    option a changed checker is exported as its socket value and named as stale."""
+    from lamina.addon.ops.bake import bake_materials, scene_materials
+    build.scene()
+    build.camera()
+    mat, checker = _checker_material()
+    build.plane("Floor", size=2.0, material=mat)
+    path = Path(tmp) / "exported.json"
+    out = {"first": sorted(bpy.ops.lamina.export_scene(filepath=str(path), bake_procedurals=True,
+                                                       bake_resolution=32))}
+    doc = json.loads(path.read_text())
+    out["color"] = doc["materials"]["Checkered"]["color"]
+    image = bpy.data.images.get("Lamina bake: Checkered / Diffuse BSDF / Color")
+    out["size"] = list(image.size) if image is not None else None
+    out["again"] = bake_materials(bpy.context, scene_materials(bpy.context.scene), 32, only_missing=True)[0]
+    checker.inputs["Scale"].default_value = 5.0
+    out["off"] = sorted(bpy.ops.lamina.export_scene(filepath=str(path), bake_procedurals=False))
+    out["off_color"] = json.loads(path.read_text())["materials"]["Checkered"]["color"]
+    from lamina.addon.export import export_scene
+    out["off_warning"] = export_scene(bpy.context.evaluated_depsgraph_get(), Path(tmp) / "check").warning_text()
+    out["stale_baked"] = bake_materials(bpy.context, scene_materials(bpy.context.scene), 32, only_missing=True)[0]
+    return out
