@@ -151,7 +151,8 @@ class PathTracer:
             np.array([i for i, l in enumerate(self.lights) if l.is_hittable], np.int64),
             np.array([i for i, l in enumerate(self.lights) if l.is_infinite], np.int64),
             np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights] or [False]),
-            SAMPLERS[s.sampler], STRATIFIED_BOUNCES, nee_all, *self.vis.kernel_fields())
+            SAMPLERS[s.sampler], STRATIFIED_BOUNCES, nee_all, int(s.glossy_light_samples),
+            *self.vis.kernel_fields())
         self.camera = camera_vector(scene.camera)
         self.camera_motion = np.ascontiguousarray(scene.camera.motion_delta, np.float64)
         if self.motion and (self.vis.filter_shadows or self.vis.skip_hits):
@@ -171,9 +172,9 @@ class PathTracer:
     def _scratch(self, n: int) -> _Scratch:
         sc = getattr(self._local, "scratch", None)
         if sc is None or sc.n < n:
-            # Shadow rays per lane: next-event estimation's, and one dedicated ray per light
-            # with shadow linking (kernels/integrator.py).
-            per_lane = max(1, self.settings.nee_all) + int(self.vis.shadow_linked.size)
+            # Shadow rays per lane: next-event estimation's (glossy_nee per light at a glossy
+            # vertex), and one dedicated ray per light with shadow linking (kernels/integrator.py).
+            per_lane = max(1, self.settings.nee_all) * self.settings.glossy_nee + int(self.vis.shadow_linked.size)
             sc = self._local.scratch = _Scratch(n, self.walk_capacity, per_lane)
         return sc
 

@@ -45,6 +45,10 @@ MAX_PATH_COMPONENT = 255
 # --------------------------------------------------------------------------- rendering
 MAX_SPP = 1 << 24
 MAX_BOUNCES = 1024
+#: Next-event samples per light at a glossy vertex (render.glossy_light_samples): each is a shadow
+#: ray, and the shadow-ray queue is sized for this many per light (at most 4 lights are sampled
+#: together), so the queue stays within 32 rays per lane.
+MAX_GLOSSY_LIGHT_SAMPLES = 8
 MAX_SEED = 2 ** 63 - 1
 MAX_FILM_SIDE = 65536
 MAX_WORKERS = 64

@@ -88,7 +88,8 @@ def render_json(scene, *, samples: int | None = None, seed_offset: int = 0) -> d
            "noise_target": float(s.noise_threshold),
            "min_spp": int(s.min_samples),
            "time_limit": float(s.time_limit),
-           "sampler": s.sampler.lower()}
+           "sampler": s.sampler.lower(),
+           "glossy_light_samples": int(s.glossy_light_samples)}
     layered = {}
     if s.estimator != "BIDIRECTIONAL":
         layered["estimator"] = s.estimator.lower()

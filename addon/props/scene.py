@@ -38,6 +38,10 @@ class LaminaRenderSettings(PropertyGroup):
                           description="Bounces before paths may be terminated at random")
     clamp: FloatProperty(name="Clamp Indirect", default=0.0, min=0.0,
                          description="Clamp indirect sample values (trades bias for fireflies); 0 = off")
+    glossy_light_samples: IntProperty(name="Glossy Light Samples", default=2, min=1, max=8,
+                                      description="Light samples per light at a rough metal's surface "
+                                                  "(less noise on glossy reflections of lights, a shadow "
+                                                  "ray each)")
     sampler: EnumProperty(name="Sampler", items=SAMPLERS, default="SOBOL",
                           description="How samples are placed in each pixel and path dimension")
     seed: IntProperty(name="Seed", default=0, min=0, description="Random seed; same seed and samples "

@@ -53,6 +53,7 @@ def draw_performance(layout, settings) -> None:
 def draw_advanced(layout, settings) -> None:
     col = _column(layout)
     col.prop(settings, "sampler")
+    col.prop(settings, "glossy_light_samples")
     col.prop(settings, "estimator")
     col.prop(settings, "pdf_mode")
     col.prop(settings, "rr_depth")

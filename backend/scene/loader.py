@@ -14,7 +14,7 @@ import numpy as np
 from ..errors import SceneError
 from ..geometry.accel import TriangleSoup
 from ..geometry.mesh import Mesh, parse_mesh
-from ..limits import MAX_BOUNCES, MAX_COORDINATE, MAX_FILM_SIDE, MAX_SEED, MAX_SPP, film_memory_problem, short
+from ..limits import MAX_BOUNCES, MAX_GLOSSY_LIGHT_SAMPLES, MAX_COORDINATE, MAX_FILM_SIDE, MAX_SEED, MAX_SPP, film_memory_problem, short
 from .inputs import record_inputs
 from .links import CAMERA, LIGHT_FLAGS, OBJECT_FLAGS, SHADOW, build_links, parse_linking, parse_visibility
 from .reader import LoadContext, Node, dispatch, path_problem, read_json
@@ -35,6 +35,7 @@ class RenderSettings:
     time_limit: float = 0.0
     light_selection: str = "local"
     sampler: str = "sobol"
+    glossy_light_samples: int = 2   # next-event samples per light at a rough conductor (docs/scene-format.md)
 
 
 @dataclass
@@ -280,6 +281,8 @@ def parse_settings(node: Node | None, ctx: LoadContext) -> RenderSettings:
     s.time_limit = node.number("time_limit", s.time_limit, lo=0)
     s.light_selection = node.string("light_selection", s.light_selection, choices=("local", "power"))
     s.sampler = node.string("sampler", s.sampler, choices=("sobol", "independent"))
+    s.glossy_light_samples = node.integer("glossy_light_samples", s.glossy_light_samples, lo=1,
+                                          hi=MAX_GLOSSY_LIGHT_SAMPLES)
     layered = node.optional_child("layered")
     ctx.cache["layered_defaults"] = dict(layered.require_object().value) if layered is not None else {}
     if layered is not None:

@@ -43,6 +43,7 @@ def main(argv=None) -> int:
     ap.add_argument("scene")
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--seeds", type=int, default=8)
+    ap.add_argument("--seed-base", type=int, default=5000, help="Lamina's seeds are seed-base + k (another set: another base)")
     ap.add_argument("--bounces", default="8")
     ap.add_argument("--size", type=int, default=0)
     ap.add_argument("--lamina-only", action="store_true")
@@ -90,7 +91,7 @@ def main(argv=None) -> int:
 
                     from ..measure import apply_patch
                     d = apply_patch(d, json.loads(args.patch))
-                runs = [render(d, args.spp, 5000 + k, os.cpu_count() or 1, "diag") for k in range(args.seeds)]
+                runs = [render(d, args.spp, args.seed_base + k, os.cpu_count() or 1, "diag") for k in range(args.seeds)]
                 imgs = [r.image for r in runs]
                 means = {"lamina": imgs}
                 print(f"lamina/{smp}: CPU per render {np.median([r.cpu for r in runs]):.3f} s (median of {len(runs)})")
