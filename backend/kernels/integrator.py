@@ -274,12 +274,10 @@ def _moving_surface(G, R, pr, tm, b1, b2):
     if G.has_uvs:
         # dP/du from the UV differences (as kernels/soup.py's frames).
         u0, w0 = np.float64(R[pr, ROW_UV]), np.float64(R[pr, ROW_UV + 1])
-        du1, dv1 = np.float64(R[pr, ROW_UV + 2]) - u0, np.float64(R[pr, ROW_UV + 3]) - w0
-        du2, dv2 = np.float64(R[pr, ROW_UV + 4]) - u0, np.float64(R[pr, ROW_UV + 5]) - w0
-        det = du1 * dv2 - du2 * dv1
-        if abs(det) > 1e-20:
-            tan = _normalize(((e1[0] * dv2 - e2[0] * dv1) / det, (e1[1] * dv2 - e2[1] * dv1) / det,
-                              (e1[2] * dv2 - e2[2] * dv1) / det))
+        dpdu, _, ok = _bump.uv_derivatives(e1, e2, np.float64(R[pr, ROW_UV + 2]) - u0, np.float64(R[pr, ROW_UV + 3]) - w0,
+                                           np.float64(R[pr, ROW_UV + 4]) - u0, np.float64(R[pr, ROW_UV + 5]) - w0)
+        if ok:
+            tan = _normalize(dpdu)
     return p, ng, ns, tan
 
 
