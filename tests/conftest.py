@@ -9,3 +9,14 @@ DATA = ROOT / "tests" / "data"  # copies of ../shared/data (IES files, slab refe
 os.environ.setdefault("LAMINA_ROOT", str(ROOT))
 import backend as _first  # before NumPy: one BLAS thread per process (backend/__init__.py)
 del _first
+
+
+def pytest_collection_finish(session):
+    # A cold kernel cache is compiled once, by the first-run test's own render (tests/first_run.py).
+    import first_run
+    first_run.record_if_cold(session.items)
+
+
+def pytest_sessionfinish(session, exitstatus):
+    import first_run
+    first_run.clean_up()

@@ -16,7 +16,8 @@ from scipy import stats as sps
 
 from backend.kernels import cache
 from backend.kernels.rng import fill_uniform
-from render_util import IDENTITY, front_perspective, render, scene
+from first_run import RECORD, cli, first_render, mixed_scene
+from render_util import render
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -60,24 +61,7 @@ def test_numbers_depend_on_every_key_and_nothing_else():
 
 # --------------------------------------------------------------------------- determinism
 
-def _mixed_scene(spp=12):
-    materials = {"white": {"type": "diffuse", "color": [0.7, 0.7, 0.7]},
-                 "gold": {"type": "conductor", "metal": "Au", "roughness": 0.3},
-                 "glass": {"type": "dielectric", "ior": 1.5, "roughness": 0.2}}
-    meshes = {"floor": {"shape": "rectangle", "size": [6, 6]},
-              "ball": {"shape": "sphere", "radius": 0.5, "segments": 24}}
-    objects = [{"name": "floor", "mesh": "floor", "materials": ["white"]},
-               {"name": "a", "mesh": "ball", "materials": ["gold"],
-                "to_world": [[1, 0, 0, -0.6], [0, 1, 0, 0], [0, 0, 1, 0.5], [0, 0, 0, 1]]},
-               {"name": "b", "mesh": "ball", "materials": ["glass"],
-                "to_world": [[1, 0, 0, 0.6], [0, 1, 0, 0], [0, 0, 1, 0.5], [0, 0, 0, 1]]}]
-    lights = [{"type": "point", "to_world": [[1, 0, 0, 0.5], [0, 1, 0, -1], [0, 0, 1, 3], [0, 0, 0, 1]],
-               "power": 200.0}]
-    cam = front_perspective(5.0, 0.3, 1.5)
-    cam["to_world"][2][3] = 0.6
-    return scene(24, 16, cam, materials, meshes, objects, lights,
-                 world={"type": "constant", "color": [0.2, 0.25, 0.3]},
-                 render={"spp": spp, "max_bounces": 5, "rr_depth": 2, "seed": 3})
+_mixed_scene = mixed_scene
 
 
 def _same(a, b):
@@ -130,20 +114,18 @@ def test_cache_folder_is_keyed_by_sources_and_versions(tmp_path, monkeypatch):
     assert cache.user_cache_root() == tmp_path / "c"
 
 
-def _cli(args, env=None, cwd=None):
-    return subprocess.run([sys.executable, "-m", "backend", *args], capture_output=True, text=True,
-                          env=env, cwd=cwd or ROOT)
+_cli = cli
 
 
 def test_first_run_compiles_once_and_says_so(tmp_path):
-    data = _mixed_scene(spp=1)
-    path = tmp_path / "s.json"
-    path.write_text(json.dumps(data))
-    env = dict(os.environ, LAMINA_KERNEL_CACHE=str(tmp_path / "kernels"), PYTHONPATH=str(ROOT))
-    env.pop("LAMINA_SERIAL_COMPILE", None)
-    # Numba's cache log (stdout) tells which kernels this process compiled and which it loaded.
-    first = _cli(["render", str(path), "-o", str(tmp_path / "a.exr"), "--workers", "1"],
-                 dict(env, NUMBA_DEBUG_CACHE="1"))
+    """The first run on a cold cache compiles every kernel once and says so; the next one loads.
+    On a cold session cache the first run is the one tests/first_run.py made before the first
+    test (the compile the whole session uses); else it compiles into a folder of its own."""
+    if RECORD:
+        first, env, root, path = RECORD["first"], RECORD["env"], RECORD["root"], RECORD["scene"]
+    else:
+        root = tmp_path / "kernels"
+        first, env, path = first_render(tmp_path, root)
     assert first.returncode == 0, first.stderr
     assert first.stderr.count("compiling render kernels (first run only)") == 1
     assert "compiled render kernels in" in first.stderr
@@ -157,9 +139,12 @@ def test_first_run_compiles_once_and_says_so(tmp_path):
     second = _cli(["render", str(path), "-o", str(tmp_path / "b.exr"), "--workers", "1"], env)
     assert second.returncode == 0, second.stderr
     assert "compiling" not in second.stderr
-    folders = [p for p in (tmp_path / "kernels").iterdir() if p.is_dir()]
-    assert len(folders) == 1 and (folders[0] / "warm").exists()
-    assert any(folders[0].rglob("*.nbi"))                 # Numba's index files are there
+    if not RECORD:
+        folders = [p for p in root.iterdir() if p.is_dir()]
+        assert folders == [root / cache.source_key()]
+    folder = root / cache.source_key()
+    assert (folder / "warm").exists()
+    assert any(folder.rglob("*.nbi"))                  # Numba's index files are there
 
 
 _LOADER_PROBE = """
