@@ -4,11 +4,12 @@ Everything a path does between two embree calls runs here, one loop body per lan
 interpolation, shading frames, materials, textures, lights, MIS and Russian roulette. NumPy
 orchestrates (work items, embree batches, compaction, film), loads scenes and writes images.
 
-Importing this package fixes where compiled code is cached *before* any kernel module is
-imported: ``backend.kernels.cache`` chooses a per-user cache folder keyed by the kernel sources,
-the Lamina, Numba and Python versions, so a cache written by another version is never used.
-Kernel modules must therefore be imported through this package (``from ..kernels import ...``),
-never by setting Numba's cache folder elsewhere.
+Where compiled code is cached is fixed *before* any kernel is defined: ``kernels/jit.py`` (the
+decorators every kernel module imports) and ``kernels/ufuncs.py`` call ``cache.configure()``
+first, which chooses a per-user cache folder keyed by the kernel sources, the Lamina, Numba and
+Python versions, so a cache written by another version is never used. Never set Numba's cache
+folder elsewhere. This package itself imports nothing compiled (nor Numba): constant modules
+(``microfacet_codes``, ``layered/phase_layout``) and ``lazy`` serve parsers that need no kernels.
 
 Conventions every kernel follows (measured reasons):
 * Every compiled function is ``@kernel`` or ``@inlined`` (kernels/jit.py): cached, no reference
@@ -22,6 +23,3 @@ Conventions every kernel follows (measured reasons):
 * Lane loops over large batches release the GIL (``nogil=True``), so render threads share one
   process.
 """
-from . import cache as _cache
-
-_cache.configure()

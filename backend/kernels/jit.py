@@ -29,7 +29,11 @@ from __future__ import annotations
 
 import types as _pytypes
 
-from numba import njit
+from . import cache as _cache
+
+_cache.configure()                  # before the first decorator: the keyed cache folder (kernels/cache.py)
+
+from numba import njit  # noqa: E402
 from numba.core import types as _nbtypes
 
 _COMMON = {"cache": True, "_nrt": False}

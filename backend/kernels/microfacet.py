@@ -25,14 +25,9 @@ import math
 from .jit import kernel
 from .specfun import SQRT_PI, erfc, erfinv_from_uniform
 
-GGX = 0
-BECKMANN = 1
-HEIGHT_CORRELATED = 0
-SEPARABLE = 1
-DISTRIBUTION_CODES = {"ggx": GGX, "beckmann": BECKMANN}
-MASKING_CODES = {"height-correlated": HEIGHT_CORRELATED, "separable": SEPARABLE}
+from .microfacet_codes import (ALPHA_MIN, BECKMANN, DISTRIBUTION_CODES, GGX,  # noqa: F401 (re-exported)
+                               HEIGHT_CORRELATED, MASKING_CODES, SEPARABLE)
 
-ALPHA_MIN = 1e-4
 _TINY = 1e-300
 INV_PI = 1.0 / math.pi
 

@@ -3,10 +3,14 @@ ufunc), for NumPy callers: ``backend/materials/fresnel.py``, ``specfun.py`` and 
 walks. The maths is the per-lane code in ``fresnel.py`` / ``specfun.py``: one implementation."""
 from __future__ import annotations
 
-from numba import guvectorize, vectorize
-from numba.core.registry import cpu_target
+from . import cache as _cache
 
-from . import fresnel, specfun
+_cache.configure()                  # before the first decorator: the keyed cache folder (kernels/cache.py)
+
+from numba import guvectorize, vectorize  # noqa: E402
+from numba.core.registry import cpu_target  # noqa: E402
+
+from . import fresnel, specfun  # noqa: E402
 
 # Building a ufunc's wrapper lowers code in the CPU target context even when its kernel comes from
 # the cache, and the lean cache loader (cache._lean_cache_loads) leaves that context unrefreshed:

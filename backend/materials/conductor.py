@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.bsdf import batch as _batch
-from ..kernels.microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
+from ..kernels.lazy import lazy
+from ..kernels.microfacet_codes import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from ..limits import short as _short
 from . import register
 from .base import BSDF, BSDFSample, Material, ShadingContext, lanes, rows1, rows3, sample_arrays
@@ -23,6 +23,9 @@ from .common import any_textured, as_param, delta_lanes, parse_microfacet_kind, 
 from .emission import parse_emission
 from .metals import METALS, metal_ior
 from .microfacet import GGX, HEIGHT_CORRELATED
+
+
+_batch = lazy("bsdf.batch")     # compiled on first use (kernels/lazy.py)
 
 
 class ConductorBSDF(BSDF):

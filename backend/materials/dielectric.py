@@ -21,14 +21,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.bsdf import batch as _batch
-from ..kernels.microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
+from ..kernels.lazy import lazy
+from ..kernels.microfacet_codes import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from . import register
 from .base import (BSDF, RADIANCE, BSDFSample, Material, ShadingContext, lanes, rows1, rows3,
                    sample_arrays)
 from .common import any_textured, as_param, delta_lanes, parse_microfacet_kind, parse_roughness
 from .emission import parse_emission
 from .microfacet import GGX, HEIGHT_CORRELATED
+
+
+_batch = lazy("bsdf.batch")     # compiled on first use (kernels/lazy.py)
 
 
 class DielectricBSDF(BSDF):

@@ -3,11 +3,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.bsdf import batch as _batch
+from ..kernels.lazy import lazy
 from . import register
 from .base import BSDF, BSDFSample, Material, ShadingContext, lanes, rows3, sample_arrays
 from .common import any_textured, as_param
 from .emission import parse_emission
+
+
+_batch = lazy("bsdf.batch")     # compiled on first use (kernels/lazy.py)
 
 
 class DiffuseBSDF(BSDF):

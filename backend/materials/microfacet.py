@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels import microfacet_batch as _b
-from ..kernels.microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
+from ..kernels.lazy import lazy
+from ..kernels.microfacet_codes import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
+
+_b = lazy("microfacet_batch")     # compiled on first use (kernels/lazy.py)
 
 GGX = "ggx"
 BECKMANN = "beckmann"

@@ -30,34 +30,11 @@ import numpy as np
 
 from ..jit import kernel
 from ..rng import uniform
-
-ISOTROPIC, HG, VMF, FIBER, SGGX = 0, 1, 2, 3, 4
-KINDS = {"isotropic": ISOTROPIC, "hg": HG, "vmf": VMF, "microflake": FIBER, "sggx": SGGX}
-
-# Parameter block (offsets from o)
-PK = 0                    # kind
-HG_G = 1
-VMF_K, VMF_NORM = 1, 2
-FB_S, FB_INV_S, FB_QSCALE, FB_LNNORM, FB_AXIS, FB_E1, FB_E2, FB_ROW, FB_CI, FB_W = \
-    1, 2, 3, 4, 5, 8, 11, 14, 15, 16
-SG_B, SG_DET = 1, 7
-SIZE = 20
-
-INV_4PI = 0.25 / math.pi
-INV_2PI = 0.5 / math.pi
-G_MAX = 0.999             # |g| clamp (pbrt-v4 issue #333: NaNs at g = ±1)
-
-# Fiber table grid (backend/layered/phase/fiber.py reads these)
-S_MIN, S_MAX = 1e-3, 4.0
-ROWS = 161
-COLS = 161
-LN_S0 = math.log(S_MIN)
-H_S = (math.log(S_MAX) - LN_S0) / (ROWS - 1)
-LN_ROW = ROWS + 2         # the row of FT holding ln N(s) (ghosted like the σ rows)
-FIRST_MEDIUM_ROW = ROWS + 3
-UNIFORM_ABOVE = 0.7       # stddev above which the fiber sampler proposes x uniformly
-MAX_CANDIDATES = 509      # 1 + 127 rounds × 4 candidates: the NumPy sampler's 128 rounds
-SGGX_ROUGHNESS_MIN = 1e-3
+from .phase_layout import (  # noqa: F401 (the layout, re-exported for the kernels' callers)
+    COLS, FB_AXIS, FB_CI, FB_E1, FB_E2, FB_INV_S, FB_LNNORM, FB_QSCALE, FB_ROW, FB_S, FB_W, FIBER,
+    FIRST_MEDIUM_ROW, G_MAX, H_S, HG, HG_G, INV_2PI, INV_4PI, ISOTROPIC, KINDS, LN_ROW, LN_S0,
+    MAX_CANDIDATES, PK, ROWS, S_MAX, S_MIN, SG_B, SG_DET, SGGX, SGGX_ROUGHNESS_MIN, SIZE,
+    UNIFORM_ABOVE, VMF, VMF_K, VMF_NORM)
 
 
 @kernel(error_model="numpy")

@@ -49,7 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...kernels.layered import phase as _kp
+from ...kernels.layered import phase_layout as _kp
 from ...mathutil import dot
 from .base import Phase, lane_count, lanes, scalar_lanes, unit_or, vector_lanes
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...kernels.layered import phase as kp
+from ...kernels.layered import phase_layout as kp
 from .base import Phase, lane_count, lanes, scalar_lanes
 
 INV_4PI = 0.25 / np.pi
