@@ -52,6 +52,43 @@ def test_every_preset_validates():
     assert not [(r["name"], r["warnings"]) for r in records if r["warnings"]]
 
 
+def test_the_preset_check_needs_no_compiled_code():
+    """The add-on runs ``presets validate`` on every Save Preset while Blender waits: checking
+    every shipped preset (layered stacks with microflake, SGGX, HG media; conductors,
+    dielectrics, textures) must not import Numba or a compiled module (≈ 0.4 s of the check's
+    ≈ 0.8 s; kernels/lazy.py). A bad preset is still refused with its field named."""
+    import subprocess
+    import sys
+    code = ("import json, sys\n"
+            "from backend.presets import all_presets, check_preset\n"
+            "from backend.errors import LaminaError\n"
+            "n = 0\n"
+            "for info in all_presets():\n"
+            "    check_preset(info.path); n += 1\n"
+            "bad = json.loads(open(sys.argv[1]).read())\n"
+            "try:\n"
+            "    check_preset(sys.argv[1]); refused = ''\n"
+            "except LaminaError as exc:\n"
+            "    refused = str(exc)\n"
+            "compiled = sorted(m for m in sys.modules if m == 'numba' or m.startswith('numba.')\n"
+            "                  or (m.startswith('backend.kernels.') and m.split('.')[2] not in\n"
+            "                      ('lazy', 'microfacet_codes', 'layered')))\n"
+            "print(json.dumps({'checked': n, 'refused': refused, 'compiled': compiled}))\n")
+    import tempfile
+    with tempfile.TemporaryDirectory(prefix="pytest-preset-") as folder:
+        good = json.loads(P.find_preset("car-paint-red").read_text())
+        good["material"]["interfaces"][0]["roughness"] = -0.5
+        bad = Path(folder) / "car-paint-red.json"
+        bad.write_text(json.dumps(good))
+        out = subprocess.run([sys.executable, "-c", code, str(bad)], capture_output=True, text=True,
+                             cwd=Path(__file__).resolve().parent.parent)
+    assert out.returncode == 0, out.stderr
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    assert r["checked"] >= 20
+    assert "roughness" in r["refused"], r["refused"]
+    assert r["compiled"] == [], r["compiled"][:10]
+
+
 def test_reference_preset_is_the_issue_example_exactly():
     issue = {"type": "layered",
              "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.05, "distribution": "beckmann"},
