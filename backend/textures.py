@@ -176,9 +176,13 @@ def load_texels(ctx, file: str, path: str, channels: int, channel: int, colorspa
         if pick >= c:
             raise ctx.error(path, f"image has {c} channel(s), channel {pick} requested")
         if channel < 0 and c >= 3:
-            # A colour image for a scalar parameter: use its luminance (Rec.709 weights).
+            # A colour image for a scalar parameter: use its luminance (Rec.709 weights). In
+            # float64, rounded once to float32: a float32 product depends on the BLAS kernel the
+            # CPU gets (an AMD machine's differed from an Intel one's by 4 ulps, which tilted a
+            # grey ramp's bump normal), while this gives every machine the same texels, and a grey
+            # texel exactly its own value.
             rgb = srgb_to_linear(pixels[:, :, :3]) if decode_srgb else pixels[:, :, :3]
-            out = (rgb @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32))[:, :, None]
+            out = (rgb.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722]))[:, :, None]
         else:
             out = pixels[:, :, pick:pick + 1]
             if decode_srgb:

@@ -53,6 +53,22 @@ def test_8bit_colour_texture_is_srgb_decoded_but_scalar_params_are_not(tmp_path)
     assert np.allclose(forced.bind(np.array([[0.5, 0.5]])), 128 / 255, atol=1e-4)
 
 
+def test_a_colour_image_for_a_scalar_parameter_gives_its_rec709_luminance_exactly(tmp_path):
+    """Luminance of a colour image read for a scalar (Rec.709 weights, linear data), rounded once
+    from float64: grey texels keep their exact value, and colour ones are the correctly rounded
+    weighted sums on every machine (a float32 product varied with the CPU's BLAS kernel)."""
+    rng = np.random.default_rng(3)
+    grey = (np.arange(16, dtype=np.float32) / 16)[None, :, None].repeat(3, axis=2)
+    colour = rng.random((4, 16, 3)).astype(np.float32)
+    img = np.concatenate([grey, colour], axis=0)
+    write_image(tmp_path / "l.exr", img)
+    p, _ = param(tmp_path, {"texture": "l.exr"}, channels=1, hi=1.0, color=False)
+    t = p.texels[..., 0]
+    assert np.array_equal(t[0], grey[0, :, 0])
+    exact = colour.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    assert np.array_equal(t[1:], exact.astype(np.float32))
+
+
 def test_nan_and_out_of_range_texels_are_sanitised_with_warnings(tmp_path):
     img = np.array([[[np.nan], [-1.0]], [[0.5], [7.0]]], np.float32)
     write_image(tmp_path / "r.exr", img)
