@@ -1,6 +1,6 @@
 """The two decorators every compiled function uses: ``@kernel`` and ``@inlined``.
 
-Both compile with Numba's ``njit``, cached on disk (``cache=True``; the folder is chosen by
+Both compile with Numba's ``njit``, cached on disk (Numba's cache, made on first use: ``_LazyCache``; the folder is chosen by
 ``kernels/cache.py``) and without reference counting (``_nrt=False``: kernels never allocate;
 with counting, every array read from a table inside a lane loop cost an atomic increment and
 decrement — 40 % of the shading time, 145 → 40 ns per simple light sample). Extra Numba options
@@ -36,7 +36,26 @@ _cache.configure()                  # before the first decorator: the keyed cach
 from numba import njit  # noqa: E402
 from numba.core import types as _nbtypes
 
-_COMMON = {"cache": True, "_nrt": False}
+_COMMON = {"_nrt": False}           # cached on disk too: _LazyCache below
+
+
+class _LazyCache:
+    """A dispatcher's on-disk cache (Numba's ``FunctionCache``), made when first used.
+
+    ``cache=True`` makes one in the decorator, for every function at import: a locator search,
+    the source file's stamp, the index name — 0.04-0.06 s for the ~300 functions of a warm start
+    (measured), which calls about a dozen of them from Python (the rest are compiled into those).
+    Numba uses the cache through a few methods (load, save, flush, cache_path); the first use
+    puts the real object in its place, so the files and their names are Numba's own."""
+
+    def __init__(self, dispatcher):
+        self._dispatcher = dispatcher
+
+    def __getattr__(self, name):
+        from numba.core.caching import FunctionCache
+        real = FunctionCache(self._dispatcher.py_func)
+        self._dispatcher._cache = real
+        return getattr(real, name)
 
 
 #: Dispatchers being compiled by another process into the shared cache (kernels/cache.py):
@@ -76,11 +95,16 @@ def _one_version_per_type(dispatcher):
     return dispatcher
 
 
+def _cached(dispatcher):
+    dispatcher._cache = _LazyCache(dispatcher)
+    return dispatcher
+
+
 def _decorator(forceinline: bool, fn, options: dict):
     opts = {**_COMMON, **options, "forceinline": forceinline}
     if fn is not None:
-        return _one_version_per_type(njit(**opts)(fn))
-    return lambda f: _one_version_per_type(njit(**opts)(f))
+        return _one_version_per_type(_cached(njit(**opts)(fn)))
+    return lambda f: _one_version_per_type(_cached(njit(**opts)(f)))
 
 
 def kernel(fn=None, **options):
