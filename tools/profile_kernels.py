@@ -2,7 +2,7 @@
 """Where the compiled kernels spend their time: a sampling profile of one benchmark scene, by
 kernel function (and by source line with ``--lines``).
 
-    .venv/bin/python tools/profile_kernels.py [--scene cornell|peer-cornell] [--spp 16] [--lines]
+    .venv/bin/python tools/profile_kernels.py [--scene cornell|peer-cornell|sphere-microflake] [--spp 16] [--lines]
 
 Needs Linux ``perf`` (``perf record`` with the cpu-clock event works in a VM without hardware
 counters). Numba's machine code lives in anonymous memory, so perf alone sees addresses only.
@@ -52,6 +52,10 @@ def _scene(name: str, spp: int) -> dict:
     if name == "peer-cornell":
         from benchmarks.peers.scenes import cornell
         data = cornell(96)
+    elif name == "sphere-microflake":
+        # benchmarks/layered_throughput.py --render: the one-sphere worst case of issue 16.
+        from benchmarks.layered_throughput import STACKS, _sphere_scene
+        data = _sphere_scene(STACKS["2 slabs (reference, microflake)"], 128, spp)
     else:
         from benchmarks.scenes import cornell_box
         data = cornell_box(256, 256, spp, 6)
@@ -175,7 +179,7 @@ def report(perf_data: Path, map_file: Path, lines: bool, top: int) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scene", choices=("cornell", "peer-cornell"), default="cornell")
+    ap.add_argument("--scene", choices=("cornell", "peer-cornell", "sphere-microflake"), default="cornell")
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--lines", action="store_true", help="per source line (debug-info build)")
