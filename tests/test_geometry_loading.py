@@ -138,3 +138,35 @@ print(owner[0], int(prim[0]))
     owner, prim = out.stdout.split()
     assert "embreex" in owner and "bpy" not in owner, owner
     assert prim == "0"
+
+
+def test_placed_normals_and_scene_bounds_match_their_closed_forms():
+    """Per-vertex normals placed by a sheared, mirroring matrix are the float64 normal-matrix
+    product renormalised, rounded once to float32 (each triangle's corners swapped by the mirror),
+    and the scene's centre and radius come from the extremes of every placed corner (the loader
+    computes both with faster NumPy paths than these)."""
+    from backend.scene.loader import load_scene_data
+    rng = np.random.default_rng(7)
+    pos = rng.uniform(-1, 1, (40, 3))
+    idx = np.array([rng.choice(40, 3, replace=False) for _ in range(60)])
+    nrm = rng.normal(size=(40, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    m = np.array([[1.5, 0.4, 0.0, 0.3], [0.0, -0.8, 0.2, -1.0], [0.1, 0.0, 2.0, 0.5], [0, 0, 0, 1]])
+    cam = {"type": "perspective", "to_world": np.eye(4).tolist(),
+           "frame": [[0.5, 0.5, -1], [0.5, -0.5, -1], [-0.5, -0.5, -1], [-0.5, 0.5, -1]]}
+    data = {"format": "lamina-scene", "version": 1, "film": {"width": 4, "height": 4}, "camera": cam,
+            "materials": {"m": {"type": "diffuse", "color": 0.5}},
+            "meshes": {"a": {"positions": pos.tolist(), "indices": idx.tolist(), "normals": nrm.tolist()}},
+            "objects": [{"mesh": "a", "materials": ["m"], "to_world": m.tolist()}]}
+    scene = load_scene_data(data, "<test>")
+    assert np.linalg.det(m[:3, :3]) < 0
+    order = [0, 2, 1]                                  # the mirror swaps two corners
+    n_ref = nrm.astype(np.float32).astype(np.float64)[idx][:, order] @ np.linalg.inv(m[:3, :3])
+    n_ref /= np.linalg.norm(n_ref, axis=2, keepdims=True)
+    np.testing.assert_array_equal(scene.soup.normals, n_ref.astype(np.float32))
+    corners = (pos.astype(np.float32).astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)[idx][:, order]
+    np.testing.assert_array_equal(scene.soup.vertices, corners)
+    pts = np.concatenate([corners.reshape(-1, 3).astype(np.float64), np.zeros((1, 3))])   # + the camera
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    np.testing.assert_allclose(scene.center, 0.5 * (lo + hi), rtol=0, atol=1e-12)
+    assert scene.radius == pytest.approx(0.5 * np.linalg.norm(hi - lo), rel=1e-12)

@@ -592,14 +592,23 @@ def _placed(mesh: Mesh, m: np.ndarray, onode: Node, mesh_name: str, field: str):
     v = p.astype(np.float32)[mesh.indices]
     nrm = None
     if mesh.normals is not None:
-        normal_matrix = np.linalg.inv(m[:3, :3]).T
-        nrm = mesh.normals.astype(np.float64) @ normal_matrix.T
-        nrm /= np.maximum(np.linalg.norm(nrm, axis=2, keepdims=True), 1e-30)
+        nrm = _placed_normals(mesh.normals, np.linalg.inv(m[:3, :3]).T)
     mirrored = bool(np.linalg.det(m[:3, :3]) < 0)
     if mirrored:
         v = v[:, [0, 2, 1]]
         nrm = None if nrm is None else nrm[:, [0, 2, 1]]
     return v, nrm, mirrored
+
+
+def _placed_normals(normals: np.ndarray, normal_matrix: np.ndarray) -> np.ndarray:
+    """Per-corner normals (T, 3, 3) times the normal matrix, renormalised (float64: rounded to
+    float32 once, when the soup is assembled). As one (3T, 3) × (3, 3) product, which NumPy hands
+    to BLAS, and lengths by einsum: the stacked (T, 3, 3) product and ``linalg.norm`` took
+    0.5-1.0 s for a 1 M-triangle mesh, this 0.14-0.29 s (the same values to 2.2e-16)."""
+    flat = normals.reshape(-1, 3).astype(np.float64) @ normal_matrix.T
+    length = np.sqrt(np.einsum("ij,ij->i", flat, flat))
+    flat /= np.maximum(length, 1e-30)[:, None]
+    return flat.reshape(normals.shape)
 
 
 def _flat_normals(v: np.ndarray) -> np.ndarray:
@@ -643,11 +652,20 @@ def build_mesh_light(soup: TriangleSoup, materials: list):
     return light
 
 
+def _corner_extremes(v: np.ndarray) -> np.ndarray:
+    """(2, 3) float64: the per-axis minimum and maximum of corners (T, 3, 3). One strided 1-D
+    reduction per axis: ``v.min(axis=(0, 1))`` took 0.11 s per extreme for 1 M triangles, this
+    0.01 s for all six (the same values)."""
+    flat = v.reshape(-1)
+    return np.array([[flat[k::3].min() for k in range(3)], [flat[k::3].max() for k in range(3)]],
+                    dtype=np.float64)
+
+
 def scene_bounds(soup: TriangleSoup, lights: list, camera) -> tuple[np.ndarray, float]:
     # The soup's extremes in float32 (exact), not a float64 copy of every corner; moving
     # triangles at every motion step.
-    pts = [np.stack([v.min(axis=(0, 1)), v.max(axis=(0, 1))]).astype(np.float64)
-           for v in [soup.vertices] + list(getattr(soup, "motion", None) or []) if v.shape[0]]
+    pts = [_corner_extremes(v) for v in [soup.vertices] + list(getattr(soup, "motion", None) or [])
+           if v.shape[0]]
     pts.append(camera.to_world[:3, 3][None, :])
     for light in lights:
         pos = getattr(light, "position", None)
