@@ -1,9 +1,10 @@
 """The two decorators every compiled function uses: ``@kernel`` and ``@inlined``.
 
-Both compile with Numba's ``njit``, cached on disk (Numba's cache, made on first use: ``_LazyCache``; the folder is chosen by
-``kernels/cache.py``) and without reference counting (``_nrt=False``: kernels never allocate;
-with counting, every array read from a table inside a lane loop cost an atomic increment and
-decrement — 40 % of the shading time, 145 → 40 ns per simple light sample). Extra Numba options
+Both compile with Numba's ``njit``, cached on disk (Numba's cache, made on first use:
+``_LazyCache``; the folder is chosen by ``kernels/cache.py``) and without reference counting
+(``_nrt=False``: kernels never allocate; with counting, every array read from a table inside a
+lane loop cost an atomic increment and decrement — 40 % of the shading time, 145 → 40 ns per
+simple light sample). Extra Numba options
 pass through: ``@kernel(nogil=True)`` for lane loops that render threads share,
 ``@kernel(error_model="numpy")`` where a division by zero must give inf/NaN, not raise.
 

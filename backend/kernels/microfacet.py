@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 
-from .jit import kernel
+from .jit import inlined, kernel
 from .specfun import SQRT_PI, erfc, erfinv_from_uniform
 
 from .microfacet_codes import (ALPHA_MIN, BECKMANN, DISTRIBUTION_CODES, GGX,  # noqa: F401 (re-exported)
@@ -51,32 +51,33 @@ def D(dist, au, av, m):
     return d / zz if zz > 0.0 else 0.0
 
 
+@inlined
+def _tan2_terms(au, av, w):
+    """(α(φ)² sin²θ, cos²θ clamped away from 0) of direction w: ``alpha2_tan2`` is their ratio."""
+    return au * au * w[0] * w[0] + av * av * w[1] * w[1], max(w[2] * w[2], _TINY)
+
+
 @kernel
 def alpha2_tan2(au, av, w):
     """α(φ)² tan²θ of direction w (≥ 0, finite for w.z = 0)."""
-    num = au * au * w[0] * w[0] + av * av * w[1] * w[1]
-    return num / max(w[2] * w[2], _TINY)
+    num, den = _tan2_terms(au, av, w)
+    return num / den
 
 
 @kernel
 def smith_lambda(dist, au, av, w):
     """Smith Λ(w), exact for both distributions."""
-    if dist != GGX:
-        # Beckmann, a = 1/(α tan θ) ≥ 6 (Λ < 1e-17), tested as 36·α²tan²θ ≤ 1 without the
-        # division and square root: most calls on a smooth coat end here (Smith Λ was 7 % of the
-        # approximate pdf of the two-microflake-slab stack, perf).
-        num = au * au * w[0] * w[0] + av * av * w[1] * w[1]
-        if 36.0 * num <= w[2] * w[2]:
-            return 0.0
-    s = alpha2_tan2(au, av, w)
+    num, den = _tan2_terms(au, av, w)
     if dist == GGX:
         # (√(1 + s) − 1)/2 without cancellation for small s
+        s = num / den
         return s / (2.0 * (1.0 + math.sqrt(1.0 + s)))
-    # Beckmann: a = 1/(α tan θ), Λ = (erf(a) − 1)/2 + e^{−a²}/(2a√π); Λ < 1e-17 for a > 6.
-    a = 1.0 / math.sqrt(max(s, 1e-200))
-    a = max(a, 1e-150)
-    if a >= 6.0:
+    # Beckmann: a = 1/(α tan θ), Λ = (erf(a) − 1)/2 + e^{−a²}/(2a√π); Λ < 1e-17 for a ≥ 6,
+    # tested as 36·α²tan²θ ≤ 1 before the division and square root: most calls on a smooth coat
+    # end here (Smith Λ was 7 % of the approximate pdf of the two-microflake-slab stack, perf).
+    if 36.0 * num <= den:
         return 0.0
+    a = max(1.0 / math.sqrt(max(num / den, 1e-200)), 1e-150)
     lam = 0.5 * (math.exp(-a * a) / (a * SQRT_PI) - erfc(a))
     return max(lam, 0.0)
 
