@@ -28,6 +28,10 @@ FAKE_MAIN = textwrap.dedent('''
         print("traceback noise", file=sys.stderr)
         print("error: bad.json: ior: must be > 1", file=sys.stderr)
         sys.exit(2)
+    gate = os.environ.get("FAKE_GATE")          # a render may not end before this file exists
+    deadline = time.time() + 60
+    while gate and not os.path.exists(gate) and time.time() < deadline:
+        time.sleep(0.01)
     time.sleep(float(os.environ.get("FAKE_SECONDS", "0.3")))
     with open(log, "a") as f:
         f.write(json.dumps({"preset": preset, "at": "end", "t": time.time()}) + "\\n")
@@ -59,12 +63,16 @@ def events(log: Path) -> list[dict]:
 def test_renders_run_one_at_a_time_in_request_order(jobs, tmp_path):
     module, env, log = jobs
     presets = [tmp_path / f"p{i}.json" for i in range(3)]
-    env["FAKE_SECONDS"] = "2"
+    gate = tmp_path / "gate"
+    env["FAKE_GATE"] = str(gate)
     for p in presets:
         module.request(p, sys.executable, env)
-    # Requesting does not wait for a render: none has ended yet (a waiting request would return
-    # only after its 2 s render; no clock in the test, so a loaded machine cannot fail it).
+    # Requesting does not wait for a render: none has ended yet. The fake renders cannot end
+    # before the gate file exists, so a request that waited for its render would return only
+    # after the fake's 60 s limit, with an end logged. (With a 2 s render and no gate, slow
+    # process starts on a loaded machine failed this twice.)
     assert not [e for e in events(log) if e["at"] == "end"]
+    gate.write_text("")
     assert module.wait(60)
     ev = events(log)
     assert [(Path(e["preset"]).name, e["at"]) for e in ev] == [
