@@ -21,6 +21,9 @@ site deep-copies and re-types the callee. For the shading kernel that was 30 % o
 compilation (100 → 65 s on the warm-up scene; machine code as fast, measured in ABAB runs of
 ``benchmarks/core_throughput``).
 
+Calls from other kernels compile the callee to LLVM IR only, without machine code or wrappers
+(``link_only.py``): callers link IR, so only kernels called from Python need machine code.
+
 Why ``@kernel`` says ``forceinline=False`` explicitly: Numba lets a function inherit
 ``forceinline`` from the function whose compilation first needs it, so without the explicit
 flag every callee of an inlined function would be forced inline too, and whole call trees would
@@ -34,8 +37,13 @@ from . import cache as _cache
 
 _cache.configure()                  # before the first decorator: the keyed cache folder (kernels/cache.py)
 
+import numba as _numba  # noqa: E402
 from numba import njit  # noqa: E402
-from numba.core import types as _nbtypes
+from numba.core import types as _nbtypes  # noqa: E402
+
+from . import link_only as _link_only  # noqa: E402
+
+_link_only.install(_numba)
 
 _COMMON = {"_nrt": False}           # cached on disk too: _LazyCache below
 
@@ -76,7 +84,8 @@ def _call_template_without_literals(self, args, kws):
         wait()
     args = tuple(_nbtypes.unliteral(a) for a in args)
     kws = {k: _nbtypes.unliteral(v) for k, v in kws.items()}
-    return type(self).get_call_template(self, args, kws)
+    with _link_only.for_callers():
+        return type(self).get_call_template(self, args, kws)
 
 
 def _one_version_per_type(dispatcher):

@@ -119,7 +119,7 @@ def layered_lane_signature() -> tuple:
 
 
 def precompile_layered() -> None:
-    """Compile the layered lane (about 40 % of the first compilation) into the kernel cache, in a
+    """Compile the layered lane (about 30 % of the first compilation) into the kernel cache, in a
     process of its own that runs while the render process compiles the rest (kernels/cache.py)."""
     from .cache import configure
     configure()
