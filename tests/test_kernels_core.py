@@ -154,18 +154,24 @@ cache.configure()
 if sys.argv[1] == "numba":        # Numba's own loader (refreshes its compiler set-up first)
     from numba.core import caching
     caching.Cache.load_overload = cache._STATE["numba_load_overload"]
+    from numba.core import codegen
+    codegen.CPUCodeLibrary._unserialize, codegen.CPUCodeLibrary._get_module_for_linking = \
+        cache._STATE["numba_library_load"]
 cache.ensure_compiled()
 from render_util import render
 data = json.loads(open(sys.argv[2]).read())
 res = render(data, workers=1)
-print(hashlib.sha256(res.film.sum.tobytes()).hexdigest(), "numba.np.linalg" in sys.modules)
+from backend.kernels.integrator import shade
+unparsed = getattr(next(iter(shade.overloads.values())).library, "_lamina_bitcode", None) is not None
+print(hashlib.sha256(res.film.sum.tobytes()).hexdigest(), "numba.np.linalg" in sys.modules, unparsed)
 """
 
 
 def test_warm_cache_loads_kernels_without_numba_compiler_set_up(tmp_path):
     """A process that finds its kernels cached loads them without Numba's compiler set-up (its
     target-context refresh: every lowering registry, SciPy's BLAS; 0.2–0.3 s of a material
-    preview) and renders the same image, bit for bit, as with Numba's own loader."""
+    preview) and without parsing their bitcode (on ELF platforms), and renders the same image,
+    bit for bit, as with Numba's own loader."""
     path = tmp_path / "s.json"
     path.write_text(json.dumps(_mixed_scene(spp=2)))
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests")]))
@@ -178,6 +184,9 @@ def test_warm_cache_loads_kernels_without_numba_compiler_set_up(tmp_path):
     assert out["lean"][0] == out["numba"][0]
     assert out["lean"][1] == "False"       # the refresh (which imports numba.np.linalg) did not run
     assert out["numba"][1] == "True"       # ... and it is what Numba's own loader would run
+    if sys.platform.startswith("linux"):
+        assert out["lean"][2] == "True"    # the shading kernel's bitcode was never parsed
+    assert out["numba"][2] == "False"
 
 
 def test_missing_numba_is_one_clear_error(tmp_path):
