@@ -23,6 +23,9 @@ import time
 from pathlib import Path
 
 BACKEND = Path(__file__).resolve().parent.parent
+#: The Numba whose internals the cache loader (here) and link_only.py patch; any other version
+#: loads and compiles as Numba itself does.
+PINNED_NUMBA = "0.68.1"
 _STATE = {"dir": None, "key": None}
 
 
@@ -69,7 +72,8 @@ def _import_numba():
             f"the compiled render kernels need Numba, which could not be imported into "
             f"{sys.executable} ({type(exc).__name__}: {exc}). Fix: in Blender, install the Lamina "
             f"extension zip built for your platform (it bundles numba and llvmlite); elsewhere, "
-            f"install the pinned versions with `python -m pip install numba==0.68.1 llvmlite==0.50.0` "
+            f"install the pinned versions with "
+            f"`python -m pip install numba=={PINNED_NUMBA} llvmlite==0.50.0` "
             f"(see requirements.txt)") from None
     return numba
 
@@ -109,7 +113,7 @@ def _lean_cache_loads(numba) -> None:
     (the internals this replaces are not API); any other version keeps Numba's own loader."""
     from numba.core import caching
     load = caching.Cache.load_overload
-    if getattr(load, "lamina_lean", False) or numba.__version__ != "0.68.1" \
+    if getattr(load, "lamina_lean", False) or numba.__version__ != PINNED_NUMBA \
             or not hasattr(caching.Cache, "_guard_against_spurious_io_errors") \
             or not hasattr(caching.Cache, "_load_overload"):
         return
@@ -196,10 +200,11 @@ HELPER_TIMEOUT = 600.0
 
 def _compile_layered_alongside():
     """Start a second process that compiles the layered lane (≈ 30 % of the first compilation:
-    22 of 71 s CPU in one process on the 2-core AMD host, 2026-12-04) into the same cache while this one compiles the rest;
-    this process waits for it where the shading kernel calls the lane, then loads it from the
-    cache. With one core, ``LAMINA_SERIAL_COMPILE=1``, or if the process cannot start: None,
-    and this process compiles everything (the same machine code either way)."""
+    22 of 71 s CPU in one process on the 2-core AMD host, 2026-12-04) into the same cache while
+    this one compiles the rest; this process waits for it where the shading kernel calls the
+    lane, then loads it from the cache. With one core, ``LAMINA_SERIAL_COMPILE=1``, or if the
+    process cannot start: None, and this process compiles everything (the same machine code
+    either way)."""
     if os.environ.get("LAMINA_SERIAL_COMPILE") or (os.cpu_count() or 1) < 2:
         return None
     import subprocess

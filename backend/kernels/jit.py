@@ -4,9 +4,9 @@ Both compile with Numba's ``njit``, cached on disk (Numba's cache, made on first
 ``_LazyCache``; the folder is chosen by ``kernels/cache.py``) and without reference counting
 (``_nrt=False``: kernels never allocate; with counting, every array read from a table inside a
 lane loop cost an atomic increment and decrement — 40 % of the shading time, 145 → 40 ns per
-simple light sample). Extra Numba options
-pass through: ``@kernel(nogil=True)`` for lane loops that render threads share,
-``@kernel(error_model="numpy")`` where a division by zero must give inf/NaN, not raise.
+simple light sample). Extra Numba options pass through: ``@kernel(nogil=True)`` for lane loops
+that render threads share, ``@kernel(error_model="numpy")`` where a division by zero must give
+inf/NaN, not raise.
 
 Both compile one version of a function per argument *types*: a constant passed between kernels
 is not specialised on (``_one_version_per_type``).

@@ -19,7 +19,7 @@ of the dispatcher's table of Python-callable versions, and is compiled again in 
 ever calls the function with those types.
 
 Warm-up compilation, one process: 110-123 s → 72-80 s CPU; the first run of the demo (two
-processes) 81 s → 53 s wall. The callers' machine code differs slightly (the callees' modules
+processes) 78–84 s → 50–52 s wall. The callers' machine code differs slightly (the callees' modules
 are optimised without their wrappers in them): see docs/benchmarks.md for its speed.
 
 Only for the pinned Numba (this relies on its internals, not its API); with any other version
@@ -28,8 +28,9 @@ from __future__ import annotations
 
 import threading
 
+from .cache import PINNED_NUMBA
+
 _STATE = threading.local()
-PINNED_NUMBA = "0.68.1"
 
 
 def _depth() -> int:
@@ -113,8 +114,7 @@ def install(numba) -> bool:
         method.__name__ = name
         setattr(lib_cls, name, method)
 
-    for name in ("get_pointer_to_function", "_get_compiled_object", "serialize_using_object_code",
-                 "get_asm_str", "get_disasm_cfg", "get_function_cfg"):
+    for name in ("get_pointer_to_function", "get_asm_str", "get_disasm_cfg", "get_function_cfg"):
         if hasattr(lib_cls, name):
             _emitting(name)
     lib_cls._finalize_final_module = _finalize_final_module
