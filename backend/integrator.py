@@ -47,7 +47,7 @@ ALL_LIGHTS_MAX = 4
 class _Queue:
     """Ray state of the lanes of one bounce (structure of arrays, capacity n)."""
 
-    def __init__(self, n: int):
+    def __init__(self, n: int, deferred: bool):
         self.slot = np.empty(n, np.int64)
         self.key = np.empty(n, np.uint64)
         self.o = np.empty((n, 3))
@@ -59,10 +59,13 @@ class _Queue:
         self.delta = np.empty(n, np.uint8)   # how the ray's vertex was lit (kernels VIA_*)
         self.rtype = np.empty(n, np.uint8)   # the ray's type (scene/links.py bits)
         self.recv = np.empty(n, np.uint8)    # the receiver set of the vertex it left
+        # Deferred MIS pdfs of layered continuations (kernels/integrator.py DFR_*): 120 bytes a
+        # lane where a scene has layered stacks, one unused row otherwise.
+        self.dfr = np.empty((n if deferred else 1, ki.DFR_COLUMNS))
 
     def outputs(self):
         return (self.slot, self.key, self.o, self.d, self.o32, self.d32, self.beta, self.pdf, self.delta,
-                self.rtype, self.recv)
+                self.rtype, self.recv, self.dfr)
 
 
 class _Scratch:
@@ -71,9 +74,9 @@ class _Scratch:
     (~310 bytes a lane, 20 MB for an item of 2^16 lanes) are new pages every item, and the page
     faults cost 5-7 % of the render (perf, Cornell box). Grown when an item has more lanes."""
 
-    def __init__(self, n: int, walk_capacity: int, shadows_per_lane: int):
+    def __init__(self, n: int, walk_capacity: int, shadows_per_lane: int, deferred: bool):
         self.n = n
-        self.queues = (_Queue(n), _Queue(n))
+        self.queues = (_Queue(n, deferred), _Queue(n, deferred))
         self.tmax32 = np.empty(n, np.float32)
         self.lane_time = np.empty(n, np.float32)       # shutter time of each lane (motion blur)
         m = n * shadows_per_lane
@@ -117,6 +120,13 @@ class PathTracer:
         self.stacks = stacks.table(self.textures)
         self.walk_capacity = int(max(self.stacks.head[:, H_MAXV].max(), 2))
         has_lights = any(pw > 0 for pw in powers)
+        # A layered continuation's MIS pdf is estimated when its ray finds a light that light
+        # sampling competes for, not for every continuation (kernels/integrator.py ``defer_pdf``)
+        # — unless a light-sampled light fills every direction (an environment map): then
+        # nearly every escaped ray needs it, and estimating it with the vertex's other pdf
+        # shares a walk.
+        defer_pdf = bool(stacks.stacks) and not any(
+            l.fills_sphere and pw > 0 for l, pw in zip(self.lights, powers))
         mesh_light = self.lights.index(scene.mesh_light) if scene.mesh_light is not None else -1
         emitter = np.full(max(soup.count, 1), -1, np.int32)
         if scene.mesh_light is not None:
@@ -152,7 +162,7 @@ class PathTracer:
             np.array([i for i, l in enumerate(self.lights) if l.is_infinite], np.int64),
             np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights] or [False]),
             SAMPLERS[s.sampler], STRATIFIED_BOUNCES, nee_all, int(s.glossy_light_samples),
-            *self.vis.kernel_fields())
+            *self.vis.kernel_fields(), defer_pdf)
         self.camera = camera_vector(scene.camera)
         self.camera_motion = np.ascontiguousarray(scene.camera.motion_delta, np.float64)
         if self.motion and (self.vis.filter_shadows or self.vis.skip_hits):
@@ -175,7 +185,7 @@ class PathTracer:
             # Shadow rays per lane: next-event estimation's (glossy_nee per light at a glossy
             # vertex), and one dedicated ray per light with shadow linking (kernels/integrator.py).
             per_lane = max(1, self.settings.nee_all) * self.settings.glossy_nee + int(self.vis.shadow_linked.size)
-            sc = self._local.scratch = _Scratch(n, self.walk_capacity, per_lane)
+            sc = self._local.scratch = _Scratch(n, self.walk_capacity, per_lane, self.settings.defer_pdf)
         return sc
 
     def set_camera(self, camera) -> None:
@@ -228,6 +238,7 @@ class PathTracer:
             a[:] = 0                  # as fresh (the counters are per item)
         counts = np.zeros(5, np.int64)
         killed = 0
+        deferred = 0
         rays = 0
         active = n
         for segment in range(self.max_segments):
@@ -253,7 +264,7 @@ class PathTracer:
                      self.pass_params, segment, pixels, spp, sample0, lane_time,
                      cur.slot[:active], cur.key[:active], cur.o[:active], cur.d[:active], cur.beta[:active],
                      cur.pdf[:active], cur.delta[:active], cur.rtype[:active], cur.recv[:active],
-                     t_in, prim, t, b1, b2,
+                     cur.dfr[:active] if self.settings.defer_pdf else cur.dfr, t_in, prim, t, b1, b2,
                      L, albedo, normal, alpha, aux, *nxt.outputs(),
                      sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sc.sh_mask, self.stacks, lw, lb, lr, lc, counts)
             ns = int(counts[1])
@@ -266,10 +277,13 @@ class PathTracer:
                 rays += ns
                 ki.add_unoccluded(sh_slot[:ns], sh_c[:ns], blocked, L)
             killed += int(counts[3])
+            deferred += int(counts[4])
             active = int(counts[0])
             cur, nxt = nxt, cur
         if killed:
             stats.add("paths_nonfinite_killed", killed)
+        if deferred:
+            stats.add("layered_pdfs_deferred", deferred)   # estimated when a ray found a light
         if lc[2]:
             stats.add("layered_walk_cap_hits", int(lc[2]))
         # Per-lane samples: the film adds them in sample order (kernels/film.py).

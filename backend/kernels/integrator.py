@@ -63,7 +63,7 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
                                    "visible_camera", "sampler", "stratified_bounces", "nee_all",
                                    "glossy_nee", "track", "gated", "links", "shadow_linked", "tri_recv",
                                    "light_vis", "light_recv", "light_shadow", "emit_vis",
-                                   "emit_recv", "mat_refl"])
+                                   "emit_recv", "mat_refl", "defer_pdf"])
 # Ray visibility and light/shadow linking (scene/links.py; integrator.py builds the tables):
 #   track         the lanes' ray types matter (the next ray's type is written: ``_lobe_class``)
 #   gated         next-event estimation and emission found by BSDF sampling are filtered per
@@ -77,6 +77,9 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
 #   emit_vis/emit_recv  per emitter triangle of the mesh light (its object's)
 #   mat_refl      per material: the class of a reflection (a layered stack: diffuse if one of
 #                 its interfaces is diffuse, else glossy; transmission is always TRANSMIT)
+# defer_pdf: a layered continuation's MIS pdf is estimated only if its ray finds a light that
+# light sampling competes for (``_mis_hit``), not for every continuation: its walks cost about a
+# third of a layered vertex, and most continuations never need it (integrator.py decides).
 # Ray-type bits (scene/links.py).
 RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT = 1, 2, 4, 8
 NO_RECEIVER = 64
@@ -127,20 +130,66 @@ VIA_DELTA = 1        # a delta lobe (or the camera): no light sampling competes
 VIA_ALL_LIGHTS = 2   # a non-delta BSDF sample; next-event estimation sampled every light
 VIA_SPLIT = 4        # (added to 0 or 2) next-event estimation took S.glossy_nee samples, not one
 
+# A ray's deferred MIS pdf (``S.defer_pdf``): one float64 row per queued ray, written where a
+# layered continuation leaves its pdf for later (the queue's pdf is then −1).
+DFR_STACK, DFR_UV, DFR_DUV, DFR_WI, DFR_WO = 0, 1, 3, 9, 12
+DFR_COLUMNS = 15
+
 
 @inlined
-def _mis_hit(LT, S, li, pdf_light, prev_pdf, via, o):
-    """MIS weight of emission found by BSDF sampling against light sampling from o (the power
-    heuristic with sample counts: light sampling's density times its number of samples)."""
+def _light_density(LT, S, li, pdf_light, via, o):
+    """Light sampling's density for emission found by BSDF sampling from o: the light's
+    selection probability × its pdf × the number of light samples (0: light sampling never
+    produces this ray — a delta vertex, a light it does not sample)."""
     if via == VIA_DELTA:
-        return 1.0
+        return 0.0
     if via & VIA_ALL_LIGHTS:
         sel = 1.0 if LT.params[li, C_POWER] > 0.0 else 0.0
     else:
         sel = ld.select_prob(LT, o, li)
     if via & VIA_SPLIT:
         sel *= S.glossy_nee
-    return power_heuristic(prev_pdf, sel * pdf_light)
+    return sel * pdf_light
+
+
+@inlined
+def _mis_hit(LT, S, li, pdf_light, prev_pdf, via, o, ST, TX, dfr, i, key, segment, LW, LB, LR, LC, counts):
+    """(MIS weight, BSDF pdf) of emission found by BSDF sampling against light sampling from o
+    (the power heuristic with sample counts), weight 1 where light sampling cannot produce the
+    ray. A layered continuation's pdf left for later (< 0, ``S.defer_pdf``) is estimated here
+    (``_deferred_pdf``); the caller keeps the returned pdf for the lane's other lights."""
+    dl = _light_density(LT, S, li, pdf_light, via, o)
+    if not dl > 0.0:
+        return 1.0, prev_pdf
+    if prev_pdf < 0.0:
+        prev_pdf = _deferred_pdf(ST, TX, dfr, i, key, segment - 1, LW, LB, LR, LC)
+        counts[4] += 1
+    return power_heuristic(prev_pdf, dl), prev_pdf
+
+
+@inlined
+def _deferred_pdf(ST, TX, dfr, i, key, segment, LW, LB, LR, LC):
+    """The MIS pdf of the layered continuation lane i sampled at bounce ``segment``: its row of
+    ``dfr`` holds the stack, (u, v), dP/du and dP/dv, wi and wo in the shading frame (DFR_*)."""
+    r = dfr[i]
+    _, p, _, _, _, _, _ = layered.shade_lane(
+        ST, TX, int(r[DFR_STACK]), r[DFR_UV], r[DFR_UV + 1],
+        (r[DFR_DUV], r[DFR_DUV + 1], r[DFR_DUV + 2], r[DFR_DUV + 3], r[DFR_DUV + 4], r[DFR_DUV + 5]),
+        (r[DFR_WI], r[DFR_WI + 1], r[DFR_WI + 2]), (r[DFR_WO], r[DFR_WO + 1], r[DFR_WO + 2]),
+        False, False, False, False, True, False, key, segment, LW, LB, LR, LC)
+    return p
+
+
+@inlined
+def _defer_row(row, sid, u, v, duv, wi, wo):
+    row[DFR_STACK] = sid
+    row[DFR_UV] = u
+    row[DFR_UV + 1] = v
+    for j in range(6):
+        row[DFR_DUV + j] = duv[j]
+    for j in range(3):
+        row[DFR_WI + j] = wi[j]
+        row[DFR_WO + j] = wo[j]
 
 
 @inlined
@@ -542,21 +591,23 @@ def _write_passes(PS, aux, sl, p, ng, ns, wi, u, v, has_uvs, m, pr):
 
 @kernel(nogil=True)
 def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
-          slot, key, o, d, beta, prev_pdf, prev_delta, rtype, recv, tmax32, prim, t32, b1_32, b2_32,
+          slot, key, o, d, beta, prev_pdf, prev_delta, rtype, recv, dfr, tmax32, prim, t32, b1_32, b2_32,
           L, albedo, normal, alpha, aux,
-          nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, nx_rtype, nx_recv,
+          nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, nx_rtype, nx_recv, nx_dfr,
           sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask,
           ST, LW, LB, LR, LC, counts):
     """One bounce for every traced lane (see the module docstring). Lane slot ``sl`` is sample
     ``sample0 + sl % spp`` of pixel ``pixels[sl // spp]`` (for the path sampler). ``counts``
-    (int64[5]) gets [next rays, shadow rays, layered lanes, non-finite paths killed, 0].
+    (int64[5]) gets [next rays, shadow rays, layered lanes, non-finite paths killed, deferred
+    layered pdfs estimated].
     ``PS``, ``aux``: the data passes' table and per-lane columns (backend/passes.py; untouched
     when ``PS.active`` is false). ``lane_time``: each lane's shutter time in [0, 1) (motion
     blur; read only for moving triangles, ``G.moving_start`` …).
     ``ST``: the layered stack table; ``LW``, ``LB``, ``LR``, ``LC``: the layered walks' scratch
     and counters (kernels/layered/batch.py). ``rtype``/``recv``: each ray's type and the receiver
     set of the vertex it left (ray visibility, light linking: ``Settings``); ``sh_mask``: each
-    shadow ray's blocker sets."""
+    shadow ray's blocker sets. ``dfr``/``nx_dfr``: the rays' deferred MIS pdfs (DFR_*; one row
+    suffices without layered stacks)."""
     camera = segment == 0
     inv_spp = 1.0 / spp
     last = segment == S.max_segments - 1
@@ -595,7 +646,8 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
                 le = ld.eval_hit(LT, li, ro, rd, tl)
                 pdf_l = ld.pdf_hit(LT, li, ro, rd, tl)
             if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
-                w = _mis_hit(LT, S, li, pdf_l, pp, pd, ro)
+                w, pp = _mis_hit(LT, S, li, pdf_l, pp, pd, ro, ST, TX, dfr, i, key[i], segment, LW, LB, LR, LC,
+                                 counts)
                 c = _clamped((bt[0] * le[0] * w, bt[1] * le[1] * w, bt[2] * le[2] * w), S.clamp, segment)
                 _push_ray(S, segment, sl, ro, rd, tl, c, S.light_shadow[li], sh_slot, sh_o32, sh_d32, sh_t32,
                           sh_c, sh_mask, counts)
@@ -610,7 +662,8 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
             tl = ld.intersect(LT, li, ro, rd, t_limit)
             if tl < INF:
                 le = ld.eval_hit(LT, li, ro, rd, tl)
-                w = _mis_hit(LT, S, li, ld.pdf_hit(LT, li, ro, rd, tl), pp, pd, ro)
+                w, pp = _mis_hit(LT, S, li, ld.pdf_hit(LT, li, ro, rd, tl), pp, pd, ro, ST, TX, dfr, i, key[i],
+                                 segment, LW, LB, LR, LC, counts)
                 _add(L, sl, _clamped((bt[0] * le[0] * w, bt[1] * le[1] * w, bt[2] * le[2] * w),
                                      S.clamp, segment))
         if pr < 0:
@@ -624,7 +677,8 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
                         continue
                     le = ld.eval_escaped(LT, li, rd)
                     if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
-                        w = _mis_hit(LT, S, li, ld.pdf_escaped(LT, li, rd), pp, pd, ro)
+                        w, pp = _mis_hit(LT, S, li, ld.pdf_escaped(LT, li, rd), pp, pd, ro, ST, TX, dfr, i,
+                                         key[i], segment, LW, LB, LR, LC, counts)
                         _add(L, sl, _clamped((bt[0] * le[0] * w, bt[1] * le[1] * w, bt[2] * le[2] * w),
                                              S.clamp, segment))
             continue
@@ -681,7 +735,8 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
             if S.mesh_light >= 0:
                 local = G.irows[pr, ROW_EMIT]
                 pdf_l = ld.mesh_pdf_hit(LT, S.mesh_light, ro, rd, t_surf, local) if local >= 0 else 0.0
-                w = _mis_hit(LT, S, S.mesh_light, pdf_l, pp, pd, ro)
+                w, pp = _mis_hit(LT, S, S.mesh_light, pdf_l, pp, pd, ro, ST, TX, dfr, i, key[i], segment,
+                                 LW, LB, LR, LC, counts)
             _add(L, sl, _clamped((bt[0] * le[0] * w, bt[1] * le[1] * w, bt[2] * le[2] * w), S.clamp, segment))
         # Russian roulette at this surface, after the emission the ray found (see _roulette)
         if segment >= S.rr_depth and not last:
@@ -759,7 +814,7 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
                 duv = _local_uv_derivatives(R, pr, fs, ft, ns)
             f, bpdf, wo, weight, spdf, sdelta, alb = layered.shade_lane(
                 ST, TX, sid, u, v, duv, wi_l, wo_n, live, not is_delta,
-                not last, camera, key[i], segment, LW, LB, LR, LC)
+                not last, not S.defer_pdf, False, camera, key[i], segment, LW, LB, LR, LC)
             if camera:
                 albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = alb
             if live:
@@ -767,9 +822,12 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
                      S.light_shadow[li], sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, counts)
             if not last and (weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0):
                 nrt = _lobe_class(S, kind, m, wi_l[2] * wo[2] > 0.0) if S.track else 0
+                k0 = counts[0]
                 _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
                           spdf, VIA_DELTA if sdelta else VIA_SAMPLED, nrt, rs, nx_slot, nx_key, nx_o,
                           nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, nx_rtype, nx_recv, counts)
+                if spdf < 0.0 and counts[0] > k0:
+                    _defer_row(nx_dfr[k0], sid, u, v, duv, wi_l, wo)
             continue
         dist_code = MT.dist[m]
         mask_code = MT.masking[m]

@@ -30,7 +30,8 @@ SLOT_LIGHT = 2          # 2-D: point/direction on the light
 SLOT_BSDF = 4           # 2-D: direction
 SLOT_RR = 6             # 1 (hashed): Russian roulette
 SLOT_SPARE = 7          # the layered walks' sub-stream (stream_key)
-SLOT_MIX = 8            # 1 (hashed): which component of a Mix / Add Shader; 9 free
+SLOT_MIX = 8            # 1 (hashed): which component of a Mix / Add Shader
+SLOT_MIS_PDF = 9        # a layered continuation's deferred MIS pdf: its walks' sub-stream
 SLOT_TIME = 10          # 2-D slot of bounce 0, first used: the camera ray's shutter time
 # Next-event estimation of every light (2-4 lights): light k of a vertex reads the light slot at
 # dim + k·DIM_NEXT_LIGHT, far beyond any bounce's dimensions (< 2^20 for up to 87 000 bounces).

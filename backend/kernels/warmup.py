@@ -114,7 +114,8 @@ def layered_lane_signature() -> tuple:
     vec3 = types.UniTuple(types.float64, 3)
     flag = types.boolean
     return (typeof(empty_table(TX)), typeof(TX), types.int64, types.float64, types.float64,
-            types.UniTuple(types.float64, 6), vec3, vec3, flag, flag, flag, flag, types.uint64, types.int64,
+            types.UniTuple(types.float64, 6), vec3, vec3, flag, flag, flag, flag, flag, flag, types.uint64,
+            types.int64,
             *(typeof(a) for a in batch.scratch(2)))
 
 

@@ -58,6 +58,9 @@ class Light:
     is_hittable: ClassVar[bool] = False
     #: Does next-event estimation sample it? (A constant world is left to BSDF sampling.)
     light_sampled: ClassVar[bool] = True
+    #: Is it seen in every direction (an environment)? Then every ray that escapes needs its MIS
+    #: weight, and the integrator estimates layered continuations' pdfs at once (integrator.py).
+    fills_sphere: ClassVar[bool] = False
 
     def prepare(self, scene_center: np.ndarray, scene_radius: float) -> None:
         """Called once the scene bounds are known (infinite lights need them for power)."""

@@ -38,6 +38,7 @@ class ConstantWorld(Light):
     """Uniform radiance colour × strength from every direction, sampled uniformly."""
 
     is_infinite = True
+    fills_sphere = True
     visible_camera = True
     # BSDF sampling is the better strategy for it everywhere (exact for a Lambertian surface:
     # zero variance, as in Cycles); its escaped rays then keep MIS weight 1.
@@ -62,6 +63,7 @@ class ConstantWorld(Light):
 
 class EnvironmentMap(Light):
     is_infinite = True
+    fills_sphere = True
     visible_camera = True
 
     def __init__(self, texels: np.ndarray, strength: float = 1.0, to_world: np.ndarray | None = None):

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..jit import kernel
-from ..rng import SLOT_SPARE, bounce_dim, path_key, stream_key
+from ..rng import SLOT_MIS_PDF, SLOT_SPARE, bounce_dim, path_key, stream_key
 from . import estimators as es
 from .table import BSIZE, H_EST, H_PDF, UNIT_DUV, bind_into
 
@@ -32,14 +32,18 @@ def scratch(max_vertices: int = 1024):
 
 
 @kernel
-def shade_lane(ST, TX, s, u, v, duv, wi, wo, nee, nee_pdf, do_continue, camera, key, segment, W, Bs, R, C):
+def shade_lane(ST, TX, s, u, v, duv, wi, wo, nee, nee_pdf, do_continue, sample_pdf, pdf_only, camera, key,
+               segment, W, Bs, R, C):
     """The layered part of one bounce of one lane (RADIANCE transport): (f, pdf of the light
     direction, continuation wo, weight, pdf, delta, albedo AOV estimate). At a camera hit the AOV
     is the continuation's reflected weight (it averages to the directional albedo at the viewing
     angle, delta lobes included, at no extra cost), else a one-sample normal-incidence walk.
     ``duv``: the surface's dP/du and dP/dv in the lane's shading frame (the interfaces' bump maps;
-    table.H_BUMP)."""
-    R[0] = stream_key(key, bounce_dim(segment, SLOT_SPARE))
+    table.H_BUMP). ``sample_pdf`` false: the continuation's MIS pdf is left for later (−1);
+    ``pdf_only``: that deferred pdf, of the continuation ``wo`` this lane sampled at ``segment``
+    (returned as the second value), from a sub-stream of its own (SLOT_MIS_PDF): independent of
+    the walks that sampled wo, as an estimate made at the time would be."""
+    R[0] = stream_key(key, bounce_dim(segment, SLOT_MIS_PDF if pdf_only else SLOT_SPARE))
     R[1] = 0
     if ST.textured[s]:
         bind_into(ST, TX, s, u, v, duv, Bs)
@@ -47,9 +51,10 @@ def shade_lane(ST, TX, s, u, v, duv, wi, wo, nee, nee_pdf, do_continue, camera, 
     else:
         B = ST.bound[s]
     FT = ST.FT
-    f, p_nee, wo_s, w_s, p_s, d_s = es.nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, do_continue, C)
+    f, p_nee, wo_s, w_s, p_s, d_s = es.nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, do_continue,
+                                                      sample_pdf, pdf_only, C)
     alb = (0.0, 0.0, 0.0)
-    if camera:
+    if camera and not pdf_only:
         if do_continue:
             if wo_s[2] * wi[2] > 0.0:
                 alb = w_s
@@ -93,7 +98,8 @@ def run(op, ST, TX, s, uv, wi, wo, nee, mode, est, kind, want_pdf, nee_pdf, want
             p_s[i] = q
             d_s[i] = dl
         elif op == OP_NEE:
-            r, q0, d, w, q, dl = es.nee_and_sample(B, FT, W, R, x, y, nee[i], nee_pdf, want_sample, C)
+            r, q0, d, w, q, dl = es.nee_and_sample(B, FT, W, R, x, y, nee[i], nee_pdf, want_sample, True,
+                                                   False, C)
             f[i, 0], f[i, 1], f[i, 2] = r
             p[i] = q0
             wo_s[i, 0], wo_s[i, 1], wo_s[i, 2] = d
