@@ -325,11 +325,16 @@ def summarise(result) -> dict:
     return out
 
 
+#: Statistics that describe the work done, not a problem: in the summary (``--json``), not printed.
+QUIET_STATISTICS = ("layered_pdfs_deferred",)
+
+
 def format_summary(summary: dict, output: Path) -> str:
     lines = [f"wrote {output}  ({summary['spp']} spp, {summary['elapsed']:.2f} s, "
              f"{summary['paths_per_second'] / 1e3:.1f} k paths/s, {summary['rays_per_second'] / 1e6:.2f} M rays/s)"]
     extra = {k: v for k, v in summary.items() if k not in ("elapsed", "spp", "interrupted", "paths", "rays",
-                                                          "worker_cpu_time", "paths_per_second", "rays_per_second")}
+                                                          "worker_cpu_time", "paths_per_second", "rays_per_second")
+             and k not in QUIET_STATISTICS}
     if extra:
         lines.append("statistics: " + ", ".join(f"{k} = {v}" for k, v in sorted(extra.items())))
     if summary["interrupted"]:

@@ -24,6 +24,7 @@ import math
 
 from .jit import inlined, kernel
 from .specfun import SQRT_PI, erfc, erfinv_from_uniform
+from .turns import cos_sin_turns
 
 from .microfacet_codes import (ALPHA_MIN, BECKMANN, DISTRIBUTION_CODES, GGX,  # noqa: F401 (re-exported)
                                HEIGHT_CORRELATED, MASKING_CODES, SEPARABLE)
@@ -135,8 +136,8 @@ def sample_ndf(dist, au, av, u0, u1):
     else:
         r2 = -math.log1p(-u0)           # P(r²) ∝ exp(−r²)
     r = math.sqrt(r2)
-    phi = 2.0 * math.pi * u1
-    return _normalize(-r * math.cos(phi) * au, -r * math.sin(phi) * av, 1.0)
+    c, s = cos_sin_turns(u1)
+    return _normalize(-r * c * au, -r * s * av, 1.0)
 
 
 @kernel
@@ -192,11 +193,11 @@ def sample_visible(dist, au, av, wi, u0, u1):
     if dist == GGX:
         # Visible normals of the α = 1 GGX (a hemisphere) seen from ws: ws + a uniform point on
         # the spherical cap z ≥ −ws.z of the unit sphere.
-        phi = 2.0 * math.pi * u0
+        cp, sp = cos_sin_turns(u0)
         z = (1.0 - u1) * (1.0 + ws[2]) - ws[2]
         sin_t = math.sqrt(min(max(1.0 - z * z, 0.0), 1.0))
-        hx = sin_t * math.cos(phi) + ws[0]
-        hy = sin_t * math.sin(phi) + ws[1]
+        hx = sin_t * cp + ws[0]
+        hy = sin_t * sp + ws[1]
         hz = z + ws[2]
         m = _normalize(au * hx, av * hy, max(hz, 0.0))
     else:

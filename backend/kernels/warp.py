@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 from .jit import kernel
+from .turns import cos_sin_turns
 
 PI = math.pi
 INV_PI = 1.0 / math.pi
@@ -23,22 +24,19 @@ def disk_concentric(u0, u1):
         return 0.0, 0.0
     if abs(a) > abs(b):
         r = a
-        phi = (PI / 4.0) * (b / a)
+        turns = 0.125 * (b / a)             # φ = (π/4)(b/a)
     else:
         r = b
-        phi = PI / 2.0 - (PI / 4.0) * (a / b)
-    return r * math.cos(phi), r * math.sin(phi)
+        turns = 0.25 - 0.125 * (a / b)      # φ = π/2 − (π/4)(a/b)
+    c, s = cos_sin_turns(turns)
+    return r * c, r * s
 
 
 @kernel
 def cosine_hemisphere(u0, u1):
-    """Malley's method with the polar disk map (r = √u0, φ = 2π u1); pdf cos θ / π.
-    One cosine call: sin φ = ±√(1 − cos²φ) (sign from the half of the circle u1 falls in)."""
+    """Malley's method with the polar disk map (r = √u0, φ = 2π u1); pdf cos θ / π."""
     r = math.sqrt(u0)
-    c = math.cos(2.0 * PI * u1)
-    s = math.sqrt(max(0.0, 1.0 - c * c))
-    if u1 >= 0.5:
-        s = -s
+    c, s = cos_sin_turns(u1)
     return (r * c, r * s, math.sqrt(max(0.0, 1.0 - u0)))
 
 
@@ -46,8 +44,8 @@ def cosine_hemisphere(u0, u1):
 def uniform_sphere(u0, u1):
     z = 1.0 - 2.0 * u0
     r = math.sqrt(max(0.0, 1.0 - z * z))
-    phi = 2.0 * PI * u1
-    return (r * math.cos(phi), r * math.sin(phi), z)
+    c, s = cos_sin_turns(u1)
+    return (r * c, r * s, z)
 
 
 @kernel
@@ -57,8 +55,8 @@ def uniform_cone_local(u0, u1, one_minus_cos):
     omz = u0 * one_minus_cos
     z = 1.0 - omz
     sin_t = math.sqrt(max(omz * (2.0 - omz), 0.0))
-    phi = 2.0 * PI * u1
-    return (sin_t * math.cos(phi), sin_t * math.sin(phi), z)
+    c, s = cos_sin_turns(u1)
+    return (sin_t * c, sin_t * s, z)
 
 
 @kernel

@@ -32,6 +32,7 @@ from ..fresnel import conductor as fresnel_conductor
 from ..fresnel import dielectric as fresnel_dielectric
 from ..jit import kernel
 from ..materials import CONDUCTOR, DIELECTRIC, DIFFUSE
+from ..turns import cos_sin_turns
 
 NULL = 5
 # Block layout (offsets from o)
@@ -390,10 +391,7 @@ def _sample_local(B, o, wi, u0, u1, u2, dens):
         return _conductor_sample(B, o, wi, u0, u1, dens)
     if kind == DIFFUSE:
         r = math.sqrt(u0)
-        c = math.cos(2.0 * math.pi * u1)
-        sn = math.sqrt(max(0.0, 1.0 - c * c))
-        if u1 >= 0.5:
-            sn = -sn
+        c, sn = cos_sin_turns(u1)
         z = math.sqrt(max(0.0, 1.0 - u0))
         side = -1.0 if wi[2] < 0.0 else 1.0
         wo = (r * c, r * sn, z * side)

@@ -30,6 +30,7 @@ import numpy as np
 
 from ..jit import kernel
 from ..rng import uniform
+from ..turns import cos_sin_turns
 from .phase_layout import (  # noqa: F401 (the layout, re-exported for the kernels' callers)
     COLS, FB_AXIS, FB_CI, FB_E1, FB_E2, FB_INV_S, FB_LNNORM, FB_QSCALE, FB_ROW, FB_S, FB_W, FIBER,
     FIRST_MEDIUM_ROW, G_MAX, H_S, HG, HG_G, INV_2PI, INV_4PI, ISOTROPIC, KINDS, LN_ROW, LN_S0,
@@ -46,15 +47,16 @@ def rnd(R):
 
 
 @kernel(error_model="numpy")
-def around(ax, cos_t, sin_t, phi):
-    """The direction at polar angle (cos_t, sin_t), azimuth phi about unit ``ax`` (Duff et al.'s
-    frame, as backend/layered/phase/base.around)."""
+def around(ax, cos_t, sin_t, turns):
+    """The direction at polar angle (cos_t, sin_t), azimuth 2π·turns about unit ``ax`` (Duff et
+    al.'s frame, as backend/layered/phase/base.around)."""
     x, y, z = ax
     sign = 1.0 if z >= 0.0 else -1.0
     a = -1.0 / (sign + z)
     b = x * y * a
-    sc = sin_t * math.cos(phi)
-    ss = sin_t * math.sin(phi)
+    cp, sp = cos_sin_turns(turns)
+    sc = sin_t * cp
+    ss = sin_t * sp
     return (sc * (1.0 + sign * x * x * a) + ss * b + cos_t * x,
             sc * (sign * b) + ss * (sign + y * y * a) + cos_t * y,
             -sc * (sign * x) - ss * y + cos_t * z)
@@ -277,14 +279,12 @@ def _fiber_sample(P, o, FT, d_in, s_in, R, max_candidates):
             if u0 * (wa + wb) < wa:
                 xc = rho if u4 < 0.5 else -rho
             else:
-                xc = rho * math.cos(2.0 * math.pi * u4)
+                xc = rho * cos_sin_turns(u4)[0]
             lim = u3 * (ac * abs(xc) + sn)
         if abs(xc) > 1.0:
             continue
         r = math.sqrt(max(0.0, (1.0 - xc) * (1.0 + xc)))
-        phi = 2.0 * math.pi * u2
-        cp = math.cos(phi)
-        sp = math.sin(phi)
+        cp, sp = cos_sin_turns(u2)
         vis = abs(xc * c + r * (cp * p1 + sp * p2))
         if vis > lim:
             x, cph, sph = xc, cp, sp
@@ -427,8 +427,8 @@ def sample(P, o, FT, d_in, s_in, R, max_candidates):
     if kind == ISOTROPIC:
         z = 1.0 - 2.0 * rnd(R)
         r = math.sqrt(max(0.0, (1.0 - z) * (1.0 + z)))
-        phi = 2.0 * math.pi * rnd(R)
-        return (r * math.cos(phi), r * math.sin(phi), z), 1.0, INV_4PI, INV_4PI, 1.0, 1
+        cp, sp = cos_sin_turns(rnd(R))
+        return (r * cp, r * sp, z), 1.0, INV_4PI, INV_4PI, 1.0, 1
     if kind == HG:
         g = P[o + HG_G]
         # Inverse CDF without a 1/g: with a = 1 + g b,
@@ -441,7 +441,7 @@ def sample(P, o, FT, d_in, s_in, R, max_candidates):
         opc = (1.0 + g) * (1.0 + g) * (1.0 + b) * (1.0 - g + a) * inv
         cos_t = min(max(0.5 * (opc - omc), -1.0), 1.0)
         sin_t = math.sqrt(max(omc * opc, 0.0))
-        d = around(d_in, cos_t, sin_t, 2.0 * math.pi * rnd(R))
+        d = around(d_in, cos_t, sin_t, rnd(R))
         one_g2 = 1.0 - g * g
         p = a * a * a * (INV_4PI / (one_g2 * one_g2))
         return d, 1.0, p, p, 1.0, 1
@@ -453,7 +453,7 @@ def sample(P, o, FT, d_in, s_in, R, max_candidates):
         else:
             omc = -math.log1p(u0 * math.expm1(-2.0 * k)) / k
         omc = min(max(omc, 0.0), 2.0)
-        d = around(d_in, 1.0 - omc, math.sqrt(omc * (2.0 - omc)), 2.0 * math.pi * rnd(R))
+        d = around(d_in, 1.0 - omc, math.sqrt(omc * (2.0 - omc)), rnd(R))
         v = evaluate(P, o, FT, d_in, d)
         return d, 1.0, v, v, 1.0, 1
     if kind == FIBER:
@@ -462,7 +462,7 @@ def sample(P, o, FT, d_in, s_in, R, max_candidates):
     wi = (-d_in[0], -d_in[1], -d_in[2])
     ax = unit_or(_sggx_bt(P, o, wi), (0.0, 0.0, 1.0))
     u0 = rnd(R)
-    v = around(ax, math.sqrt(1.0 - u0), math.sqrt(u0), 2.0 * math.pi * rnd(R))
+    v = around(ax, math.sqrt(1.0 - u0), math.sqrt(u0), rnd(R))
     m = unit_or(_sggx_b(P, o, v), (0.0, 0.0, 1.0))
     c2 = 2.0 * (wi[0] * m[0] + wi[1] * m[1] + wi[2] * m[2])
     d_out = (c2 * m[0] - wi[0], c2 * m[1] - wi[1], c2 * m[2] - wi[2])

@@ -26,6 +26,7 @@ import math
 
 from .. import discrete as _d
 from ..jit import kernel
+from ..turns import cos_sin_turns
 from ..warp import INV_4PI, uniform_sphere
 from .common import FIRST, I_FIRST, INF, get3, mat3, unit_or_zero
 
@@ -97,10 +98,9 @@ def direction_to_xy(P, li, d):
 @kernel
 def xy_to_direction(P, li, x, y):
     """(world direction, sin θ) of image coordinates (x, y)."""
-    theta = math.pi * y
-    phi = math.pi - 2.0 * math.pi * x          # inverse of u = 0.5 − φ/2π
-    s = math.sin(theta)
-    loc = (s * math.cos(phi), s * math.sin(phi), math.cos(theta))
+    ct, s = cos_sin_turns(0.5 * y)             # θ = π·y
+    cp, sp = cos_sin_turns(0.5 - x)            # φ = π − 2π·x, the inverse of u = 0.5 − φ/2π
+    loc = (s * cp, s * sp, ct)
     wi, _ = unit_or_zero(mat3(P, li, E_TO_WORLD, loc))
     return wi, s
 
