@@ -43,6 +43,11 @@ STRATIFIED_BOUNCES = 1
 #: + directional-area-light room (96², 16 spp, 8 seeds): image variance 3008 -> 1655.
 ALL_LIGHTS_MAX = 4
 
+#: Layered continuations defer their MIS pdf (kernels/integrator.py ``defer_pdf``) in scenes
+#: with up to this many lights that light sampling competes for (the queue of emission waiting
+#: for such pdfs holds a row per lane and light: 40 bytes each).
+DEFER_MAX_LIGHTS = 8
+
 
 class _Queue:
     """Ray state of the lanes of one bounce (structure of arrays, capacity n)."""
@@ -74,9 +79,13 @@ class _Scratch:
     (~310 bytes a lane, 20 MB for an item of 2^16 lanes) are new pages every item, and the page
     faults cost 5-7 % of the render (perf, Cornell box). Grown when an item has more lanes."""
 
-    def __init__(self, n: int, walk_capacity: int, shadows_per_lane: int, deferred: bool):
+    def __init__(self, n: int, walk_capacity: int, shadows_per_lane: int, deferred: bool, queue_per_lane: int):
         self.n = n
         self.queues = (_Queue(n, deferred), _Queue(n, deferred))
+        # Emission queued behind deferred layered pdfs (kernels/integrator.py ``_light_hit``).
+        q = n * queue_per_lane if deferred else 1
+        self.queued_at = np.empty((q, 2), np.int64)
+        self.queued = np.empty((q, 4))
         self.tmax32 = np.empty(n, np.float32)
         self.lane_time = np.empty(n, np.float32)       # shutter time of each lane (motion blur)
         m = n * shadows_per_lane
@@ -120,13 +129,6 @@ class PathTracer:
         self.stacks = stacks.table(self.textures)
         self.walk_capacity = int(max(self.stacks.head[:, H_MAXV].max(), 2))
         has_lights = any(pw > 0 for pw in powers)
-        # A layered continuation's MIS pdf is estimated when its ray finds a light that light
-        # sampling competes for, not for every continuation (kernels/integrator.py ``defer_pdf``)
-        # — unless a light-sampled light fills every direction (an environment map): then
-        # nearly every escaped ray needs it, and estimating it with the vertex's other pdf
-        # shares a walk.
-        defer_pdf = bool(stacks.stacks) and not any(
-            l.fills_sphere and pw > 0 for l, pw in zip(self.lights, powers))
         mesh_light = self.lights.index(scene.mesh_light) if scene.mesh_light is not None else -1
         emitter = np.full(max(soup.count, 1), -1, np.int32)
         if scene.mesh_light is not None:
@@ -155,6 +157,16 @@ class PathTracer:
         nee_all = n_sampled if self.light_table.local_selection and n_sampled <= ALL_LIGHTS_MAX else 0
         # Ray visibility, light and shadow linking: tables, and the embree-side filters.
         self.vis = Visibility(scene, self.lights, mesh_light, self.light_table)
+        # A layered continuation's MIS pdf is estimated when its ray finds a light that light
+        # sampling competes for, not for every continuation (kernels/integrator.py ``defer_pdf``)
+        # — unless a light-sampled light fills every direction (an environment map): then
+        # nearly every escaped ray needs it, and estimating it with the vertex's other pdf
+        # shares a walk. The emission waiting for such a pdf is queued: at most one row per
+        # light-sampled light and shadow-linked light a ray can find; with more than
+        # DEFER_MAX_LIGHTS of them the queue would cost more memory than deferring saves.
+        self.queue_per_lane = sum(pw > 0 for pw in powers) + int(self.vis.shadow_linked.size)
+        defer_pdf = bool(stacks.stacks) and self.queue_per_lane <= DEFER_MAX_LIGHTS and not any(
+            l.fills_sphere and pw > 0 for l, pw in zip(self.lights, powers))
         self.settings = ki.Settings(
             np.uint64(s.seed), self.max_segments, s.rr_depth, float(s.clamp), bool(scene.transparent),
             has_lights, mesh_light,
@@ -185,7 +197,8 @@ class PathTracer:
             # Shadow rays per lane: next-event estimation's (glossy_nee per light at a glossy
             # vertex), and one dedicated ray per light with shadow linking (kernels/integrator.py).
             per_lane = max(1, self.settings.nee_all) * self.settings.glossy_nee + int(self.vis.shadow_linked.size)
-            sc = self._local.scratch = _Scratch(n, self.walk_capacity, per_lane, self.settings.defer_pdf)
+            sc = self._local.scratch = _Scratch(n, self.walk_capacity, per_lane, self.settings.defer_pdf,
+                                                self.queue_per_lane)
         return sc
 
     def set_camera(self, camera) -> None:
@@ -266,7 +279,8 @@ class PathTracer:
                      cur.pdf[:active], cur.delta[:active], cur.rtype[:active], cur.recv[:active],
                      cur.dfr[:active] if self.settings.defer_pdf else cur.dfr, t_in, prim, t, b1, b2,
                      L, albedo, normal, alpha, aux, *nxt.outputs(),
-                     sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sc.sh_mask, self.stacks, lw, lb, lr, lc, counts)
+                     sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sc.sh_mask, self.stacks, lw, lb, lr, lc,
+                     sc.queued_at, sc.queued, counts)
             ns = int(counts[1])
             if ns:
                 if self.vis.filter_shadows:

@@ -78,7 +78,7 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
 #   mat_refl      per material: the class of a reflection (a layered stack: diffuse if one of
 #                 its interfaces is diffuse, else glossy; transmission is always TRANSMIT)
 # defer_pdf: a layered continuation's MIS pdf is estimated only if its ray finds a light that
-# light sampling competes for (``_mis_hit``), not for every continuation: its walks cost about a
+# light sampling competes for (``_light_hit``), not for every continuation: its walks cost about a
 # third of a layered vertex, and most continuations never need it (integrator.py decides).
 # Ray-type bits (scene/links.py).
 RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT = 1, 2, 4, 8
@@ -153,18 +153,33 @@ def _light_density(LT, S, li, pdf_light, via, o):
 
 
 @inlined
-def _mis_hit(LT, S, li, pdf_light, prev_pdf, via, o, ST, TX, dfr, i, key, segment, LW, LB, LR, LC, counts):
-    """(MIS weight, BSDF pdf) of emission found by BSDF sampling against light sampling from o
-    (the power heuristic with sample counts), weight 1 where light sampling cannot produce the
-    ray. A layered continuation's pdf left for later (< 0, ``S.defer_pdf``) is estimated here
-    (``_deferred_pdf``); the caller keeps the returned pdf for the lane's other lights."""
+def _light_hit(LT, S, li, pdf_light, prev_pdf, via, o, c, segment, i, sl, target, L, sh_c, PD, PC, counts):
+    """Emission ``c`` (throughput × radiance) found by BSDF sampling, weighted by MIS against
+    light sampling from o (the power heuristic with sample counts; weight 1 where light
+    sampling cannot produce the ray), clamped, added to L (``target`` −1) or written to shadow
+    ray ``target``. Where the ray left a layered vertex whose pdf is deferred (< 0,
+    ``S.defer_pdf``) and light sampling competes, it is queued instead (a row of PD, PC):
+    ``shade`` estimates that pdf after its lane loop and weighs the queue then."""
     dl = _light_density(LT, S, li, pdf_light, via, o)
-    if not dl > 0.0:
-        return 1.0, prev_pdf
-    if prev_pdf < 0.0:
-        prev_pdf = _deferred_pdf(ST, TX, dfr, i, key, segment - 1, LW, LB, LR, LC)
-        counts[4] += 1
-    return power_heuristic(prev_pdf, dl), prev_pdf
+    if dl > 0.0 and prev_pdf < 0.0:
+        k = counts[4]
+        PD[k, 0] = i
+        PD[k, 1] = target
+        PC[k, 0], PC[k, 1], PC[k, 2] = c
+        PC[k, 3] = dl
+        counts[4] = k + 1
+        return
+    w = power_heuristic(prev_pdf, dl) if dl > 0.0 else 1.0
+    _weighted_to(c, w, S, segment, sl, target, L, sh_c)
+
+
+@inlined
+def _weighted_to(c, w, S, segment, sl, target, L, sh_c):
+    cc = _clamped((c[0] * w, c[1] * w, c[2] * w), S.clamp, segment)
+    if target >= 0:
+        sh_c[target, 0], sh_c[target, 1], sh_c[target, 2] = cc
+    else:
+        _add(L, sl, cc)
 
 
 @inlined
@@ -595,7 +610,7 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
           L, albedo, normal, alpha, aux,
           nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, nx_rtype, nx_recv, nx_dfr,
           sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask,
-          ST, LW, LB, LR, LC, counts):
+          ST, LW, LB, LR, LC, PD, PC, counts):
     """One bounce for every traced lane (see the module docstring). Lane slot ``sl`` is sample
     ``sample0 + sl % spp`` of pixel ``pixels[sl // spp]`` (for the path sampler). ``counts``
     (int64[5]) gets [next rays, shadow rays, layered lanes, non-finite paths killed, deferred
@@ -607,7 +622,9 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
     and counters (kernels/layered/batch.py). ``rtype``/``recv``: each ray's type and the receiver
     set of the vertex it left (ray visibility, light linking: ``Settings``); ``sh_mask``: each
     shadow ray's blocker sets. ``dfr``/``nx_dfr``: the rays' deferred MIS pdfs (DFR_*; one row
-    suffices without layered stacks)."""
+    suffices without layered stacks); ``PD`` (int64 (m, 2): lane, target) and ``PC`` (float64
+    (m, 4): emission, light density): the emission queued behind them, m ≥ the lanes × the
+    lights a ray can find with light sampling competing (``S.defer_pdf`` only)."""
     camera = segment == 0
     inv_spp = 1.0 / spp
     last = segment == S.max_segments - 1
@@ -646,11 +663,11 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
                 le = ld.eval_hit(LT, li, ro, rd, tl)
                 pdf_l = ld.pdf_hit(LT, li, ro, rd, tl)
             if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
-                w, pp = _mis_hit(LT, S, li, pdf_l, pp, pd, ro, ST, TX, dfr, i, key[i], segment, LW, LB, LR, LC,
-                                 counts)
-                c = _clamped((bt[0] * le[0] * w, bt[1] * le[1] * w, bt[2] * le[2] * w), S.clamp, segment)
+                c = (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2])
+                k = counts[1]
                 _push_ray(S, segment, sl, ro, rd, tl, c, S.light_shadow[li], sh_slot, sh_o32, sh_d32, sh_t32,
                           sh_c, sh_mask, counts)
+                _light_hit(LT, S, li, pdf_l, pp, pd, ro, c, segment, i, sl, k, L, sh_c, PD, PC, counts)
         # 1. lights passed on the way (transparent, as in Cycles)
         for j in range(nh):
             li = S.hittable[j]
@@ -662,10 +679,9 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
             tl = ld.intersect(LT, li, ro, rd, t_limit)
             if tl < INF:
                 le = ld.eval_hit(LT, li, ro, rd, tl)
-                w, pp = _mis_hit(LT, S, li, ld.pdf_hit(LT, li, ro, rd, tl), pp, pd, ro, ST, TX, dfr, i, key[i],
-                                 segment, LW, LB, LR, LC, counts)
-                _add(L, sl, _clamped((bt[0] * le[0] * w, bt[1] * le[1] * w, bt[2] * le[2] * w),
-                                     S.clamp, segment))
+                _light_hit(LT, S, li, ld.pdf_hit(LT, li, ro, rd, tl), pp, pd, ro,
+                           (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2]), segment, i, sl, -1, L, sh_c, PD, PC,
+                           counts)
         if pr < 0:
             if not (camera and S.transparent):
                 for j in range(ni):
@@ -677,10 +693,9 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
                         continue
                     le = ld.eval_escaped(LT, li, rd)
                     if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
-                        w, pp = _mis_hit(LT, S, li, ld.pdf_escaped(LT, li, rd), pp, pd, ro, ST, TX, dfr, i,
-                                         key[i], segment, LW, LB, LR, LC, counts)
-                        _add(L, sl, _clamped((bt[0] * le[0] * w, bt[1] * le[1] * w, bt[2] * le[2] * w),
-                                             S.clamp, segment))
+                        _light_hit(LT, S, li, ld.pdf_escaped(LT, li, rd), pp, pd, ro,
+                                   (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2]), segment, i, sl, -1, L, sh_c,
+                                   PD, PC, counts)
             continue
         if camera:
             # Holdouts are black, transparent holes for camera rays (as in Cycles); they still
@@ -731,13 +746,13 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
                 gate_hits and S.links and G.irows[pr, ROW_EMIT] >= 0
                 and not _linked(S.emit_recv[G.irows[pr, ROW_EMIT]], rv)):
             le = km.emission(MT, TX, m, u, v)
-            w = 1.0
+            c = (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2])
             if S.mesh_light >= 0:
                 local = G.irows[pr, ROW_EMIT]
                 pdf_l = ld.mesh_pdf_hit(LT, S.mesh_light, ro, rd, t_surf, local) if local >= 0 else 0.0
-                w, pp = _mis_hit(LT, S, S.mesh_light, pdf_l, pp, pd, ro, ST, TX, dfr, i, key[i], segment,
-                                 LW, LB, LR, LC, counts)
-            _add(L, sl, _clamped((bt[0] * le[0] * w, bt[1] * le[1] * w, bt[2] * le[2] * w), S.clamp, segment))
+                _light_hit(LT, S, S.mesh_light, pdf_l, pp, pd, ro, c, segment, i, sl, -1, L, sh_c, PD, PC, counts)
+            else:
+                _weighted_to(c, 1.0, S, segment, sl, -1, L, sh_c)
         # Russian roulette at this surface, after the emission the ray found (see _roulette)
         if segment >= S.rr_depth and not last:
             q = _roulette(MT, TX, m, u, v, wi, ng, bt)
@@ -885,6 +900,22 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
                 _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
                           spdf, via, nrt, rs, nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta,
                           nx_pdf, nx_delta, nx_rtype, nx_recv, counts)
+    # Emission queued behind a deferred layered pdf (``_light_hit``): each lane's pdf estimated
+    # once, its rows weighed. After the lane loop, so that compiling this kernel reaches the
+    # layered lane (compiled by another process, kernels/cache.py) after everything else.
+    queued = counts[4]
+    lane = -1
+    pdf = 0.0
+    estimates = 0
+    for k in range(queued):
+        i = PD[k, 0]
+        if i != lane:
+            lane = i
+            pdf = _deferred_pdf(ST, TX, dfr, i, key[i], segment - 1, LW, LB, LR, LC)
+            estimates += 1
+        _weighted_to((PC[k, 0], PC[k, 1], PC[k, 2]), power_heuristic(pdf, PC[k, 3]), S, segment, slot[i],
+                     PD[k, 1], L, sh_c)
+    counts[4] = estimates
 
 
 @kernel(nogil=True)

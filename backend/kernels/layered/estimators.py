@@ -648,8 +648,8 @@ def nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, want_sample, sample_pdf, p
     zero = (0.0, 0.0, 0.0)
     kind = int(B[H_PDF])
     if pdf_only:
-        p, _ = pdf_pair(B, FT, W, R, wi, wo, True, wo, False, kind, C)
-        return zero, p, (0.0, 0.0, 1.0), zero, 0.0, False
+        nee = False
+        want_sample = False
     conn = nee and valid(B, wi, wo)
     f = zero
     p_nee = 0.0
@@ -689,8 +689,9 @@ def nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, want_sample, sample_pdf, p
         w_s = zero
         d_s = False
     # The MIS pdfs of the light direction and of the sampled one, sharing their walk from wi.
-    p_nee, p_s = pdf_pair(B, FT, W, R, wi, wo, conn and nee_pdf, wo_s, exited and not d_s and sample_pdf,
-                          kind, C)
+    # (One call site: pdf_pair is inlined, and a second copy cost ~10 s of the first compilation.)
+    p_nee, p_s = pdf_pair(B, FT, W, R, wi, wo, (conn and nee_pdf) or pdf_only, wo_s,
+                          exited and not d_s and sample_pdf, kind, C)
     if exited and not d_s and not sample_pdf:
         p_s = -1.0
     return f, p_nee, wo_s, w_s, p_s, d_s
