@@ -45,7 +45,7 @@ ALL_LIGHTS_MAX = 4
 
 #: Layered continuations defer their MIS pdf (kernels/integrator.py ``defer_pdf``) in scenes
 #: with up to this many lights that light sampling competes for (the queue of emission waiting
-#: for such pdfs holds a row per lane and light: 40 bytes each).
+#: for such pdfs holds a row per lane and light: 48 bytes each).
 DEFER_MAX_LIGHTS = 8
 
 
@@ -76,7 +76,8 @@ class _Queue:
 class _Scratch:
     """Per-thread working arrays of ``render`` (two ray queues, the shadow-ray queue, the camera
     rays' tmax, the layered walks' scratch), kept between work items: fresh arrays of this size
-    (~310 bytes a lane, 20 MB for an item of 2^16 lanes) are new pages every item, and the page
+    (~310 bytes a lane, 20 MB for an item of 2^16 lanes; with deferred layered pdfs 240 bytes
+    more and 48 a queued light) are new pages every item, and the page
     faults cost 5-7 % of the render (perf, Cornell box). Grown when an item has more lanes."""
 
     def __init__(self, n: int, walk_capacity: int, shadows_per_lane: int, deferred: bool, queue_per_lane: int):
@@ -277,7 +278,7 @@ class PathTracer:
                      self.pass_params, segment, pixels, spp, sample0, lane_time,
                      cur.slot[:active], cur.key[:active], cur.o[:active], cur.d[:active], cur.beta[:active],
                      cur.pdf[:active], cur.delta[:active], cur.rtype[:active], cur.recv[:active],
-                     cur.dfr[:active] if self.settings.defer_pdf else cur.dfr, t_in, prim, t, b1, b2,
+                     cur.dfr[:active], t_in, prim, t, b1, b2,
                      L, albedo, normal, alpha, aux, *nxt.outputs(),
                      sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sc.sh_mask, self.stacks, lw, lb, lr, lc,
                      sc.queued_at, sc.queued, counts)

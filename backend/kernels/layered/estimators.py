@@ -689,7 +689,7 @@ def nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, want_sample, sample_pdf, p
         w_s = zero
         d_s = False
     # The MIS pdfs of the light direction and of the sampled one, sharing their walk from wi.
-    # (One call site: pdf_pair is inlined, and a second copy cost ~10 s of the first compilation.)
+    # (One call site for both uses: pdf_pair is inlined, a second one would compile it twice.)
     p_nee, p_s = pdf_pair(B, FT, W, R, wi, wo, (conn and nee_pdf) or pdf_only, wo_s,
                           exited and not d_s and sample_pdf, kind, C)
     if exited and not d_s and not sample_pdf:
