@@ -58,6 +58,7 @@ ESTIMATORS = (
 )
 
 PDF_MODES = (
-    ("APPROXIMATE", "Approximate", "Cheap approximate pdf (media removed) for MIS weights", 0),
+    ("LOBES", "Lobes", "Closed-form density of each interface's lobe for MIS weights (fastest; default)", 2),
+    ("APPROXIMATE", "Approximate", "Approximate pdf estimated by short walks without media (Guo et al.) for MIS weights", 0),
     ("STOCHASTIC", "Stochastic", "Unbiased stochastic pdf estimate for MIS weights (slower)", 1),
 )

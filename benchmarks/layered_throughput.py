@@ -75,7 +75,7 @@ def spread(xs):
     return {"median": xs[len(xs) // 2], "min": xs[0], "max": xs[-1], "runs": len(xs)}
 
 
-QUERIES = ("eval_bi", "eval_uni", "eval_uni_nomis", "pdf_approx", "pdf_stochastic", "pdf_stochastic_bi",
+QUERIES = ("eval_bi", "eval_uni", "eval_uni_nomis", "pdf_lobes", "pdf_approx", "pdf_stochastic", "pdf_stochastic_bi",
            "sample", "sample_with_pdf")
 
 
@@ -98,6 +98,7 @@ def run(lanes: int, repeat: int):
         "eval_bi": lambda b, n, a, c: b.eval(a, c, rng, RADIANCE, estimator="bi"),
         "eval_uni": lambda b, n, a, c: b.eval(a, c, rng, RADIANCE, estimator="uni"),
         "eval_uni_nomis": lambda b, n, a, c: n.eval(a, c, rng, RADIANCE, estimator="uni"),
+        "pdf_lobes": lambda b, n, a, c: b.pdf(a, c, rng, RADIANCE, kind="lobes"),
         "pdf_approx": lambda b, n, a, c: b.pdf(a, c, rng, RADIANCE, kind="approx"),
         "pdf_stochastic": lambda b, n, a, c: b.pdf(a, c, rng, RADIANCE, kind="stochastic"),
         "pdf_stochastic_bi": lambda b, n, a, c: b.pdf(a, c, rng, RADIANCE, kind="stochastic-bi"),
@@ -262,9 +263,10 @@ def main():
     print(f"layered BSDF, one core, {args.lanes} lanes per call, CPU µs per lane: median "
           f"[min–max] of {args.repeat} interleaved rounds (load {load_avg[0]:.2f} {load_avg[1]:.2f})")
     labels = (("eval_bi", "eval, bidirectional"), ("eval_uni", "eval, unidirectional"),
-              ("eval_uni_nomis", "eval, uni without MIS"), ("pdf_approx", "pdf, approximate"),
+              ("eval_uni_nomis", "eval, uni without MIS"), ("pdf_lobes", "pdf, lobes (default)"),
+              ("pdf_approx", "pdf, approximate"),
               ("pdf_stochastic", "pdf, stochastic"), ("pdf_stochastic_bi", "pdf, stochastic, bidir."),
-              ("sample", "sample (weight only)"), ("sample_with_pdf", "sample + approx pdf"))
+              ("sample", "sample (weight only)"), ("sample_with_pdf", "sample + lobes pdf"))
     for r in res:
         print(f"\n{r['stack']}  ({r['vertices_per_walk']:.1f} vertices per walk on average)")
         for key, label in labels:

@@ -42,9 +42,10 @@ def _scene(material, spp, pdf=None):
                  render={"spp": spp, "max_bounces": 3, "seed": 11, **({"layered": {"pdf": pdf}} if pdf else {})})
 
 
-@pytest.mark.parametrize("material,pdf", [(TWO_SLABS, None), (TWO_SLABS, "stochastic"), (ONE_SLAB, None),
-                                          (STACKS["transmissive"], None)],
-                         ids=["two-slabs", "two-slabs-stochastic", "one-slab", "transmissive"])
+@pytest.mark.parametrize("material,pdf", [(TWO_SLABS, None), (TWO_SLABS, "approx"), (TWO_SLABS, "stochastic"),
+                                          (ONE_SLAB, None), (ONE_SLAB, "approx"), (STACKS["transmissive"], None)],
+                         ids=["two-slabs", "two-slabs-approx", "two-slabs-stochastic", "one-slab", "one-slab-approx",
+                              "transmissive"])
 def test_mis_with_deferred_and_immediate_pdfs_matches_bsdf_sampling_alone(material, pdf, monkeypatch):
     mis_deferred = render(_scene(material, 64, pdf))
     assert mis_deferred.stats.get("layered_pdfs_deferred", 0) > 50       # the deferred path ran

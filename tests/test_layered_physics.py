@@ -203,7 +203,7 @@ def test_no_nan_or_inf_for_any_direction(name):
         for mode in (RADIANCE, IMPORTANCE):
             f = b.eval(wi, wo, rng, mode, estimator=est)
             assert np.all(np.isfinite(f)) and np.all(f >= 0)
-    for kind in ("approx", "stochastic"):
+    for kind in ("lobes", "approx", "stochastic"):
         p = b.pdf(wi, wo, rng, kind=kind)
         assert np.all(np.isfinite(p)) and np.all(p >= 0)
     s = b.sample(wi, rng)

@@ -93,8 +93,8 @@ def render_json(scene, *, samples: int | None = None, seed_offset: int = 0) -> d
     layered = {}
     if s.estimator != "BIDIRECTIONAL":
         layered["estimator"] = s.estimator.lower()
-    if s.pdf_mode != "APPROXIMATE":
-        layered["pdf"] = s.pdf_mode.lower()
+    if s.pdf_mode != "LOBES":
+        layered["pdf"] = {"APPROXIMATE": "approx", "STOCHASTIC": "stochastic"}[s.pdf_mode]
     if layered:
         out["layered"] = layered
     return out

@@ -59,7 +59,7 @@ class LaminaRenderSettings(PropertyGroup):
     filter_width: FloatProperty(name="Filter Width", default=1.5, min=0.01, max=10.0, subtype='PIXEL')
     estimator: EnumProperty(name="Layered Estimator", items=ESTIMATORS, default="BIDIRECTIONAL",
                             description="How layered materials are evaluated")
-    pdf_mode: EnumProperty(name="Layered PDF", items=PDF_MODES, default="APPROXIMATE",
+    pdf_mode: EnumProperty(name="Layered PDF", items=PDF_MODES, default="LOBES",
                            description="Which pdf of layered materials is used for MIS weights")
     update_interval: FloatProperty(name="Display Update", default=2.0, min=0.2, max=60.0,
                                    unit='TIME_ABSOLUTE',

@@ -26,14 +26,14 @@ from .phase.base import draw_seed
 @dataclass(frozen=True)
 class Options:
     estimator: str = "bi"        # "bi" | "uni"
-    pdf: str = "approx"          # "approx" | "stochastic"
-    pdf_constant: float = 0.1    # added to the approximate pdf (sr⁻¹); Guo's diffusePdf
+    pdf: str = "lobes"           # "lobes" | "approx" | "stochastic"
+    pdf_constant: float = 0.1    # added to the lobes and approximate pdfs (sr⁻¹); Guo's diffusePdf
     max_vertices: int = 1024     # hard cap per walk; hits are counted in ``stats``
     mis: bool = True             # uni only: False = NEE alone where it applies (benchmarks)
 
 
 ESTIMATORS = {"bi": 0, "uni": 1}
-PDF_KINDS = {"approx": 0, "stochastic": 1, "stochastic-bi": 2, "approx-bi": 3}   # the last two: benchmarks
+PDF_KINDS = {"approx": 0, "stochastic": 1, "lobes": 4, "stochastic-bi": 2, "approx-bi": 3}   # the last two: benchmarks
 
 
 def new_stats() -> dict:

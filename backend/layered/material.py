@@ -5,7 +5,7 @@ Schema (docs/materials.md, "layered")::
     {"type": "layered",
      "interfaces": [<interface>, ...],       # 0 = top; N >= 1
      "media": [<medium>, ...],               # exactly N − 1 (slab i between interfaces i, i+1)
-     "estimator": "bi" | "uni", "pdf": "approx" | "stochastic",
+     "estimator": "bi" | "uni", "pdf": "lobes" | "approx" | "stochastic",
      "pdf_constant": 0.1, "max_vertices": 1024, "mis": true, "emission": ...}
 
 Interfaces: ``dielectric``, ``conductor``, ``diffuse`` (the standard materials' schema),
@@ -42,7 +42,7 @@ def parse_options(node: Node, defaults: Node | None) -> Options:
         if src.has("estimator"):
             values["estimator"] = src.string("estimator", choices=("bi", "uni"))
         if src.has("pdf"):
-            values["pdf"] = src.string("pdf", choices=("approx", "stochastic"))
+            values["pdf"] = src.string("pdf", choices=("lobes", "approx", "stochastic"))
         if src.has("pdf_constant"):
             values["pdf_constant"] = src.number("pdf_constant", lo=0.0)
         if src.has("max_vertices"):

@@ -48,10 +48,11 @@ from __future__ import annotations
 import math
 
 from . import iface as ki
+from . import lobes as lb
 from . import phase as ph
 from . import walk as wk
 from ..jit import inlined, kernel
-from .table import (ABSORBING, APPROX, BI, EMPTY, STOCHASTIC, H_ETA_BOTTOM, H_ETA_SLAB, H_ETA_TOP, H_EST,
+from .table import (ABSORBING, APPROX, BI, EMPTY, LOBES, STOCHASTIC, H_ETA_BOTTOM, H_ETA_SLAB, H_ETA_TOP, H_EST,
                     H_MAXV, H_MIS, H_N, H_NESTED, H_PDF, H_PDFC, H_TRANS, HEAD, M_DIR, M_GREY, M_KIND, M_PH,
                     M_TAU, MED0, MSTRIDE, SCATTERING)
 from .walk import (F_A, F_B, F_C1, F_C2, F_DELTA, F_GAMMA, F_KIND, F_LAYER, F_PF, F_QBG, F_REV,
@@ -554,11 +555,25 @@ def pdf_pair(B, FT, W, R, a, b1, need1, b2, need2, kind, C):
     variance 12.5 against 0.13 for the approximate pdf, 50–330 against 1–4.6 for the stochastic
     one)."""
     N = int(B[H_N])
+    p1 = 0.0
+    p2 = 0.0
+    if kind == LOBES:
+        # Reflections in closed form (lobes.py); a transmission keeps the approximate pdf.
+        for k in range(2):
+            b = b1 if k == 0 else b2
+            if (need1 if k == 0 else need2) and a[2] * b[2] > 0.0:
+                _, p = single(B, a, b, True)
+                p += lb.inner_reflections(B, FT, a, b) + B[H_PDFC]
+                if k == 0:
+                    p1 = p
+                    need1 = False
+                else:
+                    p2 = p
+                    need2 = False
+        kind = APPROX
     approx = kind == APPROX or kind == APPROX_BI
     slabs = N - 1
     hero = -1
-    p1 = 0.0
-    p2 = 0.0
     if not (need1 or need2):
         return p1, p2
     if approx:

@@ -118,7 +118,7 @@ def _normal(dist, au, av, ws, u0, u1):
 
 
 @kernel(error_model="numpy")
-def _alphas(B, o):
+def alphas(B, o):
     kind = B[o + IF_KIND]
     if kind == CONDUCTOR:
         return B[o + IF_P + 9], B[o + IF_P + 10]
@@ -133,7 +133,7 @@ def term(B, o, w):
         return 0.0
     if B[o + IF_FRAMED] > 0.0:
         w = _local(B, o, w)
-    au, av = _alphas(B, o)
+    au, av = alphas(B, o)
     return _term(int(B[o + IF_DIST]), int(B[o + IF_MASK]), au, av, w)
 
 

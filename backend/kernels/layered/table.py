@@ -58,6 +58,7 @@ MAX_INTERFACES = 16
 EMPTY, ABSORBING, SCATTERING = 0, 1, 2
 BI, UNI = 0, 1
 APPROX, STOCHASTIC = 0, 1
+LOBES = 4               # the closed-form reflection density (lobes.py); 2, 3: benchmark kinds
 
 # head
 H_N, H_TRANS, H_ETA_TOP, H_ETA_BOTTOM, H_ETA_SLAB = 0, 1, 2, 3, 4
@@ -301,7 +302,7 @@ class StackBuilder:
         head[H_ETA_BOTTOM] = flat.eta_bottom
         head[H_ETA_SLAB:H_ETA_SLAB + len(flat.eta_slab)] = flat.eta_slab
         head[H_EST] = UNI if opts.estimator == "uni" else BI
-        head[H_PDF] = STOCHASTIC if opts.pdf == "stochastic" else APPROX
+        head[H_PDF] = {"approx": APPROX, "stochastic": STOCHASTIC, "lobes": LOBES}[opts.pdf]
         head[H_PDFC] = opts.pdf_constant
         head[H_MIS] = 1.0 if opts.mis else 0.0
         head[H_MAXV] = opts.max_vertices

@@ -1,0 +1,160 @@
+"""A closed-form MIS density for reflections off a layer stack (pdf kind ``"lobes"``).
+
+The pdf of a layered BSDF serves only the MIS weights: light sampling and BSDF sampling must use
+the same function of the direction, which need not be the sampler's true density (a poor one
+costs variance, never bias). The approximate pdf (estimators.pdf_pair) estimates the sampler's
+density on the stack without media by two short random walks and their connections: 3–4 µs on
+two slabs, about 30 % of a two-slab render. This one adds, in closed form, one lobe per interface
+the sampler can reach:
+
+    p(wo | wi) = p_0(wo | wi)                      the entry interface, exact (estimators.single)
+               + Σ_k W_k · lobe_k(wo | wi)         every inner interface k that reflects
+               + pdf_constant
+
+W_k is the probability that the sampler gets to interface k and back out along the specular
+chain of wi and wo: the interfaces' transmission choices (1 − F at the macro-surface angle, the
+walk's Fresnel choice; a conductor or diffuse interface is opaque) and the slabs' channel-mean
+transmittance (media removed, as in the approximate pdf). lobe_k:
+* every interface above k smooth (a sharp refraction chain): interface k's own reflection
+  density between wi and wo refracted into its slab (iface.evaluate: its distribution, masking,
+  anisotropy and normal map), times the solid-angle Jacobian of the chain
+  dω_in/dω_out = (η_out/η_slab)² |cos θo| / |cos θ_in|;
+* some interface above k rough: the refractions spread the lobe. It is taken as an anisotropic
+  GGX reflection lobe around the outer mirror direction whose squared roughness adds, per
+  axis, interface k's roughness seen from outside, α η_slab/η_out (a slope inside is η_slab/η_out
+  times that slope outside, near the normal), and for every rough dielectric crossed on the way
+  in and out α_j²·(η_below − η_above)²/(4 η_out²) (a facet tilt θ turns the refracted ray by
+  θ(1 − η_above/η_below)) — the variances of the small angles add;
+* a diffuse interface: its cosine lobe seen through the chain, (η_out/η_slab)² |cos θo|/π.
+Left out: paths with more than one inner reflection, and the media's scattering (the constant
+stands for them, as in the approximate pdf). Transmissions through the stack keep the approximate
+pdf (estimators.pdf_pair). Cost and the noise it gives the images: docs/benchmarks.md.
+"""
+from __future__ import annotations
+
+import math
+
+from .. import microfacet as mf
+from ..fresnel import dielectric as fresnel_dielectric
+from ..jit import kernel
+from ..materials import CONDUCTOR, DIELECTRIC, DIFFUSE
+from . import iface as ki
+from . import phase as ph
+from .table import EMPTY, H_ETA_BOTTOM, H_ETA_SLAB, H_ETA_TOP, H_N, HEAD, M_DIR, M_KIND, M_PH, M_TAU, MED0, MSTRIDE
+from .walk import GRAZING
+
+INV_PI = 1.0 / math.pi
+NAN = math.nan
+
+
+@kernel(error_model="numpy")
+def _slab_pass(B, FT, s, d):
+    """The channel-mean transmittance of slab s along d (|d_z| = the cosine in the slab)."""
+    mo = MED0 + s * MSTRIDE
+    if B[mo + M_KIND] == EMPTY:
+        return 1.0
+    x = 1.0 / abs(d[2])
+    if B[mo + M_DIR] > 0.0:
+        x *= ph.sigma_scale(B, mo + M_PH, FT, d)
+    return (math.exp(-B[mo + M_TAU] * x) + math.exp(-B[mo + M_TAU + 1] * x)
+            + math.exp(-B[mo + M_TAU + 2] * x)) / 3.0
+
+
+@kernel(error_model="numpy")
+def _into(w, r, sign):
+    """w (outside, pointing away from the stack) refracted into a medium of index η_out/r along
+    the flat interfaces (Snell: the tangential part scales by r), pointing the same way; z = 0
+    under total internal reflection."""
+    x = w[0] * r
+    y = w[1] * r
+    s2 = x * x + y * y
+    if s2 >= 1.0:
+        return (x, y, 0.0)
+    return (x, y, sign * math.sqrt(1.0 - s2))
+
+
+@kernel(error_model="numpy")
+def _outer_lobe(a, b, sign, au2, av2):
+    """The density of an anisotropic GGX reflection lobe (squared roughnesses au2, av2 along the
+    stack's x and y) at b given a, both outside on the side ``sign``: D(h)·cos θh/(4|a·h|)."""
+    hx = a[0] + b[0]
+    hy = a[1] + b[1]
+    hz = (a[2] + b[2]) * sign
+    l2 = hx * hx + hy * hy + hz * hz
+    if not l2 > 0.0:
+        return 0.0
+    inv = 1.0 / math.sqrt(l2)
+    h = (hx * inv, hy * inv, hz * inv)
+    cah = abs(a[0] * h[0] + a[1] * h[1] + a[2] * sign * h[2])
+    if not cah > 0.0:
+        return 0.0
+    return mf.D(mf.GGX, math.sqrt(au2), math.sqrt(av2), h) * h[2] * (0.25 / cah)
+
+
+@kernel(error_model="numpy")
+def inner_reflections(B, FT, a, b):
+    """Σ_k W_k · lobe_k(b | a) over the inner interfaces (see the module docstring) of a
+    reflection query (a, b on the same side)."""
+    N = int(B[H_N])
+    top = a[2] > 0.0
+    sign = 1.0 if top else -1.0
+    eta_out = B[H_ETA_TOP] if top else B[H_ETA_BOTTOM]
+    w = 1.0
+    spread = 0.0
+    out = 0.0
+    for step in range(N - 1):
+        # Cross interface l (from the entry side) into slab s, towards interface k.
+        l = step if top else N - 1 - step
+        k = l + 1 if top else l - 1
+        s = l if top else l - 1
+        o = HEAD + l * ki.STRIDE
+        kind = B[o + ki.IF_KIND]
+        if kind == CONDUCTOR or kind == DIFFUSE:
+            break
+        eta_s = B[H_ETA_SLAB + s]
+        r = eta_out / eta_s
+        ta = _into(a, r, sign)
+        tb = _into(b, r, sign)
+        if not (abs(ta[2]) >= GRAZING and abs(tb[2]) >= GRAZING):
+            break
+        if kind == DIELECTRIC:
+            # The cosines on the entry side of l (where the walk chooses), from the slab before.
+            eta_e = eta_out if step == 0 else B[H_ETA_SLAB + (s - 1 if top else s + 1)]
+            re = eta_out / eta_e
+            ea = _into(a, re, sign)
+            eb = _into(b, re, sign)
+            eta_rel = B[o + ki.IF_P]
+            w *= (1.0 - fresnel_dielectric(ea[2], eta_rel)[0]) * (1.0 - fresnel_dielectric(eb[2], eta_rel)[0])
+            if not ki.is_delta(B, o):
+                au, av = ki.alphas(B, o)
+                de = (eta_s - eta_e) / eta_out
+                g = 0.25 * de * de
+                spread += (au * au + av * av) * g      # both crossings, the mean of the two axes
+        w *= _slab_pass(B, FT, s, ta) * _slab_pass(B, FT, s, tb)
+        if not w > 1e-12:
+            break
+        # Reflection at interface k.
+        ok = HEAD + k * ki.STRIDE
+        kk = B[ok + ki.IF_KIND]
+        jac = r * r * abs(b[2]) / abs(tb[2])
+        if kk == DIFFUSE:
+            out += w * r * r * abs(b[2]) * INV_PI
+            break
+        if not (kk == CONDUCTOR or kk == DIELECTRIC):
+            continue            # NULL: index-matched, the walk passes
+        if spread <= 0.0:
+            _, pf, _ = ki.evaluate(B, ok, ta, tb, NAN, NAN, True)
+            out += w * pf * jac
+        else:
+            choose = 1.0
+            if kk == DIELECTRIC:
+                choose = fresnel_dielectric(ta[2], B[ok + ki.IF_P])[0]
+            au2 = 0.0
+            av2 = 0.0
+            if not ki.is_delta(B, ok):
+                au, av = ki.alphas(B, ok)
+                m = eta_s / eta_out
+                au2 = au * au * m * m
+                av2 = av * av * m * m
+            out += w * choose * _outer_lobe(a, b, sign, au2 + spread, av2 + spread)
+    return out

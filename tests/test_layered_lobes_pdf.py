@@ -1,0 +1,98 @@
+"""The closed-form MIS density of layered reflections (pdf ``"lobes"``, kernels/layered/lobes.py).
+
+Where every interface above the reflecting one is smooth and the slabs are empty, the lobe of
+an inner interface is the exact density of the sampler's paths that reflect once inside: the
+walk's Fresnel choices on the way in and out, the inner interface's sampling density between the
+refracted directions, and the refraction's solid-angle Jacobian. The independent reference is
+the sampler itself: a histogram of the exit directions of walks with exactly that path (their
+vertex count says which), against the lobe integrated over each cell. With rough interfaces
+above, the lobe is an approximation (only the MIS weights use it): there the tests check that
+renders stay unbiased (tests/test_layered_deferred_pdf.py) and that the density is positive
+wherever the BSDF is."""
+import numpy as np
+import pytest
+
+from backend.layered.probe import walks
+from layered_util import STACKS, bind, direction, load, uniform_sphere
+
+K = 4.5      # per cell; the Šidák-style allowance for ~200 cells at a 5e-4 family-wise rate
+
+SMOOTH_OVER_ROUGH = {   # exit through a smooth coat after one reflection off a rough GGX metal
+    "type": "layered", "pdf": "lobes", "pdf_constant": 0.0,
+    "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.0},
+                   {"type": "conductor", "metal": "Au", "roughness": 0.3, "roughness_v": 0.15}],
+    "media": [{"sigma_t": 0.0}]}
+TWO_SMOOTH_OVER_ROUGH = {   # two smooth dielectrics (into 1.5, then 1.2 below it) over rough copper
+    "type": "layered", "pdf": "lobes", "pdf_constant": 0.0,
+    "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.0},
+                   {"type": "dielectric", "ior": 1.2, "roughness": 0.0},
+                   {"type": "conductor", "metal": "Cu", "roughness": 0.25}],
+    "media": [{"sigma_t": 0.0}, {"sigma_t": 0.0}]}
+
+
+def _cells(n_cos=12, n_phi=16):
+    ce = np.linspace(0.0, 1.0, n_cos + 1)
+    pe = np.linspace(-np.pi, np.pi, n_phi + 1)
+    return ce, pe
+
+
+def _lobe_integrals(mat, wi1, ce, pe, rng, per_cell=192):
+    """∫ p dω over each (cos θ, φ) cell by stratified Monte Carlo (jittered points, uniform in
+    cos θ and φ, so dω = d cos θ dφ), with its standard error."""
+    n_cos, n_phi = len(ce) - 1, len(pe) - 1
+    i, j = np.meshgrid(np.arange(n_cos), np.arange(n_phi), indexing="ij")
+    i = np.repeat(i.ravel(), per_cell)
+    j = np.repeat(j.ravel(), per_cell)
+    c = ce[i] + rng.random(i.size) * (ce[1] - ce[0])
+    ph = pe[j] + rng.random(j.size) * (pe[1] - pe[0])
+    s = np.sqrt(np.maximum(0.0, 1.0 - c * c))
+    d = np.stack([s * np.cos(ph), s * np.sin(ph), c], axis=1)
+    m = d.shape[0]
+    p = bind(mat, m).pdf(np.repeat(wi1[None], m, axis=0), d, rng, kind="lobes")
+    area = (ce[1] - ce[0]) * (pe[1] - pe[0])
+    p = p.reshape(n_cos * n_phi, per_cell) * area
+    return p.mean(axis=1), p.std(axis=1, ddof=1) / np.sqrt(per_cell)
+
+
+@pytest.mark.parametrize("spec,vertices", [(SMOOTH_OVER_ROUGH, 3), (TWO_SMOOTH_OVER_ROUGH, 5)],
+                         ids=["one-slab", "two-slabs"])
+@pytest.mark.parametrize("theta", [15.0, 60.0])
+def test_inner_lobe_is_the_samplers_density_behind_smooth_interfaces(spec, vertices, theta):
+    mat = load(spec)
+    rng = np.random.default_rng(23)
+    wi1 = direction(theta, 40.0)
+    n = 400_000
+    r = walks(bind(mat, n), np.repeat(wi1[None], n, axis=0), rng, purpose="none", rr="off")
+    # The paths of the lobe: in through the smooth interfaces, one rough reflection, out.
+    hit = (r.count == vertices) & ~r.exit_delta & (r.exit_weight.max(axis=1) > 0) & (r.exit_dir[:, 2] > 0)
+    d = r.exit_dir[hit]
+    ce, pe = _cells()
+    counts, _, _ = np.histogram2d(d[:, 2], np.arctan2(d[:, 1], d[:, 0]), bins=[ce, pe])
+    counts = counts.ravel()
+    expected, se_int = _lobe_integrals(mat, wi1, ce, pe, rng)
+    expected *= n
+    se_int *= n
+    z = (counts - expected) / np.sqrt(np.maximum(expected, 1.0) + se_int ** 2)
+    print(f"\n{theta}°: {hit.mean():.4f} of the walks; lobe mass {expected.sum() / n:.4f}; max |z| {np.abs(z).max():.2f}")
+    assert hit.mean() > 0.2                           # the test has power: a large share of paths
+    assert abs(counts.sum() - expected.sum()) <= K * np.sqrt(expected.sum() + (se_int ** 2).sum())
+    assert np.abs(z).max() < K
+
+
+@pytest.mark.parametrize("name", list(STACKS))
+def test_lobes_pdf_positive_where_eval_positive(name):
+    """Every reflection the BSDF has gets a density (the constant guarantees it), and the
+    transmissions (the approximate pdf) too; finite everywhere."""
+    mat = load({**STACKS[name], "pdf": "lobes"})
+    rng = np.random.default_rng(5)
+    m = 3000
+    wi = uniform_sphere(rng, m)
+    wo = uniform_sphere(rng, m)
+    if not mat.transmissive:
+        wi[:, 2], wo[:, 2] = np.abs(wi[:, 2]), np.abs(wo[:, 2])
+    b = bind(mat, m)
+    f = b.eval(wi, wo, rng)
+    p = b.pdf(wi, wo, rng)
+    assert np.all(np.isfinite(p)) and np.all(p >= 0)
+    assert np.all(p[np.any(f > 0, axis=1)] > 0)
+    assert (np.any(f > 0, axis=1)).mean() > 0.3
