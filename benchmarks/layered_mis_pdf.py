@@ -66,7 +66,7 @@ def compare(material: dict, light: str, kinds, size: int, spp: int, rounds: int)
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--kinds", default="lobes,approx")
-    ap.add_argument("--stacks", default=",".join(list(STACKS) + list(EXTRA)))
+    ap.add_argument("--stacks", nargs="*", default=None, help="stacks whose names contain one of these (default: all)")
     ap.add_argument("--lights", default="point,area")
     ap.add_argument("--size", type=int, default=96)
     ap.add_argument("--spp", type=int, default=16)
@@ -78,7 +78,8 @@ def main():
     print(f"{args.size}², {args.spp} spp, one worker, {args.rounds} interleaved rounds; load "
           f"{os.getloadavg()[0]:.2f}. CPU s (median), pixel variance of the mean (mean over pixels), "
           f"efficiency 1/(variance × CPU) against {base}, image mean")
-    for name in args.stacks.split(","):
+    names = [n for n in stacks if args.stacks is None or any(w in n for w in args.stacks)]
+    for name in names:
         for light in args.lights.split(","):
             r = compare(stacks[name], light, kinds, args.size, args.spp, args.rounds)
             cpu = {k: float(np.median(r[k]["cpu"])) for k in kinds}
