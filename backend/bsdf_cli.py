@@ -200,23 +200,26 @@ def evaluate(material, wi_angles, wo_angles, samples: int, seed: int, estimator=
         kw = {"estimator": estimator} if stochastic and estimator else {}
         f = b.eval(a, c, rng, RADIANCE, **kw)
         if stochastic:
+            pl = b.pdf(a, c, rng, RADIANCE, kind="lobes")
             pa = b.pdf(a, c, rng, RADIANCE, kind="approx")
             ps = b.pdf(a, c, rng, RADIANCE, kind="stochastic")
         else:
-            pa = ps = b.pdf(a, c, rng, RADIANCE)
-        return f, pa[:, None], ps[:, None]
+            pl = pa = ps = b.pdf(a, c, rng, RADIANCE)
+        return f, pl[:, None], pa[:, None], ps[:, None]
 
-    f, pa, ps = _batched(run, n)
+    f, pl, pa, ps = _batched(run, n)
     out = {"wi": list(wi_angles), "wo": list(wo_angles), "samples": n, "stochastic": stochastic}
     if stochastic:
         out["estimator"] = estimator or probe.options.estimator
-    for key, x in (("f_cos", f), ("pdf_approx", pa), ("pdf_stochastic", ps)):
+        out["pdf_mis"] = probe.options.pdf          # the density the material's MIS weights use
+    pdf_keys = ("pdf_lobes", "pdf_approx", "pdf_stochastic")
+    for key, x in (("f_cos", f), ("pdf_lobes", pl), ("pdf_approx", pa), ("pdf_stochastic", ps)):
         if x.shape[0] > 1:
             m, s = _mean_se(x)
         else:
             m, s = x[0], np.zeros(x.shape[1])
         out[key], out[key + "_se"] = m.tolist(), s.tolist()
-    for key in ("pdf_approx", "pdf_stochastic", "pdf_approx_se", "pdf_stochastic_se"):
+    for key in pdf_keys + tuple(k + "_se" for k in pdf_keys):
         out[key] = out[key][0]
     return out
 
@@ -232,8 +235,10 @@ def cmd_eval(args) -> int:
           f"{res['samples']} estimates{est}")
     print(f"  f·|cos θo| (R G B)      {_fmt_rgb(res['f_cos'], res['f_cos_se'])}")
     if res["stochastic"]:
-        print(f"  pdf, approximate        {res['pdf_approx']:.5f} ± {res['pdf_approx_se']:.5f}  (sr⁻¹; MIS only)")
-        print(f"  pdf, stochastic         {res['pdf_stochastic']:.5f} ± {res['pdf_stochastic_se']:.5f}")
+        # MIS densities: the one the material uses is marked; lobes is deterministic.
+        for kind, label in (("lobes", "lobes"), ("approx", "approximate"), ("stochastic", "stochastic")):
+            mark = "  ← this material's MIS density" if res["pdf_mis"] == kind else ""
+            print(f"  pdf, {label:18s} {res['pdf_' + kind]:.5f} ± {res['pdf_' + kind + '_se']:.5f}  (sr⁻¹){mark}")
     else:
         print(f"  pdf                     {res['pdf_approx']:.5f}  (sr⁻¹)")
     return 0
@@ -251,6 +256,9 @@ def lobes(material, theta: float, phi: float, samples: int, seed: int, resolutio
     probe = _bind(material, 1, uv)
     stochastic = bool(getattr(probe, "stochastic", False))
     transmissive = bool(getattr(probe, "transmissive", False))
+    # The MIS density the material uses, drawn next to the stochastic one (an approximate one if
+    # the material's own is the stochastic estimate).
+    mis_kind = probe.options.pdf if stochastic and probe.options.pdf != "stochastic" else "approx"
     sides = (1.0, -1.0) if transmissive else (1.0,)
     side_wi = 1.0 if wi1[2] >= 0 else -1.0
     r = resolution
@@ -276,7 +284,7 @@ def lobes(material, theta: float, phi: float, samples: int, seed: int, resolutio
         b = _bind(material, m * reps, uv)
         f = b.eval(a, c, rng, IMPORTANCE, **kw).reshape(m, reps, 3).mean(axis=1)
         if stochastic:
-            pa = b.pdf(a, c, rng, kind="approx").reshape(m, reps).mean(axis=1)
+            pa = b.pdf(a, c, rng, kind=mis_kind).reshape(m, reps).mean(axis=1)
             ps = b.pdf(a, c, rng, kind="stochastic").reshape(m, reps).mean(axis=1)
         else:
             pa = ps = b.pdf(a, c, rng).reshape(m, reps).mean(axis=1)
@@ -289,7 +297,7 @@ def lobes(material, theta: float, phi: float, samples: int, seed: int, resolutio
         pix = (2.0 / r) ** 2
         hist = hist / (samples * pix) * Z[:, :, None]      # → f·|cos| (dω = dx dy / cos θ)
         img = {}
-        for key, v, ch in (("eval", f, 3), ("pdf_approx", pa, 1), ("pdf_stochastic", ps, 1)):
+        for key, v, ch in (("eval", f, 3), ("pdf_mis", pa, 1), ("pdf_stochastic", ps, 1)):
             full = np.zeros((r, r, ch))
             full[inside] = v.reshape(m, ch)
             img[key] = full
@@ -310,7 +318,7 @@ def lobes(material, theta: float, phi: float, samples: int, seed: int, resolutio
         f = f.reshape(m, reps2, 3)
         slices["reflection" if side > 0 else "transmission"] = (
             angles, f.mean(axis=1), f.std(axis=1) / np.sqrt(max(reps2 - 1, 1)))
-    return {"images": images, "slices": slices, "stochastic": stochastic}
+    return {"images": images, "slices": slices, "stochastic": stochastic, "mis_kind": mis_kind}
 
 
 def cmd_plot(args) -> int:
@@ -331,10 +339,10 @@ def cmd_plot(args) -> int:
         # A robust common scale per row (stochastic estimates have rare large pixels).
         fmax = max(float(np.percentile(np.concatenate([(img["eval"] @ lum).ravel(),
                                                        (img["histogram"] @ lum).ravel()]), 99.5)), 1e-12)
-        pmax = max(float(np.percentile(np.concatenate([img["pdf_approx"].ravel(),
+        pmax = max(float(np.percentile(np.concatenate([img["pdf_mis"].ravel(),
                                                        img["pdf_stochastic"].ravel()]), 99.5)), 1e-12)
         panels = (("eval", "eval f·|cos θo|", fmax), ("histogram", "sample histogram", fmax),
-                  ("pdf_approx", "pdf (approximate)", pmax), ("pdf_stochastic", "pdf (stochastic)", pmax))
+                  ("pdf_mis", f"pdf ({data['mis_kind']}, MIS)", pmax), ("pdf_stochastic", "pdf (stochastic)", pmax))
         for col, (key, title, vmax) in enumerate(panels):
             ax = fig.add_subplot(gs[row, col])
             v = img[key] @ lum if img[key].shape[2] == 3 else img[key][:, :, 0]

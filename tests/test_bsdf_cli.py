@@ -40,13 +40,14 @@ def test_albedo_conserves_energy_and_reports_specular_parts(tmp_path, capsys):
         assert abs(res[key][0] - ref) <= 4 * res[key + "_se"][0] + 1e-9
 
 
-def test_eval_reports_values_and_both_pdfs(tmp_path, capsys):
+def test_eval_reports_values_and_the_pdfs(tmp_path, capsys):
     path = write(tmp_path, "fig2.json", FIG2)
     res = run_json(capsys, ["bsdf", "eval", path, "--wi", "30,0", "--wo", "30,180", "--samples", "4000",
                             "--estimator", "uni", "--json"])
     assert res["stochastic"] and res["estimator"] == "uni" and res["samples"] == 4000
     assert all(np.isfinite(res["f_cos"])) and all(s > 0 for s in res["f_cos_se"])
-    assert res["pdf_approx"] > 0 and res["pdf_stochastic"] > 0
+    assert res["pdf_approx"] > 0 and res["pdf_stochastic"] > 0 and res["pdf_lobes"] > 0
+    assert res["pdf_mis"] == "lobes" and res["pdf_lobes_se"] <= 1e-9 * res["pdf_lobes"]   # default; deterministic
     # An analytic material: one exact evaluation, standard error 0.
     gold = write(tmp_path, "gold.json", {"type": "conductor", "metal": "Au", "roughness": 0.2})
     res = run_json(capsys, ["bsdf", "eval", gold, "--wi", "20", "--wo", "40,180", "--json"])
