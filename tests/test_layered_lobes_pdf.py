@@ -8,12 +8,12 @@ the sampler itself: a histogram of the exit directions of walks with exactly tha
 vertex count says which), against the lobe integrated over each cell. With rough interfaces
 above, the lobe is an approximation (only the MIS weights use it): there the tests check that
 renders stay unbiased (tests/test_layered_deferred_pdf.py) and that the density is positive
-wherever the BSDF is."""
+wherever the BSDF is (tests/test_layered_estimators.py)."""
 import numpy as np
 import pytest
 
 from backend.layered.probe import walks
-from layered_util import STACKS, bind, direction, load, uniform_sphere
+from layered_util import bind, direction, load
 
 K = 4.5      # per cell; the Šidák-style allowance for ~200 cells at a 5e-4 family-wise rate
 
@@ -77,22 +77,3 @@ def test_inner_lobe_is_the_samplers_density_behind_smooth_interfaces(spec, verti
     assert hit.mean() > 0.2                           # the test has power: a large share of paths
     assert abs(counts.sum() - expected.sum()) <= K * np.sqrt(expected.sum() + (se_int ** 2).sum())
     assert np.abs(z).max() < K
-
-
-@pytest.mark.parametrize("name", list(STACKS))
-def test_lobes_pdf_positive_where_eval_positive(name):
-    """Every reflection the BSDF has gets a density (the constant guarantees it), and the
-    transmissions (the approximate pdf) too; finite everywhere."""
-    mat = load({**STACKS[name], "pdf": "lobes"})
-    rng = np.random.default_rng(5)
-    m = 3000
-    wi = uniform_sphere(rng, m)
-    wo = uniform_sphere(rng, m)
-    if not mat.transmissive:
-        wi[:, 2], wo[:, 2] = np.abs(wi[:, 2]), np.abs(wo[:, 2])
-    b = bind(mat, m)
-    f = b.eval(wi, wo, rng)
-    p = b.pdf(wi, wo, rng)
-    assert np.all(np.isfinite(p)) and np.all(p >= 0)
-    assert np.all(p[np.any(f > 0, axis=1)] > 0)
-    assert (np.any(f > 0, axis=1)).mean() > 0.3
