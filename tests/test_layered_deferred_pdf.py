@@ -34,6 +34,14 @@ ONE_SLAB = {"type": "layered",
             "media": [{"sigma_t": 1.0, "albedo": [0.9, 0.6, 0.4], "phase": {"type": "hg", "g": 0.5}}]}
 
 
+# Transmissive with one rough interface: the lobes pdf of its transmissions is in closed form
+# (with several rough interfaces, as STACKS["transmissive"], it is the approximate pdf).
+ROUGH_COAT_OVER_GLASS = {"type": "layered",
+                         "interfaces": [{"type": "dielectric", "ior": 1.4, "roughness": 0.35},
+                                        {"type": "dielectric", "ior": 1.0, "roughness": 0.0}],
+                         "media": [{"sigma_t": 0.4, "albedo": 0.9, "phase": {"type": "hg", "g": 0.6}}]}
+
+
 def _scene(material, spp, pdf=None):
     return scene(16, 16, front_perspective(distance=4.0, half_width=0.3),
                  {"m": material}, {"ball": {"shape": "sphere", "radius": 1.0, "segments": 32}},
@@ -43,9 +51,10 @@ def _scene(material, spp, pdf=None):
 
 
 @pytest.mark.parametrize("material,pdf", [(TWO_SLABS, None), (TWO_SLABS, "approx"), (TWO_SLABS, "stochastic"),
-                                          (ONE_SLAB, None), (ONE_SLAB, "approx"), (STACKS["transmissive"], None)],
+                                          (ONE_SLAB, None), (ONE_SLAB, "approx"), (STACKS["transmissive"], None),
+                                          (ROUGH_COAT_OVER_GLASS, None)],
                          ids=["two-slabs", "two-slabs-approx", "two-slabs-stochastic", "one-slab", "one-slab-approx",
-                              "transmissive"])
+                              "transmissive", "transmissive-one-rough"])
 def test_mis_with_deferred_and_immediate_pdfs_matches_bsdf_sampling_alone(material, pdf, monkeypatch):
     mis_deferred = render(_scene(material, 64, pdf))
     assert mis_deferred.stats.get("layered_pdfs_deferred", 0) > 50       # the deferred path ran

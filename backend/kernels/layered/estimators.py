@@ -558,12 +558,20 @@ def pdf_pair(B, FT, W, R, a, b1, need1, b2, need2, kind, C):
     p1 = 0.0
     p2 = 0.0
     if kind == LOBES:
-        # Reflections in closed form (lobes.py); a transmission keeps the approximate pdf.
+        # In closed form (lobes.py), except a transmission through several rough interfaces,
+        # which keeps the approximate pdf.
         for k in range(2):
             b = b1 if k == 0 else b2
-            if (need1 if k == 0 else need2) and a[2] * b[2] > 0.0:
+            if not (need1 if k == 0 else need2):
+                continue
+            exact = True
+            if a[2] * b[2] > 0.0:
                 _, p = single(B, a, b, True)
-                p += lb.inner_reflections(B, FT, a, b) + B[H_PDFC]
+                p += lb.inner_reflections(B, FT, a, b)
+            else:
+                p, exact = lb.transmission(B, FT, a, b)
+            if exact:
+                p += B[H_PDFC]
                 if k == 0:
                     p1 = p
                     need1 = False

@@ -27,8 +27,13 @@ transmittance (media removed, as in the approximate pdf). lobe_k:
   θ(1 − η_above/η_below)) — the variances of the small angles add;
 * a diffuse interface: its cosine lobe seen through the chain, (η_out/η_slab)² |cos θo|/π.
 Left out: paths with more than one inner reflection, and the media's scattering (the constant
-stands for them, as in the approximate pdf). Transmissions through the stack keep the approximate
-pdf (estimators.pdf_pair). Cost and the noise it gives the images: docs/benchmarks.md.
+stands for them, as in the approximate pdf).
+
+Transmissions (``transmission``): with at most one rough interface on the way through, the
+sampler's density of the straight-through paths in closed form (the same chain, the rough
+interface's own transmission density, the Jacobian of the refractions after it). With several
+rough interfaces their spreads convolve and the approximate pdf is used (estimators.pdf_pair).
+Cost and the noise it gives the images: docs/benchmarks.md.
 """
 from __future__ import annotations
 
@@ -158,3 +163,81 @@ def inner_reflections(B, FT, a, b):
                 av2 = av * av * m * m
             out += w * choose * _outer_lobe(a, b, sign, au2 + spread, av2 + spread)
     return out
+
+
+@kernel(error_model="numpy")
+def _chain_dir(B, a, b, top, eta_a, eta_b, j, s):
+    """The direction in slab s of the transmission chain whose only rough interface is j: a's
+    refraction (pointing back to a's side) before j, b's (pointing on to b's side) after it."""
+    eta_s = B[H_ETA_SLAB + s]
+    before = (s < j) if top else (s >= j)
+    if before:
+        return _into(a, eta_a / eta_s, 1.0 if top else -1.0), True
+    return _into(b, eta_b / eta_s, -1.0 if top else 1.0), False
+
+
+@kernel(error_model="numpy")
+def transmission(B, FT, a, b):
+    """(density, exact) of a transmission query (a, b on opposite sides). With at most one rough
+    interface j on the way through (the others smooth dielectrics or null), the sampler's density
+    in closed form: every interface's transmission choice (1 − F at the chain's angle; interface
+    j's own density includes its choice) and every slab's channel-mean transmittance along the
+    chain, interface j's density between a refracted down to it and b refracted up to it, and the
+    Jacobian of the refractions after j, (η_b/η_after j)² |cos θb| / |cos θ after j|; 0 when every
+    interface is smooth (a delta path). ``exact`` False: several rough interfaces (their spreads
+    convolve; the caller uses the approximate pdf) or an opaque one."""
+    N = int(B[H_N])
+    top = a[2] > 0.0
+    eta_a = B[H_ETA_TOP] if top else B[H_ETA_BOTTOM]
+    eta_b = B[H_ETA_BOTTOM] if top else B[H_ETA_TOP]
+    j = -1
+    for l in range(N):
+        o = HEAD + l * ki.STRIDE
+        kind = B[o + ki.IF_KIND]
+        if kind == CONDUCTOR or kind == DIFFUSE:
+            return 0.0, False
+        if kind == DIELECTRIC and not ki.is_delta(B, o):
+            if j >= 0:
+                return 0.0, False
+            j = l
+    if j < 0:
+        return 0.0, True
+    w = 1.0
+    for l in range(N):
+        o = HEAD + l * ki.STRIDE
+        # The chain's directions on both sides of interface l (outside: a or b themselves).
+        s_in = (l - 1) if top else l          # the slab on the entry side of l (−1 / N−1: outside)
+        s_out = l if top else l - 1
+        if (top and l == 0) or ((not top) and l == N - 1):
+            d_in = a
+            in_a = True
+        else:
+            d_in, in_a = _chain_dir(B, a, b, top, eta_a, eta_b, j, s_in)
+        if (top and l == N - 1) or ((not top) and l == 0):
+            d_out = b
+        else:
+            d_out, _ = _chain_dir(B, a, b, top, eta_a, eta_b, j, s_out)
+        if not (abs(d_in[2]) >= GRAZING and abs(d_out[2]) >= GRAZING):
+            return 0.0, True                  # total internal reflection on the chain
+        if l == j:
+            _, pf, _ = ki.evaluate(B, o, d_in, d_out, NAN, NAN, True)
+            w *= pf
+        elif B[o + ki.IF_KIND] == DIELECTRIC:
+            # The choice at the angle on its entry side (a's chain) or exit side (b's chain; the
+            # same Fresnel reflectance by reciprocity).
+            if in_a:
+                w *= 1.0 - fresnel_dielectric(d_in[2], B[o + ki.IF_P])[0]
+            else:
+                w *= 1.0 - fresnel_dielectric(d_out[2], B[o + ki.IF_P])[0]
+        s = s_out
+        if 0 <= s <= N - 2:
+            w *= _slab_pass(B, FT, s, d_out)
+        if not w > 0.0:
+            return 0.0, True
+    # From the direction just after j out to b.
+    s_after = j if top else j - 1
+    if 0 <= s_after <= N - 2:
+        r = eta_b / B[H_ETA_SLAB + s_after]
+        t = _into(b, r, 1.0)
+        w *= r * r * abs(b[2]) / abs(t[2])
+    return w, True
