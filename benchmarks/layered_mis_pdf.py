@@ -37,6 +37,12 @@ EXTRA = {
                          "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.3},
                                         {"type": "conductor", "metal": "Cu", "roughness": 0.02}],
                          "media": [{"sigma_t": 0.1, "albedo": 0.5}]},
+    # A transmissive sheet: a rough coat over clear glass (one rough interface: transmissions in
+    # closed form too).
+    "rough-coat-over-glass": {"type": "layered",
+                              "interfaces": [{"type": "dielectric", "ior": 1.4, "roughness": 0.35},
+                                             {"type": "dielectric", "ior": 1.0, "roughness": 0.0}],
+                              "media": [{"sigma_t": 0.4, "albedo": 0.9, "phase": {"type": "hg", "g": 0.6}}]},
 }
 AREA = {"type": "area", "shape": "square", "size": 2.5, "power": 800.0,
         "to_world": [[1, 0, 0, 1.5], [0, 0.707, -0.707, -2.0], [0, 0.707, 0.707, 2.0], [0, 0, 0, 1]]}

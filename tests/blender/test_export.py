@@ -72,6 +72,19 @@ def test_reference_stack_is_exported_as_written(results):
     assert got == expected
 
 
+def test_layered_pdf_choice_is_exported_as_the_backend_reads_it(results):
+    """The panel's default is the backend's default (nothing written); the others are named as the
+    scene format names them, and the backend accepts them."""
+    from backend.layered.bsdf import Options
+    from backend.layered.material import parse_options
+    from backend.scene.reader import LoadContext, Node
+    info = result_of(results, "reference_stack")
+    assert info["default_pdf_mode"] == "LOBES" and Options().pdf == "lobes"
+    assert info["layered_pdf"] == {"LOBES": None, "APPROXIMATE": "approx", "STOCHASTIC": "stochastic"}
+    for name in ("approx", "stochastic"):
+        assert parse_options(Node({"pdf": name}, "<test>", LoadContext("<test>")), None).pdf == name
+
+
 def test_full_scene_structure_and_values(results):
     info = result_of(results, "full_scene")
     path = Path(info["path"])

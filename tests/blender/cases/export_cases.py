@@ -27,7 +27,14 @@ def reference_stack(tmp):
     build.uv_sphere(material=mat)
     result = _export(tmp, "reference")
     doc = json.loads(result.path.read_text())
-    return {"material": doc["materials"]["Reference"], "notes": result.notes}
+    # The render settings' layered pdf as each choice of the panel exports it.
+    from lamina.addon.export.scene import render_json
+    pdf = {}
+    for mode in ("LOBES", "APPROXIMATE", "STOCHASTIC"):
+        sc.lamina.pdf_mode = mode
+        pdf[mode] = render_json(sc).get("layered", {}).get("pdf")
+    return {"material": doc["materials"]["Reference"], "notes": result.notes,
+            "default_pdf_mode": type(sc.lamina).bl_rna.properties["pdf_mode"].default, "layered_pdf": pdf}
 
 
 def full_scene(tmp):
