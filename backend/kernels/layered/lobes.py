@@ -1,4 +1,5 @@
-"""A closed-form MIS density for reflections off a layer stack (pdf kind ``"lobes"``).
+"""A closed-form MIS density for a layer stack (pdf kind ``"lobes"``): reflections, and
+transmissions through at most one rough interface.
 
 The pdf of a layered BSDF serves only the MIS weights: light sampling and BSDF sampling must use
 the same function of the direction, which need not be the sampler's true density (a poor one
@@ -21,10 +22,11 @@ transmittance (media removed, as in the approximate pdf). lobe_k:
   dω_in/dω_out = (η_out/η_slab)² |cos θo| / |cos θ_in|;
 * some interface above k rough: the refractions spread the lobe. It is taken as an anisotropic
   GGX reflection lobe around the outer mirror direction whose squared roughness adds, per
-  axis, interface k's roughness seen from outside, α η_slab/η_out (a slope inside is η_slab/η_out
-  times that slope outside, near the normal), and for every rough dielectric crossed on the way
-  in and out α_j²·(η_below − η_above)²/(4 η_out²) (a facet tilt θ turns the refracted ray by
-  θ(1 − η_above/η_below)) — the variances of the small angles add;
+  axis, interface k's roughness seen from outside, α η_slab/η_out (near the normal an angle in
+  the slab appears η_slab/η_out times larger outside), and for every rough dielectric crossed on
+  the way in and out α_j²·(η_below − η_above)²/(4 η_out²) (α_j² the mean of its two axes; a
+  facet tilt θ turns the refracted ray by θ(1 − η_above/η_below), half of which is the tilt of
+  an equivalent reflecting facet) — the variances of small angles add;
 * a diffuse interface: its cosine lobe seen through the chain, (η_out/η_slab)² |cos θo|/π.
 Left out: paths with more than one inner reflection, and the media's scattering (the constant
 stands for them, as in the approximate pdf).
