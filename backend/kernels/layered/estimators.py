@@ -55,6 +55,7 @@ from ..jit import inlined, kernel
 from .table import (ABSORBING, APPROX, BI, EMPTY, LOBES, STOCHASTIC, H_ETA_BOTTOM, H_ETA_SLAB, H_ETA_TOP, H_EST,
                     H_MAXV, H_MIS, H_N, H_NESTED, H_PDF, H_PDFC, H_TRANS, HEAD, M_DIR, M_GREY, M_KIND, M_PH,
                     M_TAU, MED0, MSTRIDE, SCATTERING)
+from .walk import transmittance
 from .walk import (F_A, F_B, F_C1, F_C2, F_DELTA, F_GAMMA, F_KIND, F_LAYER, F_PF, F_QBG, F_REV,
                    F_SIGIN, F_SIGOUT, F_T, F_TERM, F_THRU0, F_THRU1, F_WIN, F_WOUT, GRAZING)
 
@@ -165,27 +166,6 @@ def single(B, a, b, pdf):
     # Normal map: the arrival factor of the segment from the outside.
     arr = ki.arrival(B, o, a)
     return (v[0] * arr, v[1] * arr, v[2] * arr), 0.0
-
-
-@kernel(error_model="numpy")
-def transmittance(B, FT, k, d, t0, t1):
-    """Transmittance in slab k from depth t0 to t1 along d (0 if d does not lead there; 1 over
-    zero length)."""
-    diff = t1 - t0
-    if diff == 0.0:
-        return (1.0, 1.0, 1.0)
-    if not (diff * -d[2] > 0.0 and abs(d[2]) >= GRAZING):
-        return (0.0, 0.0, 0.0)
-    mo = _mdo(k)
-    if B[mo + M_KIND] == EMPTY:
-        return (1.0, 1.0, 1.0)
-    x = abs(diff) / abs(d[2])
-    if B[mo + M_DIR] > 0.0:
-        x *= ph.sigma_scale(B, mo + M_PH, FT, d)
-    if B[mo + M_GREY] > 0.0:
-        e = math.exp(-B[mo + M_TAU] * x)
-        return (e, e, e)
-    return (math.exp(-B[mo + M_TAU] * x), math.exp(-B[mo + M_TAU + 1] * x), math.exp(-B[mo + M_TAU + 2] * x))
 
 
 # ----------------------------------------------------------------------------- bidirectional

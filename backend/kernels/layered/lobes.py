@@ -46,9 +46,8 @@ from ..fresnel import dielectric as fresnel_dielectric
 from ..jit import kernel
 from ..materials import CONDUCTOR, DIELECTRIC, DIFFUSE
 from . import iface as ki
-from . import phase as ph
-from .table import EMPTY, H_ETA_BOTTOM, H_ETA_SLAB, H_ETA_TOP, H_N, HEAD, M_DIR, M_KIND, M_PH, M_TAU, MED0, MSTRIDE
-from .walk import GRAZING
+from .table import H_ETA_BOTTOM, H_ETA_SLAB, H_ETA_TOP, H_N, HEAD
+from .walk import GRAZING, transmittance
 
 INV_PI = 1.0 / math.pi
 NAN = math.nan
@@ -56,15 +55,10 @@ NAN = math.nan
 
 @kernel(error_model="numpy")
 def _slab_pass(B, FT, s, d):
-    """The channel-mean transmittance of slab s along d (|d_z| = the cosine in the slab)."""
-    mo = MED0 + s * MSTRIDE
-    if B[mo + M_KIND] == EMPTY:
-        return 1.0
-    x = 1.0 / abs(d[2])
-    if B[mo + M_DIR] > 0.0:
-        x *= ph.sigma_scale(B, mo + M_PH, FT, d)
-    return (math.exp(-B[mo + M_TAU] * x) + math.exp(-B[mo + M_TAU + 1] * x)
-            + math.exp(-B[mo + M_TAU + 2] * x)) / 3.0
+    """The channel-mean transmittance of slab s across its whole depth along d (media removed,
+    as in the approximate pdf's pass probability)."""
+    T = transmittance(B, FT, s, d, 0.0, -1.0 if d[2] > 0.0 else 1.0)
+    return (T[0] + T[1] + T[2]) / 3.0
 
 
 @kernel(error_model="numpy")

@@ -61,7 +61,7 @@ def bound_blocks(ST, TX, s, uv, out):
 @kernel
 def slab_transmittance(Bs, FT, k, d, t0, t1, out):
     for i in range(d.shape[0]):
-        out[i, 0], out[i, 1], out[i, 2] = es.transmittance(Bs[_ri(Bs, i)], FT, k, (d[i, 0], d[i, 1], d[i, 2]),
+        out[i, 0], out[i, 1], out[i, 2] = wk.transmittance(Bs[_ri(Bs, i)], FT, k, (d[i, 0], d[i, 1], d[i, 2]),
                                                            t0[i], t1[i])
 
 

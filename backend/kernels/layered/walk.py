@@ -152,6 +152,27 @@ def flight(B, mo, s0, d, sig, prev_medium, approx, hero_pdf, hero, r, R):
 
 
 @kernel(error_model="numpy")
+def transmittance(B, FT, k, d, t0, t1):
+    """Transmittance in slab k from depth t0 to t1 along d (0 if d does not lead there; 1 over
+    zero length)."""
+    diff = t1 - t0
+    if diff == 0.0:
+        return (1.0, 1.0, 1.0)
+    if not (diff * -d[2] > 0.0 and abs(d[2]) >= GRAZING):
+        return (0.0, 0.0, 0.0)
+    mo = MED0 + k * MSTRIDE
+    if B[mo + M_KIND] == EMPTY:
+        return (1.0, 1.0, 1.0)
+    x = abs(diff) / abs(d[2])
+    if B[mo + M_DIR] > 0.0:
+        x *= ph.sigma_scale(B, mo + M_PH, FT, d)
+    if B[mo + M_GREY] > 0.0:
+        e = math.exp(-B[mo + M_TAU] * x)
+        return (e, e, e)
+    return (math.exp(-B[mo + M_TAU] * x), math.exp(-B[mo + M_TAU + 1] * x), math.exp(-B[mo + M_TAU + 2] * x))
+
+
+@kernel(error_model="numpy")
 def depth_density(B, FT, k, d, t0, t1, to_medium, hero):
     """Density with which a free flight in slab k along d from depth t0 produces depth t1: per
     unit depth if ``to_medium`` (a scattering vertex), else the probability of reaching the
