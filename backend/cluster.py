@@ -154,7 +154,7 @@ def _scene_state(package, options) -> dict:
         if missing:
             from distributed import get_worker
             raise MissingSceneFiles(get_worker().address, missing)
-        from .kernels.cache import ensure_compiled
+        from .warmup import ensure_compiled
         from .render import _setup_local
         ensure_compiled()
         while len(_LOADED) >= SCENES_KEPT:

@@ -21,11 +21,12 @@ from .kernels import integrator as ki
 from .kernels import materials as km
 from .kernels.camera import camera_rays, camera_vector
 from .kernels.layered import batch as layered_batch
-from .kernels.layered.table import H_MAXV, H_PDF, H_TRANS, LOBES, StackBuilder
+from .kernels.layered.table import H_MAXV, H_PDF, H_TRANS, LOBES
 from .kernels.lights.table import build_light_table
 from .kernels.params import ParamPacker
 from .kernels.sampler import SAMPLERS
 from .kernels.soup import shading_rows
+from .layered.stack_table import StackBuilder
 from .passes import NO_LANES, PassLayout
 from .scene.links import CAMERA, NO_RECEIVER
 from .visibility import RAY_BITS, Visibility

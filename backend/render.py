@@ -535,7 +535,7 @@ class Renderer:
                                   timeout=self.options.cluster_timeout or CONNECT_TIMEOUT)
             workers, parallel = runner.workers, "cluster"
         else:
-            from .kernels.cache import ensure_compiled
+            from .warmup import ensure_compiled
             ensure_compiled(self.on_progress)
             parallel = self.options.parallel or default_parallel(scene)
             if workers > 1 and parallel == "processes":

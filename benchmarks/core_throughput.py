@@ -30,8 +30,7 @@ def main(argv=None) -> int:
     ap.add_argument("--sampler", choices=("sobol", "independent"), default="sobol")
     args = ap.parse_args(argv)
 
-    from backend.kernels.cache import ensure_compiled
-    from backend.kernels.warmup import warm_up
+    from backend.warmup import ensure_compiled, warm_up
     ensure_compiled()
     warm_up()                  # steady state: every kernel loaded before timing
     data = cornell_box(args.size, args.size, args.spp, args.max_bounces)

@@ -130,8 +130,8 @@ def test_first_run_compiles_once_and_says_so(tmp_path):
     assert first.stderr.count("compiling render kernels (first run only)") == 1
     assert "compiled render kernels in" in first.stderr
     if (os.cpu_count() or 1) >= 2:
-        # The layered lane was compiled by the second process (kernels/cache.py) for the
-        # argument types the shading kernel passes (warmup.layered_lane_signature): this
+        # The layered lane was compiled by the second process (kernels/precompile.py) for the
+        # argument types the shading kernel passes (kernels/precompile.layered_lane_signature): this
         # process loaded it from the cache and did not compile it again.
         log = [line for line in first.stdout.splitlines() if "batch.shade_lane" in line]
         assert any("data loaded from" in line for line in log), log
@@ -149,6 +149,7 @@ def test_first_run_compiles_once_and_says_so(tmp_path):
 
 _LOADER_PROBE = """
 import hashlib, json, sys
+from backend import warmup
 from backend.kernels import cache
 cache.configure()
 if sys.argv[1] == "numba":        # Numba's own loader (refreshes its compiler set-up first)
@@ -157,7 +158,7 @@ if sys.argv[1] == "numba":        # Numba's own loader (refreshes its compiler s
     from numba.core import codegen
     codegen.CPUCodeLibrary._unserialize, codegen.CPUCodeLibrary._get_module_for_linking = \
         cache._STATE["numba_library_load"]
-cache.ensure_compiled()
+warmup.ensure_compiled()
 from render_util import render
 data = json.loads(open(sys.argv[2]).read())
 res = render(data, workers=1)

@@ -11,6 +11,7 @@ from llvmlite import binding as ll
 
 from backend.kernels import cache
 from backend.kernels.object_symbols import defined_globals
+from backend.warmup import ensure_compiled
 
 
 def _cached_libraries(folder):
@@ -32,7 +33,7 @@ def _cached_libraries(folder):
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="ELF machine code on Linux only")
 def test_elf_globals_are_the_bitcode_definitions_that_are_not_private():
-    cache.ensure_compiled()                      # the session's kernel cache (compiled if cold)
+    ensure_compiled()                      # the session's kernel cache (compiled if cold)
     checked = entry_points = 0
     for name, obj, bitcode in _cached_libraries(cache.configure()):
         module = ll.parse_bitcode(bitcode)

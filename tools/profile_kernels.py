@@ -68,8 +68,7 @@ def child(args) -> int:
     map of the library that holds ``shade`` (address, size, name per line)."""
     import numpy as np
     _keep_objects()
-    from backend.kernels.cache import ensure_compiled
-    from backend.kernels.warmup import warm_up
+    from backend.warmup import ensure_compiled, warm_up
     ensure_compiled()
     warm_up()
     from backend.geometry.accel import Accelerator

@@ -1,4 +1,5 @@
-"""Where compiled kernels are cached, and the "compiling render kernels" message of a first run.
+"""Where compiled kernels are cached, how they are loaded from there, and whether the cache is warm
+(``is_warm``; the first-run compilation itself is backend/warmup.py's).
 
 Numba's ``cache=True`` writes machine code next to a per-function index. Its own staleness check
 looks only at the modification time of the file that defines a function, not at the files of the
@@ -187,82 +188,3 @@ def marker() -> Path:
 
 def is_warm() -> bool:
     return marker().exists()
-
-
-def _print_event(event: dict) -> None:
-    print(event["message"], file=sys.stderr, flush=True)
-
-
-#: Seconds the render process waits for the layered lane from the helper process before it
-#: compiles the lane itself.
-HELPER_TIMEOUT = 600.0
-
-
-def _compile_layered_alongside():
-    """Start a second process that compiles the layered lane (≈ 30 % of the first compilation:
-    22 of 71 s CPU in one process on the 2-core AMD host, 2026-12-04) into the same cache while
-    this one compiles the rest; this process waits for it where the shading kernel calls the
-    lane, then loads it from the cache. With one core, ``LAMINA_SERIAL_COMPILE=1``, or if the
-    process cannot start: None, and this process compiles everything (the same machine code
-    either way)."""
-    if os.environ.get("LAMINA_SERIAL_COMPILE") or (os.cpu_count() or 1) < 2:
-        return None
-    import subprocess
-    from . import jit
-    from .layered import batch
-    env = dict(os.environ, LAMINA_KERNEL_CACHE=str(user_cache_root()), LAMINA_SERIAL_COMPILE="1")
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(BACKEND.parent), env.get("PYTHONPATH")]))
-    try:
-        helper = subprocess.Popen(
-            [sys.executable, "-c", "from backend.kernels.warmup import precompile_layered; precompile_layered()"],
-            env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    except OSError:
-        return None
-
-    def wait():
-        try:
-            helper.wait(timeout=HELPER_TIMEOUT)
-        except subprocess.TimeoutExpired:
-            helper.kill()
-            helper.wait()
-
-    jit.compiled_elsewhere(batch.shade_lane, wait)
-    return helper
-
-
-def ensure_compiled(on_event=None) -> float:
-    """Compile every render kernel once per process, before worker processes start.
-
-    On a cold cache reports ``{"event": "compiling", "message": ...}`` before and
-    ``{"event": "compiled", "seconds": s, "message": ...}`` after through ``on_event`` (default:
-    one line each on stderr), and marks the folder warm. Returns the seconds spent (0 when warm).
-    A warm folder holds every render kernel: nothing is rendered then, each kernel loads its
-    machine code when first called (rendering the warm-up scenes cost a material preview 0.8 s of
-    its ~1.8 s, measured)."""
-    if _STATE.get("compiled"):
-        return 0.0
-    emit = on_event or _print_event
-    cold = not is_warm()
-    if not cold:
-        _STATE["compiled"] = True
-        return 0.0
-    emit({"event": "compiling", "message": "compiling render kernels (first run only) ..."})
-    t0 = time.perf_counter()
-    from .warmup import warm_up
-    helper = _compile_layered_alongside()
-    try:
-        warm_up()
-    finally:
-        if helper is not None and helper.poll() is None:
-            helper.kill()
-            helper.wait()
-    elapsed = time.perf_counter() - t0
-    _STATE["compiled"] = True
-    if cold:
-        try:
-            marker().write_text(f"{elapsed:.1f}\n")
-        except OSError:
-            pass
-        emit({"event": "compiled", "seconds": round(elapsed, 1),
-              "message": f"compiled render kernels in {elapsed:.1f} s (cached in {configure()})"})
-    return elapsed if cold else 0.0

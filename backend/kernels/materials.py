@@ -55,7 +55,7 @@ class MaterialRow:
 
     def __init__(self, packer: ParamPacker, stacks=None):
         self.packer = packer
-        self.stacks = stacks          # the scene's layered stacks (kernels/layered/table.StackBuilder)
+        self.stacks = stacks          # the scene's layered stacks (layered/stack_table.StackBuilder)
         self.kind = BLACK
         self.dist = 0
         self.masking = 0
@@ -78,7 +78,7 @@ class MaterialRow:
 
 
 def build_material_table(materials: list, packer: ParamPacker, stacks=None) -> MaterialTable:
-    """``stacks``: a kernels/layered/table.StackBuilder collecting the layered stacks (their rows
+    """``stacks``: a layered/stack_table.StackBuilder collecting the layered stacks (their rows
     get kind LAYERED and the stack id)."""
     rows = []
     for m in materials:

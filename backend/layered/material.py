@@ -26,7 +26,7 @@ from ..materials.normal import parse_detail
 from ..scene.reader import Node, _describe
 from .bsdf import LayeredBSDF, Options, new_stats
 from .medium import parse_medium
-from .stack import NullBSDF
+from .stack import NullMaterial
 
 INTERFACE_TYPES = ("dielectric", "conductor", "diffuse", "null", "layered")
 OPTION_KEYS = ("estimator", "pdf", "pdf_constant", "max_vertices", "mis")
@@ -57,14 +57,6 @@ def parse_options(node: Node, defaults: Node | None) -> Options:
         raise node.fail('"mis": false needs "estimator": "uni" (the bidirectional estimator '
                         'always combines its connection strategies with MIS)', "mis")
     return opts
-
-
-class NullMaterial(Material):
-    type_name = "null"
-    two_sided = False
-
-    def bind(self, ctx: ShadingContext):
-        return NullBSDF(ctx.n)
 
 
 class LayeredMaterial(Material):
@@ -104,8 +96,8 @@ class LayeredMaterial(Material):
         """(StackTable, TextureTable, stack id) of this material alone, for ``LayeredBSDF`` (built
         once; the renderer builds one table for the whole scene instead)."""
         if getattr(self, "_kernel_table", None) is None:
-            from ..kernels.layered.table import StackBuilder
             from ..kernels.params import ParamPacker
+            from .stack_table import StackBuilder
             packer = ParamPacker()
             builder = StackBuilder(packer)
             sid = builder.add(self)
@@ -119,41 +111,6 @@ class LayeredMaterial(Material):
             return self.interfaces[0].bind(ctx)
         uv = ctx.uv if self.uses_textures else np.zeros((1, 2))
         return LayeredBSDF(self, uv, ctx.n, self.stats)
-
-
-class Flat:
-    """A stack with its nested stacks flattened (``flatten``)."""
-
-    def __init__(self, interfaces, normals, media, eta_slab, eta_top, eta_bottom, transmissive,
-                 nested):
-        self.interfaces, self.normals, self.media = interfaces, normals, media
-        self.eta_slab, self.eta_top, self.eta_bottom = eta_slab, eta_top, eta_bottom
-        self.transmissive = transmissive
-        self.nested = nested        # a nested stack was flattened into it
-
-
-def flatten(material: "LayeredMaterial") -> Flat:
-    """The explicit stack of a material whose interfaces may be nested stacks: a nested stack's
-    interfaces and media replace it (Guo et al. §10: nesting and the explicit stack are the same
-    BSDF; the paper's multi-layer figures use the explicit one). The outer options apply."""
-    ifaces, normals, media, etas = [], [], [], []
-    nested = False
-    for i, (m, nrm) in enumerate(zip(material.interfaces, material.normals)):
-        if isinstance(m, LayeredMaterial):
-            nested = True
-            inner = flatten(m)
-            ifaces += inner.interfaces
-            normals += inner.normals
-            media += inner.media
-            etas += inner.eta_slab
-        else:
-            ifaces.append(m)
-            normals.append(nrm)
-        if i < len(material.media):
-            media.append(material.media[i])
-            etas.append(material.eta_slab[i])
-    return Flat(ifaces, normals, media, etas, material.eta_top, material.eta_bottom, material.transmissive,
-                nested)
 
 
 def _transmits(material) -> bool:
@@ -290,4 +247,4 @@ def parse(node: Node) -> LayeredMaterial:
 
 
 # Exposed for tests and tools.
-__all__ = ["LayeredMaterial", "parse_layered", "parse", "Options", "flatten"]
+__all__ = ["LayeredMaterial", "parse_layered", "parse", "Options"]

@@ -247,7 +247,8 @@ def slab_flights(bsdf, k, s0, d, rng, hero=None):
 def layered_with_medium(spec, top=None, bottom=None):
     """A two-interface stack around one medium (null interfaces by default), for probing a slab."""
     from .bsdf import Options
-    from .material import LayeredMaterial, NullMaterial
+    from .material import LayeredMaterial
+    from .stack import NullMaterial
     top = top if top is not None else NullMaterial()
     bottom = bottom if bottom is not None else NullMaterial()
     return LayeredMaterial([top, bottom], [spec], [1.0], 1.0, Options())

@@ -1,14 +1,14 @@
-"""The ``null`` interface of layered stacks as a standalone BSDF (an index-matched pass-through).
+"""The ``null`` interface of layered stacks (an index-matched pass-through): its material and its
+standalone BSDF.
 
 The stacks themselves are kernel data: backend/kernels/layered/table.py (geometry, refractive
-indices, slab kinds) and the per-lane walk and estimators next to it.
+indices, slab kinds) and the per-lane walk and estimators next to it; stack_table.py builds it.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..materials.base import BSDF, BSDFSample
-
+from ..materials.base import BSDF, BSDFSample, Material, ShadingContext
 
 
 class NullBSDF(BSDF):
@@ -39,3 +39,11 @@ class NullBSDF(BSDF):
     def take(self, idx):
         idx = np.asarray(idx)
         return NullBSDF(int(idx.sum()) if idx.dtype == bool else idx.size)
+
+
+class NullMaterial(Material):
+    type_name = "null"
+    two_sided = False
+
+    def bind(self, ctx: ShadingContext):
+        return NullBSDF(ctx.n)

@@ -357,7 +357,7 @@ class Session:
     # -- main loop
 
     def run(self) -> int:
-        from ..kernels.cache import ensure_compiled
+        from ..warmup import ensure_compiled
         ensure_compiled(lambda e: self.events(e.pop("event"), **e))
         self.events("ready", protocol=PROTOCOL, pid=os.getpid(), workers=self.workers, samples=self.samples)
         if self.warm:
@@ -385,7 +385,7 @@ class Session:
         if self.commands.restart_pending():
             return
         t0 = time.perf_counter()
-        from ..kernels.warmup import scene_dict
+        from ..warmup import scene_dict
         from ..geometry.accel import Accelerator
         from ..integrator import PathTracer
         from ..scene.loader import load_scene_data
