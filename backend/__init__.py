@@ -1,6 +1,6 @@
 """Lamina rendering backend: a vectorised (wavefront) path tracer with layered BSDFs.
 
-Never imports bpy. Run as ``python -m backend ...`` (see ``backend/cli.py``).
+Never imports bpy. Run as ``python -m backend ...`` (see ``backend/cli/__init__.py``).
 """
 import os
 

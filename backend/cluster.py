@@ -2,7 +2,7 @@
 
 One more runner next to the serial, thread and process runners of render.py, with the same
 ``run(items, should_stop)`` / ``close(stopped)`` interface: every work item becomes one Dask task
-that calls the same item function (``render._render_item``) on a worker, and ``run`` yields the
+that calls the same item function (``work_items.render_item``) on a worker, and ``run`` yields the
 results in item order. Items are pure functions of their key, so the merged image is
 bit-identical to a local render whatever the number of workers — and whether a task ran once or
 was rerun after its worker was lost (Dask reschedules the tasks of a lost worker; a result is
@@ -28,6 +28,7 @@ import uuid
 
 from .errors import LaminaError
 from .limits import MAX_WORKERS
+from .work_items import Failed, Stopped, failure_text, render_item, setup_local
 
 DISTRIBUTED_PIN = "distributed==2026.8.0"        # the version tested (requirements-dev.txt)
 CONNECT_TIMEOUT = 10.0        # s: reaching the scheduler, and waiting for its first worker
@@ -155,14 +156,13 @@ def _scene_state(package, options) -> dict:
             from distributed import get_worker
             raise MissingSceneFiles(get_worker().address, missing)
         from .warmup import ensure_compiled
-        from .render import _setup_local
         ensure_compiled()
         while len(_LOADED) >= SCENES_KEPT:
             _LOADED.pop(next(iter(_LOADED)))
         scene = cluster_files.load_package(package)
         options.apply(scene)
         state: dict = {}
-        _setup_local(None, options, scene, state)
+        setup_local(None, options, scene, state)
         # embree builds the BVH on the first query: once here, not in racing task threads.
         import numpy as np
         state["accel"].intersect(np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]))
@@ -171,9 +171,8 @@ def _scene_state(package, options) -> dict:
 
 
 def render_task(package, options, item) -> tuple:
-    """One work item on a worker: ``render._render_item`` on the worker's copy of the scene."""
-    from .render import _render_item
-    return _render_item(item, _scene_state(package, options))
+    """One work item on a worker: ``work_items.render_item`` on the worker's copy of the scene."""
+    return render_item(item, _scene_state(package, options))
 
 
 # --------------------------------------------------------------------------- master side
@@ -272,7 +271,6 @@ class ClusterItems:
                                   priority=priority)
 
     def run(self, items, should_stop):
-        from .render import _Failed, _failure_text, _Stopped
         self.futures = [self._submit(item, i, len(items)) for i, item in enumerate(items)]
         resent: dict = {}               # item index -> times its worker was sent missing files
         try:
@@ -283,19 +281,19 @@ class ClusterItems:
                     except MissingSceneFiles as exc:
                         resent[i] = resent.get(i, 0) + 1
                         if resent[i] > MAX_RESENDS:
-                            raise _Failed(f"the cluster worker {exc.address} still lacks the scene's "
+                            raise Failed(f"the cluster worker {exc.address} still lacks the scene's "
                                           f"files after they were sent {MAX_RESENDS} times (its cache "
                                           f"folder deleted during the render?)") from None
                         try:
                             self._send_files([exc.address])
                         except LaminaError as error:
-                            raise _Failed(str(error)) from None
+                            raise Failed(str(error)) from None
                         self.futures[i] = self._submit(items[i], i, len(items))
                         continue
-                    except (_Stopped, _Failed):
+                    except (Stopped, Failed):
                         raise
                     except Exception as exc:  # noqa: BLE001 - any failure stops the render, named
-                        raise _Failed(self._failure(exc, _failure_text)) from exc
+                        raise Failed(self._failure(exc, failure_text)) from exc
                     break
                 self.futures[i] = None            # merged once; drop the worker's copy
                 if i == len(items) - 1:
@@ -305,11 +303,10 @@ class ClusterItems:
             self._cancel()
 
     def _wait(self, future, should_stop):
-        from .render import _Failed, _Stopped
         lost_since = None
         while True:
             if should_stop():
-                raise _Stopped
+                raise Stopped
             try:
                 return future.result(timeout=0.2)
             except TimeoutError:
@@ -317,7 +314,7 @@ class ClusterItems:
             if self.client.status != "running":
                 lost_since = lost_since or time.perf_counter()
                 if time.perf_counter() - lost_since > self.grace:
-                    raise _Failed(self._scheduler_lost())
+                    raise Failed(self._scheduler_lost())
             else:
                 lost_since = None
                 self._check_workers()

@@ -55,6 +55,7 @@ from .errors import LaminaError
 from .film import FilmAccumulator
 from .limits import MAX_WORKER_LOSSES, MAX_WORKERS
 from .mathutil import LUMINANCE
+from .work_items import WORKER, Failed, Stopped, failure_text, render_item, setup_local
 
 LANES_PER_ITEM = 1 << 16   # paths per work item: large enough to amortise NumPy call overhead
 MIN_ITEMS_PER_ROUND = 4    # so that several workers have something to do on small images
@@ -117,112 +118,11 @@ class RenderResult:
     error: str | None = None       # why the render stopped early (the film holds what was merged)
 
 
-# --------------------------------------------------------------------------- worker side
-
-_WORKER = {}
-
-
-def _scene_from_source(source):
-    from .scene.loader import load_scene, load_scene_data
-    if isinstance(source, (str, Path)):
-        return load_scene(source)
-    data, where, base = source
-    return load_scene_data(data, where, Path(base) if base else None)
-
-
-def _setup_local(source, options: RenderOptions, scene=None, state=None):
-    """The tracer of ``scene`` (loaded from ``source`` if None) in ``state`` (default: this
-    process's); a cluster worker keeps its own state per scene (backend/cluster.py)."""
-    from .geometry.accel import Accelerator
-    from .integrator import PathTracer
-    if scene is None:
-        scene = _scene_from_source(source)
-        options.apply(scene)
-    state = _WORKER if state is None else state
-    accel = Accelerator(scene.soup)
-    state["tracer"] = PathTracer(scene, accel)
-    state["accel"] = accel
-    return scene
-
-
-def _render_item(item, state=None) -> tuple:
-    key, pixels, spp, seed, sample0 = item
-    if os.environ.get("LAMINA_TEST_FAULT_DIR"):
-        _injected_fault(os.environ["LAMINA_TEST_FAULT_DIR"])
-    tracer = (_WORKER if state is None else state)["tracer"]
-    # Not used by the renderer (every random number is counter-based, keyed by (seed, pixel,
-    # sample, dimension)); kept for the work item's interface.
-    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, *key])))
-    # Per-thread CPU time: items may run on threads of one process (with one thread per worker
-    # process it equals the process's time).
-    t0 = time.thread_time()
-    result = tracer.render(pixels, spp, rng, sample0)
-    info = stats.take()
-    info["rays"] = info.get("rays", 0) + result.pop("rays")
-    info["cpu_time"] = time.thread_time() - t0
-    info["paths"] = int(pixels.size) * spp
-    return key, result, info
-
-
-def _injected_fault(folder: str) -> None:
-    """Tests only (``LAMINA_TEST_FAULT_DIR``): each file in the folder is one fault, taken by the
-    first item that removes it: ``kill*`` SIGKILLs this process, ``segv*`` sends it SIGSEGV,
-    ``raise*`` raises an exception. Bounded and deterministic in count."""
-    try:
-        names = sorted(os.listdir(folder))
-    except OSError:
-        return
-    for name in names:
-        try:
-            os.unlink(os.path.join(folder, name))
-        except OSError:
-            continue                       # another worker took it
-        if name.startswith("kill"):
-            os.kill(os.getpid(), signal.SIGKILL)
-        elif name.startswith("segv"):
-            os.kill(os.getpid(), signal.SIGSEGV)
-        elif name.startswith("raise"):
-            raise RuntimeError(f"injected fault ({name})")
-        return
-
-
-# --------------------------------------------------------------------------- running items
-
-class _Stopped(Exception):
-    """A stop request (signal, cancel) arrived while items were outstanding."""
-
-
-class _Failed(Exception):
-    """The render cannot go on; the message says why (it becomes ``RenderResult.error``)."""
-
-
-def _failure_text(exc: BaseException) -> str:
-    """One line naming an exception raised inside an item and where (no traceback)."""
-    if isinstance(exc, LaminaError):
-        return str(exc)
-    where = ""
-    remote = getattr(exc, "__cause__", None)
-    text = str(remote) if remote is not None and type(remote).__name__ == "_RemoteTraceback" else ""
-    if text:
-        import re
-        found = re.findall(r'File "([^"]+)", line (\d+)', text)
-        if found:
-            where = f" at {Path(found[-1][0]).name}:{found[-1][1]}"
-    elif exc.__traceback__ is not None:
-        import traceback
-        frames = traceback.extract_tb(exc.__traceback__)
-        if frames:
-            where = f" at {Path(frames[-1].filename).name}:{frames[-1].lineno}"
-    message = str(exc).strip().splitlines()[0][:200] if str(exc).strip() else ""
-    return (f"a render worker failed ({type(exc).__name__}{': ' + message if message else ''}{where}); "
-            f"this is a bug in Lamina, please report it with the scene")
-
-
 def _wait(future, should_stop):
     """The future's result, checking for a stop request every 0.2 s."""
     while True:
         if should_stop():
-            raise _Stopped
+            raise Stopped
         try:
             return future.result(timeout=0.2)
         except FutureTimeout:
@@ -235,9 +135,9 @@ class _SerialItems:
     def run(self, items, should_stop):
         for item in items:
             try:
-                result = _render_item(item)
+                result = render_item(item)
             except Exception as exc:  # noqa: BLE001 - any failure stops the render, named
-                raise _Failed(_failure_text(exc)) from exc
+                raise Failed(failure_text(exc)) from exc
             yield result
 
     def close(self, stopped: bool) -> None:
@@ -252,15 +152,15 @@ class _ThreadItems:
         self.pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="lamina-render")
 
     def run(self, items, should_stop):
-        futures = [self.pool.submit(_render_item, item) for item in items]
+        futures = [self.pool.submit(render_item, item) for item in items]
         try:
             for f in futures:
                 try:
                     result = _wait(f, should_stop)
-                except (_Stopped, FutureTimeout):
+                except (Stopped, FutureTimeout):
                     raise
                 except Exception as exc:  # noqa: BLE001
-                    raise _Failed(_failure_text(exc)) from exc
+                    raise Failed(failure_text(exc)) from exc
                 yield result
         finally:
             for f in futures:
@@ -315,9 +215,9 @@ def _worker_main(conn, source, options, prepared: bool = False) -> None:
     setup_error = None
     if not prepared:
         try:
-            _setup_local(source, options)
+            setup_local(source, options)
         except Exception as exc:  # noqa: BLE001 - reported with the first item
-            setup_error = _failure_text(exc)
+            setup_error = failure_text(exc)
     while True:
         try:
             message = conn.recv()
@@ -330,9 +230,9 @@ def _worker_main(conn, source, options, prepared: bool = False) -> None:
             reply = ("error", index, setup_error)
         else:
             try:
-                reply = ("ok", index, _render_item(item))
+                reply = ("ok", index, render_item(item))
             except Exception as exc:  # noqa: BLE001 - any failure stops the render, named
-                reply = ("error", index, _failure_text(exc))
+                reply = ("error", index, failure_text(exc))
         try:
             conn.send(reply)
         except (OSError, ValueError):
@@ -359,9 +259,9 @@ class _ProcessItems:
         if self.fork:
             import multiprocessing
             self.ctx = multiprocessing.get_context("fork")
-            _setup_local(source, options, scene)
+            setup_local(source, options, scene)
             # embree builds the BVH on the first query: build it here, once, before forking.
-            _WORKER["accel"].commit()
+            WORKER["accel"].commit()
         else:
             self.ctx = _spawn_context()
         self.source, self.options, self.warn = source, options, warn
@@ -383,7 +283,7 @@ class _ProcessItems:
                 next_out += 1
                 continue
             if should_stop():
-                raise _Stopped
+                raise Stopped
             for w in self.workers:
                 if w.item is None and queue:
                     w.item = queue.popleft()
@@ -409,7 +309,7 @@ class _ProcessItems:
                 kind, index, payload = reply
                 w.item = None
                 if kind != "ok":
-                    raise _Failed(payload)
+                    raise Failed(payload)
                 results[index] = payload
 
     def _replace(self, w: _Worker, should_stop) -> _Worker:
@@ -421,12 +321,12 @@ class _ProcessItems:
         # moment; a stop request wins over redoing the work.
         for _ in range(5):
             if should_stop():
-                raise _Stopped
+                raise Stopped
             time.sleep(0.05)
         self.losses += 1
         how = _describe_exit(code)
         if self.losses > MAX_WORKER_LOSSES:
-            raise _Failed(f"worker processes were lost {self.losses} times (last: {how}); the render "
+            raise Failed(f"worker processes were lost {self.losses} times (last: {how}); the render "
                           f"stopped after {MAX_WORKER_LOSSES} recoveries. Too little memory? Try "
                           f"fewer --workers")
         self.warn(f"a worker process was lost ({how}); its work item is redone by a new worker: "
@@ -541,7 +441,7 @@ class Renderer:
             if workers > 1 and parallel == "processes":
                 runner = _ProcessItems(workers, self.source, self.options, self._warn, scene)
             else:
-                _setup_local(self.source, self.options, scene)
+                setup_local(self.source, self.options, scene)
                 runner = _ThreadItems(workers) if workers > 1 else _SerialItems()
         start = {"event": "start", "width": W, "height": H, "spp": spp, "workers": workers,
                  "parallel": parallel}
@@ -610,9 +510,9 @@ class Renderer:
                             active = active[~converged]
                     continue
                 break
-        except (_Stopped, KeyboardInterrupt):
+        except (Stopped, KeyboardInterrupt):
             interrupted = True
-        except _Failed as exc:
+        except Failed as exc:
             error = str(exc)
         finally:
             runner.close(stopped=self._stop or interrupted or error is not None)

@@ -76,7 +76,7 @@ def test_plot_writes_a_png(tmp_path, capsys):
 
 
 def test_plot_output_problems_are_reported_before_the_estimation(tmp_path, monkeypatch, capsys):
-    import backend.bsdf_cli as bc
+    import backend.cli.bsdf as bc
     path = write(tmp_path, "fig2.json", FIG2)
     monkeypatch.setattr(bc, "lobes", lambda *a, **k: 1 / 0)     # must not be reached
     blocker = tmp_path / "file.txt"

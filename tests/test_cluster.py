@@ -66,7 +66,7 @@ def same_image(a, b) -> bool:
 @pytest.fixture(scope="module")
 def cluster(tmp_path_factory):
     """A local cluster of 2 worker processes (1 thread each). The workers inherit the fault
-    folder (backend/render.py, _injected_fault) and a fresh file cache from this environment."""
+    folder (backend/work_items.py, _injected_fault) and a fresh file cache from this environment."""
     root = tmp_path_factory.mktemp("cluster")
     faults, cache = root / "faults", root / "worker-cache"
     faults.mkdir()

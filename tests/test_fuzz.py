@@ -40,7 +40,7 @@ def test_fuzz_cases_render_finite_or_fail_in_one_line(cases, tmp_path):
 def test_the_fuzz_checker_catches_tracebacks_non_finite_images_and_extra_lines(tmp_path, monkeypatch):
     """The rules above are enforced: a traceback, Inf in the image, two error lines or a stray
     Python warning each make a case fail."""
-    from backend import render_cli
+    from backend.cli import render_one as render_cli
     from backend.scene import loader
     case = fuzz.Case("plain", fuzz._ies_scene({"file": "lamp.ies"}),
                      files={"lamp.ies": (ROOT / "tests" / "data" / "ies" / "erco_narrow10_lm95.ies").read_bytes()})

@@ -159,7 +159,7 @@ def test_textured_stack_keeps_each_lane_its_parameters():
     """A textured preset (wood-grain thickness texture): the joint walk reorders lanes (connected
     lanes first), so each lane must keep its own texture values. f per shading point ≈ eval
     there, at 64 random (uv, wi, wo) points."""
-    from backend.bsdf_cli import resolve_material
+    from backend.cli.bsdf import resolve_material
     from backend.materials.base import ShadingContext
     mat = resolve_material("lacquered-wood")
     rng = np.random.default_rng(4)

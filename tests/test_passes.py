@@ -175,7 +175,7 @@ def test_bad_pass_index_is_named():
 
 def test_exr_holds_the_passes_with_blender_channel_names(tmp_path):
     from backend.imageio import read_exr
-    from backend.render_cli import write_outputs
+    from backend.cli.render_one import write_outputs
     res = render(_scene({"depth": {}, "uv": {}, "material_index": {}}))
     write_outputs(res, tmp_path / "out.exr", None)
     pixels, names = read_exr(tmp_path / "out.exr")

@@ -44,7 +44,7 @@ def test_library_size_and_coverage():
 
 
 def test_every_preset_validates():
-    from backend.presets_cli import validate_all
+    from backend.cli.presets import validate_all
     records = validate_all([])
     assert {r["name"] for r in records} == set(SHIPPED)
     bad = [(r["name"], r["error"]) for r in records if not r["ok"]]
@@ -251,13 +251,13 @@ def test_cli_list_show_validate(capsys):
 def directional_albedo(material, theta_deg: float, n: int, seed: int):
     """R + T (all RGB channels) at incidence θ with its standard error.
 
-    Uses the BSDF inspector's estimator (``bsdf albedo``, backend/bsdf_cli.py) when present;
+    Uses the BSDF inspector's estimator (``bsdf albedo``, backend/cli/bsdf.py) when present;
     otherwise the same estimate here: the mean sample weight in importance mode is the fraction
     of incident flux leaving (delta lobes included); its standard error comes from the same
     samples. Textured materials are taken at UV (0.5, 0.5) as the inspector does.
     """
     try:
-        from backend.bsdf_cli import albedo as inspector_albedo
+        from backend.cli.bsdf import albedo as inspector_albedo
     except ImportError:
         inspector_albedo = None
     if inspector_albedo is not None:

@@ -12,7 +12,7 @@ import json
 import sys
 from pathlib import Path
 
-from .errors import LaminaError
+from ..errors import LaminaError
 
 
 def register(sub) -> None:
@@ -56,7 +56,7 @@ def register(sub) -> None:
 
 
 def _info(name_or_path: str):
-    from .presets import find_preset, read_preset, unknown_preset_message
+    from ..presets import find_preset, read_preset, unknown_preset_message
     p = Path(name_or_path)
     if p.suffix.lower() == ".json" or "/" in name_or_path:
         if not p.is_file():
@@ -69,7 +69,7 @@ def _info(name_or_path: str):
 
 
 def cmd_list(args) -> int:
-    from .presets import all_presets, describe_stack
+    from ..presets import all_presets, describe_stack
     everything = presets = all_presets()
     if args.category:
         presets = [p for p in presets if p.category == args.category]
@@ -96,7 +96,7 @@ def cmd_list(args) -> int:
 
 
 def cmd_show(args) -> int:
-    from .presets import describe_stack, dumps, load_preset_document
+    from ..presets import describe_stack, dumps, load_preset_document
     info = _info(args.name)
     if args.material:
         sys.stdout.write(dumps(info.material))
@@ -124,7 +124,7 @@ def cmd_show(args) -> int:
 
 def validate_all(names: list[str], thumbnails: bool = False) -> list[dict]:
     """One record per preset: {"name", "path", "ok", "error", "warnings"}; also reports shadowed names."""
-    from .presets import _preset_files, check_preset, find_preset, list_presets, preset_dirs, unknown_preset_message
+    from ..presets import _preset_files, check_preset, find_preset, list_presets, preset_dirs, unknown_preset_message
     if names:
         paths = []
         for n in names:
@@ -176,8 +176,8 @@ def cmd_validate(args) -> int:
 
 
 def cmd_thumbnails(args) -> int:
-    from . import preset_thumbnails as pt
-    from .presets import all_presets, check_preset
+    from .. import preset_thumbnails as pt
+    from ..presets import all_presets, check_preset
     if args.names:
         infos = [_info(n) for n in args.names]
     else:
@@ -200,8 +200,8 @@ def cmd_thumbnails(args) -> int:
 
 
 def cmd_gallery(args) -> int:
-    from .preset_thumbnails import GALLERY, gallery_markdown
-    from .presets import all_presets
+    from ..preset_thumbnails import GALLERY, gallery_markdown
+    from ..presets import all_presets
     presets = [p for p in all_presets() if p.shipped]
     GALLERY.parent.mkdir(parents=True, exist_ok=True)
     GALLERY.write_text(gallery_markdown(presets, GALLERY), encoding="utf-8")

@@ -18,31 +18,31 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import LaminaError
-from .plot_output import check_plot_output, save_figure
+from ..errors import LaminaError
+from ..plot_output import check_plot_output, save_figure
 
 
 # ----------------------------------------------------------------------------- material lookup
 def resolve_material(name_or_path: str, name: str | None = None, defaults: dict | None = None):
     """A Material from a file path or a preset name (the one place the inspector resolves names)."""
-    from .materials import load_all
-    from .scene.reader import LoadContext, Node, dispatch
+    from ..materials import load_all
+    from ..scene.reader import LoadContext, Node, dispatch
 
     path = Path(name_or_path)
     if not path.is_file():
-        from .presets import find_preset, unknown_preset_message
+        from ..presets import find_preset, unknown_preset_message
         found = find_preset(name_or_path) if not path.suffix else None
         if found is None:
             if path.suffix:
                 raise LaminaError(f"{name_or_path}: no such material file")
             raise LaminaError(f"{name_or_path}: no such material file, and {unknown_preset_message(name_or_path)}")
         path = found
-    from .scene.reader import read_json
+    from ..scene.reader import read_json
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise LaminaError(f"{path}: cannot read material: {exc}") from None
-    from .errors import SceneError
+    from ..errors import SceneError
     try:
         data = read_json(text, str(path))
     except SceneError as exc:
@@ -71,7 +71,7 @@ def resolve_material(name_or_path: str, name: str | None = None, defaults: dict 
                           "with \"material\", or a file with \"materials\"")
     ctx.cache["layered_defaults"] = defaults or {}
     if isinstance(value, str):
-        from .presets import resolve_preset
+        from ..presets import resolve_preset
         return resolve_preset(value, Node(value, node_path, ctx))
     return dispatch(Node(value, node_path, ctx), load_all())
 
@@ -123,7 +123,7 @@ def _uv(text: str):
 
 
 def _bind(material, n: int, uv):
-    from .materials.base import ShadingContext
+    from ..materials.base import ShadingContext
     return material.bind(ShadingContext(np.tile(np.asarray(uv, dtype=np.float64), (n, 1))))
 
 
@@ -148,7 +148,7 @@ def albedo(material, theta: float, phi: float, samples: int, seed: int, uv=(0.5,
     """Directional reflectance R and transmittance T (f·|cos| integrated over each hemisphere,
     delta lobes included) per RGB channel with standard errors, from forward samples
     (importance transport: fractions of the incident flux)."""
-    from .materials.base import IMPORTANCE
+    from ..materials.base import IMPORTANCE
     rng = np.random.default_rng(seed)
     wi1 = direction(theta, phi)
 
@@ -187,7 +187,7 @@ def cmd_albedo(args) -> int:
 # ----------------------------------------------------------------------------- eval
 def evaluate(material, wi_angles, wo_angles, samples: int, seed: int, estimator=None, uv=(0.5, 0.5)) -> dict:
     """f(ωi, ωo)·|cos θo| (radiance transport, what the renderer uses) and the pdfs."""
-    from .materials.base import RADIANCE
+    from ..materials.base import RADIANCE
     rng = np.random.default_rng(seed)
     wi1, wo1 = direction(*wi_angles), direction(*wo_angles)
     probe = _bind(material, 1, uv)
@@ -250,7 +250,7 @@ def lobes(material, theta: float, phi: float, samples: int, seed: int, resolutio
     """Hemisphere images (on the projected unit disk, x right = φ 0°) of eval, the sample
     histogram and both pdfs, for the reflection side and (transmissive materials) the other
     side, plus the in-plane slice through the plane of incidence."""
-    from .materials.base import IMPORTANCE
+    from ..materials.base import IMPORTANCE
     rng = np.random.default_rng(seed)
     wi1 = direction(theta, phi)
     probe = _bind(material, 1, uv)

@@ -2,7 +2,7 @@
 
     python -m backend render shot_0001.json shot_0002.json ... -o out/frame_####.exr [--cluster ADDR]
 
-Each frame is an ordinary render (render_cli.render_scene) written as soon as it is done; ``####``
+Each frame is an ordinary render (render_one.render_scene) written as soon as it is done; ``####``
 in ``-o`` (and ``--png``) becomes the frame number, zero-padded to the number of ``#``. The frame
 number is the number that ends the scene file's name (``shot_0012.json`` → 12), or the position
 on the command line (from 1) when a name has none or two names give the same.
@@ -21,7 +21,8 @@ import threading
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from .errors import LaminaError
+from ..errors import LaminaError
+from . import render_one
 
 FRAMES_IN_FLIGHT = 2       # on a cluster: the next frame fills the workers the current one leaves
 
@@ -44,7 +45,6 @@ def frame_path(pattern: str, number: int, what: str) -> Path:
 
 
 def render_frames(args, printer) -> int:
-    from . import render_cli
     scenes = [Path(s) for s in args.scene]
     try:
         if args.partial:
@@ -53,11 +53,11 @@ def render_frames(args, printer) -> int:
         outputs = [frame_path(args.output, n, "-o") for n in numbers]
         pngs = [str(frame_path(args.png, n, "--png")) if args.png else None for n in numbers]
         for output, png in zip(outputs, pngs):
-            render_cli.check_outputs(output, png, None)
+            render_one.check_outputs(output, png, None)
         address = args.cluster
         local = None
         if address:
-            from .cluster import CONNECT_TIMEOUT, connect, require_distributed
+            from ..cluster import CONNECT_TIMEOUT, connect, require_distributed
             require_distributed()
             # One local cluster for all frames, not one per frame; a scheduler that cannot be
             # reached is one error, not one per frame.
@@ -96,11 +96,11 @@ def render_frames(args, printer) -> int:
             if stop.is_set():
                 renderer.request_stop()
 
-        options = render_cli.options_from_args(args)
+        options = render_one.options_from_args(args)
         options.cluster = address
         options.cluster_priority = -k          # earlier frames first
         try:
-            return render_cli.render_scene(args, scenes[k], outputs[k], pngs[k], printer, emit,
+            return render_one.render_scene(args, scenes[k], outputs[k], pngs[k], printer, emit,
                                            options, started)
         except LaminaError as exc:
             emit({"event": "error", "message": str(exc)})
@@ -114,7 +114,7 @@ def render_frames(args, printer) -> int:
             statuses = list(pool.map(one, range(len(scenes))))
     finally:
         if local is not None:
-            from .cluster import close_connection
+            from ..cluster import close_connection
             close_connection(*local)
     failed = [numbers[k] for k, s in enumerate(statuses) if s == "failed"]
     if failed:

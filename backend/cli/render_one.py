@@ -1,4 +1,7 @@
-"""``render`` and ``validate`` sub-commands (docs/cli.md)."""
+"""One scene file rendered to its outputs (``render`` with one scene; each frame of an animation,
+frames.py): outputs checked before the render, the EXR (and PNG preview) written after it,
+rescued to the temporary folder if that fails, partial results for the add-on, the progress
+display and the summary."""
 from __future__ import annotations
 
 import json
@@ -10,107 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import LaminaError
-from .limits import MAX_BOUNCES, MAX_FILM_SIDE, MAX_SEED, MAX_SPP, MAX_WORKERS
-
-
-def register(sub) -> None:
-    p = sub.add_parser("render", help="render a scene to an EXR (and optional PNG preview)")
-    p.add_argument("scene", nargs="+", help="scene description (.json), see docs/scene-format.md; "
-                   "several: the frames of an animation (-o then needs #### for the frame number)")
-    p.add_argument("-o", "--output", required=True, help="output EXR path")
-    p.add_argument("--png", help="also write a display preview (PNG/JPEG, sRGB)")
-    p.add_argument("--spp", type=_int_in(1, MAX_SPP), help="samples per pixel (overrides the scene)")
-    p.add_argument("--seed", type=_int_in(0, MAX_SEED), help="random seed (overrides the scene)")
-    p.add_argument("--sampler", choices=("sobol", "independent"),
-                   help="path sampler (overrides the scene; default sobol: scrambled Sobol points)")
-    p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), help="parallel workers (default: all cores)")
-    p.add_argument("--parallel", choices=("threads", "processes"),
-                   help="kind of worker (default threads; processes: a crashed worker loses nothing)")
-    p.add_argument("--cluster", type=_cluster_address, metavar="ADDRESS",
-                   help="render the work items on a Dask cluster: its scheduler (tcp://HOST:8786) or "
-                        "local:N (a local cluster of N worker processes); needs `distributed`, docs/cluster.md")
-    p.add_argument("--cluster-files", choices=("send", "shared"), default="send",
-                   help="with --cluster: send the scene's files to the workers (content-hashed, "
-                        "cached there; default), or 'shared': the workers read the same paths")
-    p.add_argument("--cluster-timeout", type=_number(0.1), metavar="SECONDS",
-                   help="with --cluster: seconds to reach the scheduler and its first worker, and to wait for a lost scheduler connection to come back (default 10)")
-    p.add_argument("--max-bounces", type=_int_in(0, MAX_BOUNCES), help="Cycles-style max bounces")
-    p.add_argument("--time-limit", type=_number(0.0), help="seconds (0 = none); stop after this time, never before the first full pass")
-    p.add_argument("--noise-target", type=_number(0.0, 1.0), help="adaptive sampling: relative error target (0 = off)")
-    p.add_argument("--min-spp", type=_int_in(1, MAX_SPP), help="adaptive sampling: samples before a pixel may stop")
-    p.add_argument("--resolution", type=_resolution, help="WxH, overrides the film size")
-    p.add_argument("--progress", choices=("bar", "json", "none"), default=None,
-                   help="progress display (default: bar on a terminal, none otherwise)")
-    p.add_argument("--partial", help="write partial results to this .npy path (add-on protocol)")
-    p.add_argument("--partial-interval", type=_number(0.0), default=2.0, help="seconds between partial results")
-    p.add_argument("--half", action="store_true", help="write half-float EXR")
-    p.add_argument("--view", metavar="NAME",
-                   help="render the camera of this view of the scene's 'views' (a stereo eye, a "
-                        "multi-view camera) instead of 'camera'")
-    p.set_defaults(func=cmd_render)
-
-    v = sub.add_parser("validate", help="load and check a scene, print warnings and a summary")
-    v.add_argument("scene")
-    v.add_argument("--json", action="store_true")
-    v.set_defaults(func=cmd_validate)
-
-
-def _int_in(lo: int, hi: int):
-    """An argparse type: an integer in [lo, hi] (the scene format's range for the same field)."""
-    import argparse
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            value = None
-        if value is None or not lo <= value <= hi:
-            shown = text if len(text) <= 30 else f"{text[:27]}... ({len(text)} characters)"
-            raise argparse.ArgumentTypeError(f"expected an integer in [{lo}, {hi}], got {shown!r}")
-        return value
-    return parse
-
-
-def _number(lo: float, hi: float | None = None):
-    """An argparse type: a finite float in [lo, hi] (the same ranges as the scene's fields)."""
-    import argparse
-    import math
-
-    span = f"in [{lo:g}, {hi:g}]" if hi is not None else f">= {lo:g}"
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number {span}, got {text!r}") from None
-        if not math.isfinite(value) or value < lo or (hi is not None and value > hi):
-            raise argparse.ArgumentTypeError(f"expected a number {span}, got {text!r}")
-        return value
-    return parse
-
-
-def _cluster_address(text: str) -> str:
-    import argparse
-    from .cluster import parse_address
-    try:
-        return parse_address(text)
-    except LaminaError as exc:
-        raise argparse.ArgumentTypeError(str(exc).split(": ", 1)[-1]) from None
-
-
-MAX_FILM = MAX_FILM_SIDE   # pixels per side, as film.width/height in the scene format
-
-
-def _resolution(text: str) -> tuple[int, int]:
-    import argparse
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-        if not (1 <= w <= MAX_FILM and 1 <= h <= MAX_FILM):
-            raise ValueError
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WxH such as 640x480 (1 to {MAX_FILM} each), got {text!r}") from None
-    return w, h
+from ..errors import LaminaError
 
 
 class ProgressPrinter:
@@ -152,26 +55,8 @@ class ProgressPrinter:
             sys.stderr.write(event["message"] + "\n")
 
 
-def cmd_render(args) -> int:
-    mode = args.progress or ("bar" if sys.stderr.isatty() else "none")
-    printer = ProgressPrinter(mode)
-    if len(args.scene) > 1:
-        from .render_frames import render_frames
-        return render_frames(args, printer)
-    output = Path(args.output)
-    try:
-        if args.cluster:
-            from .cluster import require_distributed
-            require_distributed()          # before loading the scene: one clear line if missing
-        return render_scene(args, Path(args.scene[0]), output, args.png, printer)
-    except LaminaError as exc:
-        if mode == "json":
-            printer.emit({"event": "error", "message": str(exc)})
-        raise
-
-
 def options_from_args(args):
-    from .render import RenderOptions
+    from ..render import RenderOptions
     return RenderOptions(spp=args.spp, seed=args.seed, workers=args.workers,
                          time_limit=args.time_limit, noise_target=args.noise_target,
                          min_spp=args.min_spp, max_bounces=args.max_bounces, sampler=args.sampler,
@@ -182,7 +67,7 @@ def options_from_args(args):
 
 def check_outputs(output: Path, png: str | None, partial: str | None) -> None:
     """Every output is checked before rendering: a render must not be lost to a typo'd folder."""
-    from .imageio import check_writable
+    from ..imageio import check_writable
     if output.suffix.lower() != ".exr":
         raise LaminaError(f"output must be an .exr file, got {output}")
     check_writable(output, "output")
@@ -197,8 +82,8 @@ def render_scene(args, scene_path: Path, output: Path, png: str | None, printer,
     """Render one scene file to ``output`` (and ``png``); returns the exit status (0, or 130 when
     interrupted); LaminaError for what went wrong. ``emit`` (default ``printer.emit``) receives
     the events; ``on_renderer`` (default: SIGINT/SIGTERM handlers) the Renderer before it runs."""
-    from .render import Renderer, install_signal_handlers
-    from .scene.loader import load_scene
+    from ..render import Renderer, install_signal_handlers
+    from ..scene.loader import load_scene
 
     emit = emit or printer.emit
     check_outputs(output, png, args.partial)
@@ -206,13 +91,13 @@ def render_scene(args, scene_path: Path, output: Path, png: str | None, printer,
     options = options or options_from_args(args)
     options.apply(scene)
     if args.resolution is not None:
-        from .limits import film_memory_problem
+        from ..limits import film_memory_problem
         problem = film_memory_problem(scene.width, scene.height)
         if problem:
             raise LaminaError(f"--resolution {args.resolution[0]}x{args.resolution[1]}: {problem}")
     for w in scene.warnings:
         emit({"event": "warning", "message": w})
-    from .limits import cpu_count
+    from ..limits import cpu_count
     if args.cluster and args.workers is not None:
         emit({"event": "warning", "message": "--workers is ignored with --cluster: "
               "the cluster's workers render (start them with the threads you want)"})
@@ -254,7 +139,7 @@ def render_scene(args, scene_path: Path, output: Path, png: str | None, printer,
 def write_outputs(result, output: Path, png: str | None, half: bool = False) -> int:
     """The EXR (and preview); returns how many values were not finite or out of the EXR's range
     (imageio.write_exr writes them as 0 or clamped)."""
-    from .imageio import write_exr, write_preview
+    from ..imageio import write_exr, write_preview
     film = result.film
     # Sums that overflowed (absurd but legal scene values) give Inf/NaN here: no warnings from
     # NumPy, the writer makes them finite and the caller says how many there were.
@@ -293,7 +178,7 @@ def _alpha(film) -> np.ndarray:
 
 
 def _write_partial(path: Path, film, aovs: bool = False) -> None:
-    from .imageio import write_npy
+    from ..imageio import write_npy
     with np.errstate(all="ignore"):
         rgb = film.combined()
         alpha = _alpha(film)
@@ -340,20 +225,3 @@ def format_summary(summary: dict, output: Path) -> str:
     if summary["interrupted"]:
         lines.append("render interrupted: the image holds the samples done so far")
     return "\n".join(lines)
-
-
-def cmd_validate(args) -> int:
-    from .scene.loader import load_scene
-    scene = load_scene(args.scene)
-    info = {"scene": str(args.scene), "width": scene.width, "height": scene.height,
-            "triangles": scene.soup.count, "materials": scene.material_names,
-            "lights": [type(l).__name__ for l in scene.lights], "spp": scene.settings.spp,
-            "warnings": scene.warnings}
-    if args.json:
-        print(json.dumps(info, indent=2))
-    else:
-        for w in scene.warnings:
-            print(f"warning: {w}", file=sys.stderr)
-        print(f"{args.scene}: OK — {scene.width}×{scene.height}, {scene.soup.count} triangles, "
-              f"{len(scene.materials)} materials, {len(scene.lights)} lights, {scene.settings.spp} spp")
-    return 0

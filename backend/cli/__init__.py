@@ -1,7 +1,8 @@
 """Command-line interface: ``python -m backend <command> ...``.
 
-Each command lives in its own module with ``register(subparsers)``; this file only dispatches and
-turns user errors into one clear line on stderr (exit status 2) — never a traceback.
+Each command lives in its own module with ``register(subparsers)`` (this package's render, bsdf
+and presets; ies/cli.py and session/cli.py beside the code they drive); this file only dispatches
+and turns user errors into one clear line on stderr (exit status 2) — never a traceback.
 """
 from __future__ import annotations
 
@@ -9,15 +10,15 @@ import argparse
 import importlib
 import sys
 
-from . import __version__
-from .errors import LaminaError
+from .. import __version__
+from ..errors import LaminaError
 
 # Modules that add sub-commands. A module that is missing (work in progress) is skipped.
 COMMAND_MODULES = (
-    "backend.render_cli",      # render, validate
-    "backend.bsdf_cli",        # bsdf albedo / eval / plot
+    "backend.cli.render",      # render, validate
+    "backend.cli.bsdf",        # bsdf albedo / eval / plot
     "backend.ies.cli",         # ies info / plot
-    "backend.presets_cli",     # presets list / show
+    "backend.cli.presets",     # presets list / show
     "backend.session.cli",     # session (interactive renderer, docs/session.md)
 )
 
