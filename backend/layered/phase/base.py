@@ -8,6 +8,8 @@ from typing import ClassVar, NamedTuple
 
 import numpy as np
 
+_NO_TABLE = np.zeros((1, 1))      # the fiber-table argument of phases that do not read it
+
 from ...mathutil import coordinate_system, dot
 
 
@@ -116,6 +118,11 @@ class Phase:
     def _bind_rows(self) -> np.ndarray:
         raise NotImplementedError
 
+    def table(self) -> np.ndarray:
+        """The table the compiled code reads beside the rows: the fiber σ table for the microflake
+        fiber phase (fiber.py overrides this), a placeholder for the others, which never read it."""
+        return _NO_TABLE
+
     def rows(self) -> np.ndarray:
         """The parameter rows the compiled code reads (bound once, shared by calls)."""
         if getattr(self, "_P", None) is None:
@@ -126,7 +133,7 @@ class Phase:
         from ...kernels.layered import phase_batch
         a, b = _pair_rows(d_in, d_out)
         out = np.empty(a.shape[0])
-        phase_batch.eval_batch(self.rows(), fiber_table(), a, b, out)
+        phase_batch.eval_batch(self.rows(), self.table(), a, b, out)
         return out
 
     def pdf(self, d_in: np.ndarray, d_out: np.ndarray) -> np.ndarray:
@@ -138,7 +145,7 @@ class Phase:
         n = a.shape[0]
         d_out, weight, pdf = np.empty((n, 3)), np.empty(n), np.empty(n)
         counts = np.zeros(2, np.int64)
-        phase_batch.sample_batch(self.rows(), fiber_table(), a, draw_seed(rng), self._max_candidates(),
+        phase_batch.sample_batch(self.rows(), self.table(), a, draw_seed(rng), self._max_candidates(),
                                  np.zeros(2, np.uint64), d_out, weight, pdf, counts)
         self.stats.samples += n
         self.stats.failures += int(counts[0])
@@ -154,7 +161,7 @@ class Phase:
             return np.ones(d.shape[0])
         from ...kernels.layered import phase_batch
         out = np.empty(d.shape[0])
-        phase_batch.scale_batch(self.rows(), fiber_table(), d, out)
+        phase_batch.scale_batch(self.rows(), self.table(), d, out)
         return out
 
     def take(self, idx) -> "Phase":
@@ -176,8 +183,3 @@ def _pair_rows(a, b):
 def draw_seed(rng: np.random.Generator) -> np.uint64:
     """A 63-bit seed for the counter-based streams of a batch call, drawn from a NumPy generator."""
     return np.uint64(rng.integers(0, 1 << 63))
-
-
-def fiber_table() -> np.ndarray:
-    from .fiber import kernel_table
-    return kernel_table()

@@ -269,6 +269,9 @@ class MicroflakeFiber(Phase):
         bind_fiber_rows(s, np.ascontiguousarray(self.axis), kernel_table(), P)
         return P
 
+    def table(self) -> np.ndarray:
+        return kernel_table()
+
     def _max_candidates(self) -> int:
         return 1 + (MAX_ROUNDS - 1) * EXTRA
 
