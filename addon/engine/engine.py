@@ -6,7 +6,6 @@ previews. Everything that goes wrong ends in ``report({'ERROR'})`` + ``error_set
 """
 from __future__ import annotations
 
-import os
 import shutil
 import sys
 import tempfile
@@ -22,6 +21,7 @@ from ..export.camera import CameraError, border_rect, eye_camera_json, film_size
 from ..export.passes import requested as requested_passes
 from ..export.scene import ExportError
 from .job import BackendJob, child_environment, render_command
+from .launch import keep_files, python_executable, user_environment
 from .pixels import ALBEDO_PASS, NORMAL_PASS, fill_passes, load_npy, pass_npy_path
 from . import viewport
 
@@ -32,37 +32,9 @@ class RenderFailure(Exception):
     """A failure with a message meant for the user."""
 
 
-def _python() -> str:
-    prefs = preferences.get()
-    if prefs is not None and prefs.python_executable:
-        return bpy.path.abspath(prefs.python_executable)
-    return sys.executable
-
-
 def _preview_samples() -> int:
     prefs = preferences.get()
     return int(prefs.preview_samples) if prefs is not None else 16
-
-
-def _keep_files() -> bool:
-    prefs = preferences.get()
-    return bool(prefs and prefs.keep_files)
-
-
-def _user_env() -> dict:
-    """Where the backend finds user presets and caches its compiled kernels: the extension's user
-    folder (never the install folder, which an update replaces and may be read-only), unless
-    LAMINA_KERNEL_CACHE is set in Blender's own environment."""
-    env = {}
-    try:
-        env["LAMINA_PRESET_PATH"] = bpy.utils.extension_path_user(preferences.ADDON_ID, path="presets",
-                                                                  create=False)
-        if not os.environ.get("LAMINA_KERNEL_CACHE"):     # set in Blender's environment, it wins
-            env["LAMINA_KERNEL_CACHE"] = bpy.utils.extension_path_user(preferences.ADDON_ID, path="kernels",
-                                                                       create=True)
-    except (ValueError, RuntimeError, TypeError):   # not installed as an extension (development)
-        pass
-    return env
 
 
 def _format_seconds(seconds: float) -> str:
@@ -132,7 +104,7 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         self._exported = None
         self._renderer_warnings: list[str] = []
         try:
-            keep = _keep_files() and not self.is_preview
+            keep = keep_files() and not self.is_preview
             self._render(depsgraph, workdir)
             self._warn_once()
         except (RenderFailure, ExportError) as exc:
@@ -245,7 +217,7 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         # when one is set (the backend child process is its client: no Dask in Blender).
         cluster = "" if preview else settings.cluster.strip()
         extra = (["--cluster", cluster] if cluster else []) + (["--view", view] if view is not None else [])
-        cmd = render_command(_python(), exported.path, workdir / f"render-{index}.exr", partial,
+        cmd = render_command(python_executable(), exported.path, workdir / f"render-{index}.exr", partial,
                              workers=0 if cluster else (PREVIEW_WORKERS if preview else settings.workers),
                              partial_interval=0.5 if preview else settings.update_interval,
                              extra=extra or None)
@@ -277,7 +249,7 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         return "done"
 
     def _run(self, cmd, result, partial: Path, rect, height: int, exported=None) -> str:
-        env = child_environment(_user_env())
+        env = child_environment(user_environment())
         self.job = job = BackendJob(cmd, env=env)
         error = None
         describe = exported.describe if exported is not None else (lambda text: text)

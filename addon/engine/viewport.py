@@ -46,6 +46,7 @@ from ..export.scene import ExportError, dumps, warning_text
 from ..export.stack import StackError
 from ..export.view import film_crop, film_size, ndc_rect, project, region_border, view_camera
 from .job import child_environment
+from .launch import keep_files, python_executable, user_environment
 from .session_client import SessionClient, session_command
 
 BUSY_INTERVAL = 0.03       # seconds between looks at a rendering session's output
@@ -63,8 +64,7 @@ def make_drawer():
 
 
 def _settings():
-    from .engine import _keep_files, _python, _user_env
-    return _python(), _user_env(), _keep_files()
+    return python_executable(), user_environment(), keep_files()
 
 
 def _command(python: str, frames: Path, workers: int) -> list[str]:

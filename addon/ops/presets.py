@@ -217,7 +217,8 @@ class LAMINA_OT_preset_save(bpy.types.Operator):
             self.report({"WARNING"}, "Lamina: saved without: " + "; ".join(notes))
         prefs = preferences.get(context)
         if prefs is None or prefs.user_preset_thumbnails:
-            thumbnail_jobs.request(path, library.python_executable(), library.backend_environment())
+            thumbnail_jobs.request(path, library.python_executable(), library.backend_environment(),
+                                   on_finished=library.clear_cache)
             self.report({"INFO"}, f"Lamina: saved preset {path}; its thumbnail renders in the background")
         else:
             thumbnail_jobs.cancel(path)

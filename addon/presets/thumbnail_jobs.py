@@ -30,7 +30,7 @@ POLL_SECONDS = 0.25    # timer interval while a render is pending or running
 _queue: list[Path] = []          # preset files waiting, oldest first
 _running: dict = {"path": None, "proc": None, "stderr": None, "cancelled": False}
 _finished: list[dict] = []       # {"path", "code", "message", "cancelled"} of ended renders (tests)
-_launch: dict = {"python": None, "env": None}
+_launch: dict = {"python": None, "env": None, "on_finished": None}
 _ticking = [False]
 
 
@@ -39,11 +39,13 @@ def command(python: str, preset: Path) -> list[str]:
             "--workers", str(WORKERS)]
 
 
-def request(preset: Path, python: str, env: dict) -> None:
-    """Queue a thumbnail render of ``preset`` (replacing a pending or running one for it)."""
+def request(preset: Path, python: str, env: dict, on_finished=None) -> None:
+    """Queue a thumbnail render of ``preset`` (replacing a pending or running one for it).
+    ``on_finished()`` runs on the main thread after each render ends (the preset list's cache of
+    which thumbnails exist: presets/library.clear_cache)."""
     preset = Path(preset)
     cancel(preset)
-    _launch.update(python=python, env=env)
+    _launch.update(python=python, env=env, on_finished=on_finished)
     _queue.append(preset)
     pump()
     _ensure_ticking()
@@ -181,8 +183,8 @@ def stop_ticking() -> None:
 
 def _forget_entries() -> None:
     """The preset list caches which thumbnails exist: let the next menu draw look again."""
-    from . import library
-    library.clear_cache()
+    if _launch["on_finished"] is not None:
+        _launch["on_finished"]()
 
 
 # Blender may exit without unregistering add-ons: do not leave a renderer running behind it.

@@ -257,7 +257,6 @@ def user_folder(tmp):
     """Where user presets go, and that the backend child process finds them."""
     set_thumbnails(False)
     library = mod("presets.library")
-    engine = mod("engine.engine")
     job = mod("engine.job")
     mat = bpy.data.materials.new("Folder Test")
     s = mat.lamina
@@ -278,7 +277,7 @@ def user_folder(tmp):
     folder = library.user_dir()
     expected = bpy.utils.extension_path_user(PACKAGE, path="presets")
     saved = sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file())
-    env = engine._user_env()
+    env = mod("engine.launch").user_environment()
     # The kernel cache would be the extension's own folder: share the test session's cache
     # instead (a second cold compile here would only cost time; test_extension covers it).
     env.pop("LAMINA_KERNEL_CACHE", None)
