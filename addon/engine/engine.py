@@ -21,7 +21,7 @@ from ..export.camera import CameraError, border_rect, eye_camera_json, film_size
 from ..export.passes import requested as requested_passes
 from ..export.scene import ExportError
 from .job import BackendJob, child_environment, render_command
-from .launch import keep_files, python_executable, user_environment
+from ..launch import keep_files, python_executable, user_environment
 from .pixels import ALBEDO_PASS, NORMAL_PASS, fill_passes, load_npy, pass_npy_path
 from . import viewport
 

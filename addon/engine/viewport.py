@@ -46,7 +46,7 @@ from ..export.scene import ExportError, dumps, warning_text
 from ..export.stack import StackError
 from ..export.view import film_crop, film_size, ndc_rect, project, region_border, view_camera
 from .job import child_environment
-from .launch import keep_files, python_executable, user_environment
+from ..launch import keep_files, python_executable, user_environment
 from .session_client import SessionClient, session_command
 
 BUSY_INTERVAL = 0.03       # seconds between looks at a rendering session's output

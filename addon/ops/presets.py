@@ -19,7 +19,7 @@ from bpy.props import BoolProperty, EnumProperty, StringProperty
 from ..export import preset_link
 from ..export.images import ImageExporter
 from ..export.stack import StackError, stack_json
-from .. import preferences
+from .. import launch, preferences
 from ..presets import library, previews, thumbnail_jobs
 from ..presets.convert import material_from_json  # noqa: F401  (re-exported for scripts and tests)
 from ..presets.library import PresetError
@@ -217,7 +217,7 @@ class LAMINA_OT_preset_save(bpy.types.Operator):
             self.report({"WARNING"}, "Lamina: saved without: " + "; ".join(notes))
         prefs = preferences.get(context)
         if prefs is None or prefs.user_preset_thumbnails:
-            thumbnail_jobs.request(path, library.python_executable(), library.backend_environment(),
+            thumbnail_jobs.request(path, launch.python_executable(), library.backend_environment(),
                                    on_finished=library.clear_cache)
             self.report({"INFO"}, f"Lamina: saved preset {path}; its thumbnail renders in the background")
         else:

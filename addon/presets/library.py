@@ -9,10 +9,8 @@ that folder to the backend process as ``LAMINA_PRESET_PATH``.
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,7 +18,7 @@ import bpy
 
 from ...backend import presets as lib
 from ...backend.errors import LaminaError
-from .. import preferences
+from .. import launch, preferences
 
 SHIPPED = lib.SHIPPED
 USER_CATEGORY = "user"
@@ -144,32 +142,18 @@ def write(material: dict, name: str, folder: Path, **meta) -> Path:
         raise PresetError(str(exc)) from None
 
 
-def python_executable() -> str:
-    prefs = preferences.get()
-    if prefs is not None and prefs.python_executable:
-        return bpy.path.abspath(prefs.python_executable)
-    return sys.executable
-
-
 def backend_environment() -> dict:
-    """The environment of a backend child process: its import paths and the user preset folder."""
+    """The environment of a backend child process: its import paths, the user preset folder and
+    the compiled-kernel cache (launch.user_environment)."""
     from ..engine.job import child_environment          # bpy-free; engine ranks above presets
-    user = user_dir()
-    extra = {}
-    if user is not None:
-        extra["LAMINA_PRESET_PATH"] = str(user)
-        # Compiled kernels are cached next to the presets, in the extension's user folder
-        # (unless LAMINA_KERNEL_CACHE is set in Blender's environment).
-        if not os.environ.get("LAMINA_KERNEL_CACHE"):
-            extra["LAMINA_KERNEL_CACHE"] = str(user.parent / "kernels")
-    return child_environment(extra or None)
+    return child_environment(launch.user_environment() or None)
 
 
 def validate(path: Path) -> list[str]:
     """Check a preset file with the backend in a child process (``presets validate --json``):
     metadata, material schema, textures. Returns the warnings; PresetError with the backend's
     message if the file would not load."""
-    cmd = [python_executable(), "-m", "backend", "presets", "validate", str(path), "--json"]
+    cmd = [launch.python_executable(), "-m", "backend", "presets", "validate", str(path), "--json"]
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, env=backend_environment(),
                               timeout=VALIDATE_TIMEOUT, stdin=subprocess.DEVNULL)

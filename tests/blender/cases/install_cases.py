@@ -37,7 +37,7 @@ def install(tmp, zip_path):
     unpacked_llvmlite = sorted(str(p) for p in local.rglob("llvmlite/__init__.py"))
     # A render through the installed extension, in the environment its engine gives the child:
     # compiled kernels, cached in the extension's user folder.
-    user_env = sys.modules[module + ".addon.engine.launch"].user_environment()
+    user_env = sys.modules[module + ".addon.launch"].user_environment()
     scene = Path(tmp) / "installed-scene.json"
     scene.write_text(json.dumps({
         "format": "lamina-scene", "version": 1, "film": {"width": 8, "height": 6},

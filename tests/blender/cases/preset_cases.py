@@ -277,7 +277,7 @@ def user_folder(tmp):
     folder = library.user_dir()
     expected = bpy.utils.extension_path_user(PACKAGE, path="presets")
     saved = sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file())
-    env = mod("engine.launch").user_environment()
+    env = mod("launch").user_environment()
     # The kernel cache would be the extension's own folder: share the test session's cache
     # instead (a second cold compile here would only cost time; test_extension covers it).
     env.pop("LAMINA_KERNEL_CACHE", None)

@@ -1,7 +1,7 @@
 """How the renderer child processes are launched from Blender: which Python runs them, the
 environment that tells them where the user's presets and the compiled-kernel cache live, and
-whether their files are kept. Shared by final renders (engine.py) and Rendered shading
-(viewport.py)."""
+whether their files are kept. Shared by final renders (engine/engine.py), Rendered shading
+(engine/viewport.py) and the preset library's child processes (presets/library.py)."""
 from __future__ import annotations
 
 import os
@@ -9,7 +9,7 @@ import sys
 
 import bpy
 
-from .. import preferences
+from . import preferences
 
 
 def python_executable() -> str:
