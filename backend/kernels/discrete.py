@@ -22,6 +22,20 @@ from .jit import kernel
 ONE_MINUS_EPS = float(np.nextafter(1.0, 0.0))   # largest double below 1
 
 
+def layout_1d(weights: np.ndarray) -> tuple:
+    """(total, pmf, cdf, block) of finite, non-negative ``weights`` (NumPy, at load time): the
+    1-D block above; all-zero weights give the uniform distribution (total = n)."""
+    w = np.asarray(weights, dtype=np.float64).ravel()
+    total = float(w.sum())
+    if total <= 0:
+        w = np.ones_like(w)
+        total = float(w.size)
+    pmf = w / total
+    cdf = np.concatenate([[0.0], np.cumsum(pmf)])
+    cdf[-1] = 1.0
+    return total, pmf, cdf, np.ascontiguousarray(np.concatenate([cdf, pmf]))
+
+
 @kernel
 def block_1d_size(n):
     return 2 * n + 1

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels import sampling_batch as _b
+from ..kernels.discrete import layout_1d
 
 
 class Discrete1D:
@@ -18,16 +19,8 @@ class Discrete1D:
         w = np.asarray(weights, dtype=np.float64).ravel()
         if w.size == 0 or not np.all(np.isfinite(w)) or np.any(w < 0):
             raise ValueError("Discrete1D needs a non-empty array of finite, non-negative weights")
-        total = w.sum()
-        if total <= 0:
-            w = np.ones_like(w)
-            total = float(w.size)
-        self.total = float(total)
-        self.pmf = w / total
-        self.cdf = np.concatenate([[0.0], np.cumsum(self.pmf)])
-        self.cdf[-1] = 1.0
-        #: [cdf | pmf], the kernels' 1-D block (kernels/discrete.py)
-        self.block = np.ascontiguousarray(np.concatenate([self.cdf, self.pmf]))
+        #: block: [cdf | pmf], the kernels' 1-D block (kernels/discrete.py)
+        self.total, self.pmf, self.cdf, self.block = layout_1d(w)
 
     def __len__(self) -> int:
         return self.pmf.size

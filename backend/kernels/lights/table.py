@@ -39,6 +39,7 @@ from collections import namedtuple
 
 import numpy as np
 
+from ..discrete import layout_1d
 from .common import (C_POWER, C_SEL_AREA, C_SEL_INTENSITY, C_SEL_NORMAL, C_SEL_PEAK, C_SEL_POS, C_SEL_SIZE2,
                      I_SEL, NI, NP, SEL_ONE_SIDED, SEL_ONE_SIDED_PROFILE, SEL_POINT, SEL_PROFILE, SEL_UNIFORM)
 
@@ -159,10 +160,8 @@ def build_light_table(lights, packer, scene_radius: float = 1.0, selection_mode:
     active = np.nonzero(p > 0)[0].astype(np.int64)
     sel_pmf = np.zeros(max(n, 1))
     if active.size:
-        from ...sampling.discrete import Discrete1D
-        dist = Discrete1D(p[active])
-        sel_pmf[active] = dist.pmf
-        sel_dist = dist.block
+        _, pmf, _, sel_dist = layout_1d(p[active])
+        sel_pmf[active] = pmf
     else:
         sel_dist = np.zeros(1)
     # scene primitives → (mesh light, local triangle)
