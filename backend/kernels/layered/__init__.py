@@ -6,7 +6,8 @@ Modules (import them through ``backend.kernels``, which configures the kernel ca
               Guo's fiber microflakes with their projected-area table, SGGX), per lane;
 * ``iface``   the interfaces as the walk needs them: sample and eval with both sampling
               densities (importance transport), per-interface normal maps;
-* ``table``   the stack table (one per scene) and ``bind`` (a lane's stack at its (u, v));
+* ``table``   the stack table's layout (one per scene), its assembly and ``bind`` (a lane's stack
+              at its (u, v)); backend/layered/stack_table.py builds it from the materials;
 * ``walk``    the random walk through a bound stack, with its MIS records;
 * ``estimators``  eval (bidirectional, unidirectional), the approximate and the stochastic pdf,
               sample, the integrator's combined light connection + continuation, albedo;
