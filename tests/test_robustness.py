@@ -491,7 +491,7 @@ def test_an_exception_in_a_worker_thread_stops_with_an_error_and_the_partial_ima
     # the add-on is told where the final (partial) result is, then gets the error
     assert [e["event"] for e in events[-2:]] == ["partial", "error"] and np.load(partial).shape == (48, 48, 4)
     message = events[-1]["message"]
-    assert message.startswith("a render worker failed (RuntimeError: injected fault (raise-1) at render.py:")
+    assert message.startswith("a render worker failed (RuntimeError: injected fault (raise-1) at work_items.py:")
     assert message.endswith(f"{out} holds the samples done before that")
     pixels, names = read_exr(out)
     samples = pixels[:, :, names.index("samples.Y")]
