@@ -54,7 +54,8 @@ def grid_mesh(path: Path, n: int) -> int:
     return int(idx.shape[0])
 
 
-def scene(mesh: str, layered: bool) -> dict:
+def scene(mesh: str, layered: bool, spp: int = 1) -> dict:
+    """The grid under a layered (or diffuse) material, 64² at ``spp`` samples per pixel."""
     mat = ({"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.1},
                                              {"type": "diffuse", "color": [0.6, 0.4, 0.3]}],
             "media": [{"thickness": 0.1, "sigma_t": 1.0, "albedo": 0.8}]}
@@ -62,7 +63,7 @@ def scene(mesh: str, layered: bool) -> dict:
     return {"format": "lamina-scene", "version": 1, "film": {"width": 64, "height": 64},
             "camera": {"type": "perspective", "to_world": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 4], [0, 0, 0, 1]],
                        "frame": [[0.5, 0.5, -1], [0.5, -0.5, -1], [-0.5, -0.5, -1], [-0.5, 0.5, -1]]},
-            "render": {"spp": 1, "max_bounces": 2},
+            "render": {"spp": spp, "max_bounces": 2},
             "materials": {"m": mat}, "meshes": {"grid": {"file": mesh}},
             "objects": [{"mesh": "grid", "materials": ["m"]}],
             "world": {"type": "constant", "color": [1, 1, 1], "strength": 1}}

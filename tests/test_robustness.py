@@ -463,7 +463,10 @@ def test_worker_processes_share_the_scene(tmp_path):
     mesh = tmp_path / "grid.npz"
     wm.grid_mesh(mesh, 500)                      # 500 000 triangles
     path = tmp_path / "scene.json"
-    path.write_text(json.dumps(wm.scene(str(mesh), layered=True)))
+    # 160 spp: both workers render for about a second, so the memory sampler (every 50 ms,
+    # slower under load) sees them alive together; at 1 spp that lasted 0.13 s, and a CI run
+    # under both test lanes' load once saw it not at all.
+    path.write_text(json.dumps(wm.scene(str(mesh), layered=True, spp=160)))
     one = wm.measure(path, 1, tmp_path / "one.exr", "processes")
     two = wm.measure(path, 2, tmp_path / "two.exr", "processes")
     assert two["parallel"] == "processes" and two["peak_pss_while_workers"] > 0
