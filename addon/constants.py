@@ -53,8 +53,11 @@ MASKINGS = (
 )
 
 ESTIMATORS = (
-    ("BIDIRECTIONAL", "Bidirectional", "Connections inside each slab with MIS (lower noise; default)", 0),
-    ("UNIDIRECTIONAL", "Unidirectional", "Next-event estimation through the exit interface only", 1),
+    ("AUTOMATIC", "Automatic", "A closed form where the stack has one (a dielectric over a diffuse body: every "
+     "non-metallic Principled BSDF), without the random walk's noise; otherwise the bidirectional walk (default)", 2),
+    ("BIDIRECTIONAL", "Bidirectional", "The random walk everywhere: connections inside each slab with MIS", 0),
+    ("UNIDIRECTIONAL", "Unidirectional", "The random walk everywhere: next-event estimation through the exit "
+     "interface only", 1),
 )
 
 PDF_MODES = (

@@ -43,6 +43,11 @@ def scene_dict() -> dict:
         "glass": {"type": "dielectric", "ior": 1.5, "roughness": 0.1},
         "smooth": {"type": "dielectric", "ior": 1.5, "roughness": 0.0},
         "lamp": {"type": "emission", "color": [1, 1, 1], "strength": 2.0},
+        # A dielectric over a diffuse body: the closed form (kernels/bsdf/coated_diffuse.py), its
+        # table builder included.
+        "plastic": {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.3},
+                                                      {"type": "diffuse", "color": [0.2, 0.5, 0.3]}],
+                    "media": [{"thickness": 1.0, "sigma_t": 0.0}]},
         "coat": {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.05},
                                                    {"type": "diffuse", "color": [0.5, 0.2, 0.1]}],
                  "media": [{"thickness": 1.0, "sigma_t": 0.5, "albedo": 0.5}]},

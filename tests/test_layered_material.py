@@ -47,7 +47,7 @@ def test_options_from_scene_defaults_and_material():
     d = dict(REFERENCE, estimator="bi", max_vertices=64)
     mat = load(d, defaults={"estimator": "uni"})
     assert mat.options.estimator == "bi" and mat.options.max_vertices == 64
-    assert load(REFERENCE).options.estimator == "bi" and load(REFERENCE).options.pdf == "lobes"
+    assert load(REFERENCE).options.estimator == "auto" and load(REFERENCE).options.pdf == "lobes"
 
 
 def test_one_interface_and_constants():
@@ -68,7 +68,7 @@ ERRORS = [
     ({"interfaces": [{"type": "dielectric", "roughnes": 0.1}]}, "interfaces[0].roughnes: unknown field"),
     ({"interfaces": [{"type": "dielectric"}, {"type": "diffuse"}], "media": [{"sigma_t": -1}]},
      "media[0].sigma_t"),
-    ({"interfaces": [{"type": "dielectric"}], "estimator": "both"}, "estimator: expected one of 'bi', 'uni'"),
+    ({"interfaces": [{"type": "dielectric"}], "estimator": "both"}, "estimator: expected one of 'auto', 'bi', 'uni'"),
     ({"interfaces": [{"type": "dielectric"}], "max_vertices": 1}, "max_vertices"),
     ({"interfaces": [{"type": "dielectric"}, {"type": "conductor", "eta_above": 2}], "media": [{}]},
      "interfaces[1].eta_above: implied by the stack"),

@@ -104,9 +104,10 @@ def test_white_furnace_lossless_slab(theta):
 
 
 def test_white_furnace_smooth_dielectric_over_white_diffuse():
+    # The walk (its closed form is tested in tests/test_coated_diffuse.py).
     mat = load({"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5},
                                                   {"type": "diffuse", "color": 1.0}],
-                "media": [{"sigma_t": 0.0}]})
+                "media": [{"sigma_t": 0.0}], "estimator": "bi"})
     rng = np.random.default_rng(8)
     n = 50_000
     for theta in (0.0, 45.0, 80.0):

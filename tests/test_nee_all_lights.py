@@ -23,7 +23,8 @@ def strips_under_lights(mode, spp, n_point_lights=0):
                  "coat": {"type": "layered",
                           "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.2},
                                          {"type": "diffuse", "color": [0.6, 0.3, 0.2]}],
-                          "media": [{"thickness": 0.0, "sigma_t": 0.0, "albedo": 0.0}]}}
+                          "media": [{"thickness": 0.0, "sigma_t": 0.0, "albedo": 0.0}],
+                          "estimator": "bi"}}          # the walk (a closed form would sample every light)
     meshes = {"strip": {"shape": "rectangle", "size": [1.0, 3.0]}}
     objects = [{"mesh": "strip", "to_world": _m(x, 0, 0), "materials": [name]}
                for x, name in ((-1.0, "grey"), (0.0, "gold"), (1.0, "coat"))]

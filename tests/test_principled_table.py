@@ -68,12 +68,13 @@ def test_table_shape_and_provenance():
     assert np.all(t["lamina_R"] + t["lamina_T"] <= 1.0 + 0.01)
 
 
+@pytest.mark.parametrize("estimator", ["bi", "auto"])        # the random walk, and the closed form
 @pytest.mark.parametrize("ior,roughness,rho", [(1.5, 0.5, 0.8), (1.33, 0.25, 0.3), (2.2, 0.75, 1.1),
                                                (1.62, 0.05, 0.6)])
-def test_exact_relation_matches_the_layered_bsdf(ior, roughness, rho):
+def test_exact_relation_matches_the_layered_bsdf(ior, roughness, rho, estimator):
     itf = P.interface(ior, roughness)
     predicted = P.stack_albedo([rho] * 3, itf).mean(axis=1)[0]
-    doc = {"type": "layered",
+    doc = {"type": "layered", "estimator": estimator,
            "interfaces": [{"type": "dielectric", "ior": ior, "roughness": roughness ** 2},
                           {"type": "diffuse", "color": [rho] * 3}],
            "media": [{"thickness": 1.0, "sigma_t": 0.0}]}

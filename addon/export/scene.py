@@ -91,8 +91,8 @@ def render_json(scene, *, samples: int | None = None, seed_offset: int = 0) -> d
            "sampler": s.sampler.lower(),
            "glossy_light_samples": int(s.glossy_light_samples)}
     layered = {}
-    if s.estimator != "BIDIRECTIONAL":
-        layered["estimator"] = s.estimator.lower()
+    if s.estimator != "AUTOMATIC":
+        layered["estimator"] = {"BIDIRECTIONAL": "bi", "UNIDIRECTIONAL": "uni"}[s.estimator]
     if s.pdf_mode != "LOBES":
         layered["pdf"] = {"APPROXIMATE": "approx", "STOCHASTIC": "stochastic"}[s.pdf_mode]
     if layered:

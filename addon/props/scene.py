@@ -57,7 +57,7 @@ class LaminaRenderSettings(PropertyGroup):
                                         "docs/cluster.md")
     filter_type: EnumProperty(name="Pixel Filter", items=FILTERS, default="BLACKMAN_HARRIS")
     filter_width: FloatProperty(name="Filter Width", default=1.5, min=0.01, max=10.0, subtype='PIXEL')
-    estimator: EnumProperty(name="Layered Estimator", items=ESTIMATORS, default="BIDIRECTIONAL",
+    estimator: EnumProperty(name="Layered Estimator", items=ESTIMATORS, default="AUTOMATIC",
                             description="How layered materials are evaluated")
     pdf_mode: EnumProperty(name="Layered PDF", items=PDF_MODES, default="LOBES",
                            description="Which pdf of layered materials is used for MIS weights")

@@ -224,8 +224,14 @@ def evaluate(material, wi_angles, wo_angles, samples: int, seed: int, estimator=
     return out
 
 
+def _walk_defaults(args):
+    """--estimator bi|uni asks for the random walk: a scene-level default the material's own
+    options still override (a stack with a closed form takes it only under "auto")."""
+    return {"estimator": args.estimator} if getattr(args, "estimator", None) else None
+
+
 def cmd_eval(args) -> int:
-    mat = resolve_material(args.material, args.name)
+    mat = resolve_material(args.material, args.name, _walk_defaults(args))
     res = evaluate(mat, args.wi, args.wo, args.samples, args.seed, args.estimator, args.uv)
     if args.json:
         print(json.dumps(res))
@@ -322,7 +328,7 @@ def lobes(material, theta: float, phi: float, samples: int, seed: int, resolutio
 
 
 def cmd_plot(args) -> int:
-    mat = resolve_material(args.material, args.name)
+    mat = resolve_material(args.material, args.name, _walk_defaults(args))
     out = check_plot_output(args.output)
     data = lobes(mat, args.theta, args.phi, args.samples, args.seed, args.resolution, args.per_pixel,
                  args.estimator, args.uv)
@@ -391,7 +397,9 @@ def register(sub) -> None:
     common(e, 20_000)
     e.add_argument("--wi", type=_angles, required=True, help="θ,φ of ωi in degrees")
     e.add_argument("--wo", type=_angles, required=True, help="θ,φ of ωo in degrees")
-    e.add_argument("--estimator", choices=("uni", "bi"), help="layered estimator (default: the material's)")
+    e.add_argument("--estimator", choices=("uni", "bi"),
+                   help="evaluate a layered material with this random-walk estimator (default: the "
+                        "material's; \"auto\" takes a closed form where the stack has one)")
     e.add_argument("--json", action="store_true")
     e.set_defaults(func=cmd_eval)
 

@@ -440,7 +440,7 @@ def _lobe_class(S, kind, m, reflect):
         return RAY_TRANSMIT
     if kind == km.DIFFUSE:
         return RAY_DIFFUSE
-    if kind == km.LAYERED:
+    if km.is_stack(kind):
         return S.mat_refl[m]
     return RAY_GLOSSY
 
@@ -729,7 +729,7 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
             v = 0.0
         m = G.irows[pr, ROW_MAT]
         m_surface = m                 # the object's material (passes); m: the one that shades
-        if MT.kind[m] >= km.MIX:
+        if km.is_mix(MT.kind[m]):
             m, mix_scale = _resolve_mix(MT, TX, m, u, v, uniform(key[i], bounce_dim(segment, SLOT_MIX)))
             bt = (bt[0] * mix_scale, bt[1] * mix_scale, bt[2] * mix_scale)
         wi = (-rd[0], -rd[1], -rd[2])
@@ -847,7 +847,7 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
         dist_code = MT.dist[m]
         mask_code = MT.masking[m]
         if camera:
-            a = km.albedo(kind, prm)
+            a = km.albedo(MT.tables, kind, prm, wi_l)
             albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = a
         # 4b. next-event estimation. At a rough conductor light sampling is the noisy strategy
         # (its glossy lobe weighs the light's points very unequally): S.glossy_nee samples there,
@@ -868,7 +868,7 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
                 if live_k and S.gated:
                     live_k = _allowed(S, lk, etri, rs, _lobe_class(S, kind, m, wi_l[2] * wok[2] > 0.0))
                 if live_k:
-                    f, bpdf = km.eval_pdf(kind, dist_code, mask_code, prm, 0, wi_l, wok)
+                    f, bpdf = km.eval_pdf(MT.tables, kind, dist_code, mask_code, prm, 0, wi_l, wok)
                     _nee(S, segment, sl, bt, p, ng, wk, dk, vk, pk, dlk, float(reps), f, bpdf,
                          S.light_shadow[lk], sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, counts)
         elif can_nee and not delta_only:
@@ -885,13 +885,13 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
                         if live and S.gated:
                             live = _allowed(S, li, etri, rs, _lobe_class(S, kind, m, wi_l[2] * wo_n[2] > 0.0))
                 if live:
-                    f, bpdf = km.eval_pdf(kind, dist_code, mask_code, prm, 0, wi_l, wo_n)
+                    f, bpdf = km.eval_pdf(MT.tables, kind, dist_code, mask_code, prm, 0, wi_l, wo_n)
                     _nee(S, segment, sl, bt, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p * reps, f, bpdf,
                          S.light_shadow[li], sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, counts)
         # 5. continuation
         if not last:
             ub0, ub1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_BSDF))
-            wo, weight, spdf, sdelta = km.sample(kind, dist_code, mask_code, prm, 0, wi_l,
+            wo, weight, spdf, sdelta = km.sample(MT.tables, kind, dist_code, mask_code, prm, 0, wi_l,
                                                  ub0, ub1, u_lobe)
             if weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0:
                 via = VIA_DELTA if sdelta else ((VIA_ALL_LIGHTS if all_lights else VIA_SAMPLED)

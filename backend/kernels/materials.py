@@ -1,10 +1,12 @@
 """Materials as a typed parameter table, and per-lane dispatch to the BSDF kernels.
 
 ``MaterialTable`` (one row per scene material):
-  kind      int32   DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK (emission only: reflects nothing) or
-                    LAYERED (a multi-interface layered stack: its id in the stack table
-                    (kernels/layered/table.py) sits in slot LAYER_ID; shaded per lane by
-                    kernels/layered/batch.shade_lane), MIX or ADD (a Mix / Add Shader: the
+  kind      int32   DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK (emission only: reflects nothing),
+                    LAYERED (a multi-interface layered stack evaluated by the random walk: its id
+                    in the stack table (kernels/layered/table.py) sits in slot LAYER_ID; shaded
+                    per lane by kernels/layered/batch.shade_lane), COATED_DIFFUSE (a layered
+                    stack in closed form: kernels/bsdf/coated_diffuse.py, its table block at
+                    ``tables[values[CD_TAB]]``), MIX or ADD (a Mix / Add Shader: the
                     integrator picks one component row per hit, ``_resolve_mix``)
   dist, masking     microfacet codes (kernels/microfacet.py)
   two_sided bool    reflection-only materials are seen from both sides (the integrator turns the
@@ -22,7 +24,8 @@
 
 Per lane, ``bind`` evaluates a row's parameters at a UV into a fixed 12-tuple ``p`` (so every
 kind returns the same Numba type): diffuse (colour); conductor (eta, k, tint, αu, αv, smooth);
-dielectric (eta, tint, αu, αv, smooth). ``eval_pdf`` / ``sample`` / ``albedo`` dispatch on kind.
+dielectric (eta, tint, αu, αv, smooth); coated diffuse (eta, αu, αv, smooth, body colour, table
+offset). ``eval_pdf`` / ``sample`` / ``albedo`` dispatch on kind.
 """
 from __future__ import annotations
 
@@ -30,12 +33,12 @@ from collections import namedtuple
 
 import numpy as np
 
-from .bsdf import conductor, dielectric, diffuse
+from .bsdf import coated_diffuse, conductor, dielectric, diffuse
 from .jit import inlined, kernel
 from .microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from .params import ParamPacker, param_rgb, param_scalar
 
-DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK, LAYERED, MIX, ADD = 0, 1, 2, 3, 4, 5, 6
+DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK, LAYERED, MIX, ADD, COATED_DIFFUSE = 0, 1, 2, 3, 4, 5, 6, 7
 NSLOT = 22
 EMISSION = 0                 # RGB, every kind
 N_MAP, N_STRENGTH = 16, 19   # every kind: the normal map (RGB) and its strength
@@ -45,17 +48,42 @@ ETA, K, TINT, AU, AV = 3, 6, 9, 12, 13         # conductor: relative eta, k (RGB
 D_ETA, D_TINT, D_AU, D_AV = 3, 4, 7, 8           # dielectric: relative eta, transmission colour, α
 LAYER_ID = 3                 # layered: the stack's row in the stack table
 MIX_FACTOR, MIX_N, MIX_C0 = 3, 4, 5   # mix/add (materials/mix.py): factor, count, component rows (≤ 8)
+CD_ETA, CD_AU, CD_AV, CD_RHO, CD_TAB = 3, 4, 5, 6, 9   # coated diffuse: relative eta, α, body colour, table
 
 MaterialTable = namedtuple("MaterialTable", ["kind", "dist", "masking", "two_sided", "emits",
-                                             "values", "tex", "emit_front", "nmode", "bump"])
+                                             "values", "tex", "emit_front", "nmode", "bump", "tables"])
+
+
+class TableBuilder:
+    """The precomputed blocks of a scene's deterministic layered forms, one flat float64 array
+    (the same block added twice is stored once)."""
+
+    def __init__(self):
+        self._blocks: list = []
+        self._offsets: dict = {}
+        self._size = 0
+
+    def add(self, block: np.ndarray) -> int:
+        key = id(block)
+        if key not in self._offsets:
+            self._offsets[key] = self._size
+            self._blocks.append(block)
+            self._size += block.size
+        return self._offsets[key]
+
+    def array(self) -> np.ndarray:
+        if not self._blocks:
+            return np.zeros(1)
+        return np.ascontiguousarray(np.concatenate(self._blocks))
 
 
 class MaterialRow:
     """One material's row while the table is built (see ``Material.pack``)."""
 
-    def __init__(self, packer: ParamPacker, stacks=None):
+    def __init__(self, packer: ParamPacker, stacks=None, tables: TableBuilder | None = None):
         self.packer = packer
         self.stacks = stacks          # the scene's layered stacks (layered/stack_table.StackBuilder)
+        self.tables = tables if tables is not None else TableBuilder()   # deterministic forms' blocks
         self.kind = BLACK
         self.dist = 0
         self.masking = 0
@@ -81,8 +109,9 @@ def build_material_table(materials: list, packer: ParamPacker, stacks=None) -> M
     """``stacks``: a layered/stack_table.StackBuilder collecting the layered stacks (their rows
     get kind LAYERED and the stack id)."""
     rows = []
+    tables = TableBuilder()
     for m in materials:
-        row = MaterialRow(packer, stacks)
+        row = MaterialRow(packer, stacks, tables)
         m.pack(row)
         row.two_sided = bool(m.two_sided)
         if getattr(m, "emission", None) is not None:
@@ -97,12 +126,24 @@ def build_material_table(materials: list, packer: ParamPacker, stacks=None) -> M
             row.bump = True
         rows.append(row)
     if not rows:
-        rows.append(MaterialRow(packer, stacks))
+        rows.append(MaterialRow(packer, stacks, tables))
     return MaterialTable(np.array([r.kind for r in rows], np.int32), np.array([r.dist for r in rows], np.int32),
                          np.array([r.masking for r in rows], np.int32), np.array([r.two_sided for r in rows]),
                          np.array([r.emits for r in rows]), np.stack([r.values for r in rows]),
                          np.stack([r.tex for r in rows]), np.array([r.emit_front for r in rows]),
-                         np.array([r.nmode for r in rows], np.int32), np.array([r.bump for r in rows]))
+                         np.array([r.nmode for r in rows], np.int32), np.array([r.bump for r in rows]),
+                         tables.array())
+
+
+@inlined
+def is_mix(kind):
+    return kind == MIX or kind == ADD
+
+
+@inlined
+def is_stack(kind):
+    """A layered stack, whatever evaluates it (its reflection's ray type is the stack's)."""
+    return kind == LAYERED or kind == COATED_DIFFUSE
 
 
 def _pack_normal_map(row: MaterialRow, normal, strength: float) -> None:
@@ -167,6 +208,13 @@ def bind(mt, tx, m, u, v):
         smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
         return (eta, t[0], t[1], t[2], max(au, ALPHA_MIN), max(av, ALPHA_MIN), smooth,
                 0.0, 0.0, 0.0, 0.0, 0.0)
+    if kind == COATED_DIFFUSE:
+        au = _scalar(mt, tx, m, CD_AU, u, v)
+        av = _scalar(mt, tx, m, CD_AV, u, v)
+        c = _rgb(mt, tx, m, CD_RHO, u, v)
+        smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
+        return (mt.values[m, CD_ETA], max(au, ALPHA_MIN), max(av, ALPHA_MIN), smooth, c[0], c[1], c[2],
+                mt.values[m, CD_TAB], 0.0, 0.0, 0.0, 0.0)
     return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
@@ -181,8 +229,8 @@ def is_delta_only(kind, p):
 
 
 @kernel
-def eval_pdf(kind, dist, masking, p, mode, wi, wo):
-    """(f·|cos θo| RGB, pdf) of the non-delta part."""
+def eval_pdf(T, kind, dist, masking, p, mode, wi, wo):
+    """(f·|cos θo| RGB, pdf) of the non-delta part; T: the material table's ``tables``."""
     if kind == DIFFUSE:
         return diffuse.eval_pdf((p[0], p[1], p[2]), wi, wo)
     if kind == CONDUCTOR:
@@ -191,11 +239,14 @@ def eval_pdf(kind, dist, masking, p, mode, wi, wo):
     if kind == DIELECTRIC:
         return dielectric.eval_pdf(p[0], (p[1], p[2], p[3]), p[4], p[5], p[6] > 0.0, dist, masking,
                                    mode, wi, wo)
+    if kind == COATED_DIFFUSE:
+        return coated_diffuse.eval_pdf(T, int(p[7]), p[0], p[1], p[2], p[3] > 0.0, (p[4], p[5], p[6]),
+                                       dist, masking, wi, wo)
     return (0.0, 0.0, 0.0), 0.0
 
 
 @kernel
-def sample(kind, dist, masking, p, mode, wi, u0, u1, u2):
+def sample(T, kind, dist, masking, p, mode, wi, u0, u1, u2):
     """(wo, weight RGB, pdf, is_delta); weight 0 ends the path."""
     if kind == DIFFUSE:
         return diffuse.sample((p[0], p[1], p[2]), wi, u0, u1)
@@ -205,16 +256,21 @@ def sample(kind, dist, masking, p, mode, wi, u0, u1, u2):
     if kind == DIELECTRIC:
         return dielectric.sample(p[0], (p[1], p[2], p[3]), p[4], p[5], p[6] > 0.0, dist, masking,
                                  mode, wi, u0, u1, u2)
+    if kind == COATED_DIFFUSE:
+        return coated_diffuse.sample(T, int(p[7]), p[0], p[1], p[2], p[3] > 0.0, (p[4], p[5], p[6]),
+                                     dist, masking, wi, u0, u1, u2)
     return (0.0, 0.0, 1.0 if wi[2] >= 0.0 else -1.0), (0.0, 0.0, 0.0), 0.0, False
 
 
 @kernel
-def albedo(kind, p):
-    """RGB reflectance estimate for the denoising AOV."""
+def albedo(T, kind, p, wi):
+    """RGB reflectance estimate for the denoising AOV (a stack's: its directional albedo at wi)."""
     if kind == DIFFUSE:
         return (p[0], p[1], p[2])
     if kind == CONDUCTOR:
         return conductor.albedo((p[0], p[1], p[2]), (p[3], p[4], p[5]), (p[6], p[7], p[8]))
     if kind == DIELECTRIC:
         return (p[1], p[2], p[3])
+    if kind == COATED_DIFFUSE:
+        return coated_diffuse.albedo(T, int(p[7]), p[1], (p[4], p[5], p[6]), wi[2])
     return (0.0, 0.0, 0.0)

@@ -25,14 +25,14 @@ from .phase.base import draw_seed
 
 @dataclass(frozen=True)
 class Options:
-    estimator: str = "bi"        # "bi" | "uni"
+    estimator: str = "auto"      # "auto" (a closed form where the stack has one, else "bi") | "bi" | "uni"
     pdf: str = "lobes"           # "lobes" | "approx" | "stochastic"
     pdf_constant: float = 0.1    # added to the lobes and approximate pdfs (sr⁻¹); Guo's diffusePdf
     max_vertices: int = 1024     # hard cap per walk; hits are counted in ``stats``
     mis: bool = True             # uni only: False = NEE alone where it applies (benchmarks)
 
 
-ESTIMATORS = {"bi": 0, "uni": 1}
+ESTIMATORS = {"bi": 0, "uni": 1, "auto": 0}
 PDF_KINDS = {"approx": 0, "stochastic": 1, "lobes": 4, "stochastic-bi": 2, "approx-bi": 3}   # the last two: benchmarks
 
 
@@ -104,7 +104,7 @@ class LayeredBSDF(BSDF):
         """The light connection and the continuation sample of one path vertex (RADIANCE), as the
         integrator computes them per lane: with the bidirectional estimator from one walk from wi
         (estimators.nee_and_sample); otherwise as separate queries (the base class)."""
-        if not want_sample or self.options.estimator != "bi":
+        if not want_sample or self.options.estimator == "uni":
             return super().nee_and_sample(wi, wo, nee, rng, nee_pdf, want_sample)
         from ..kernels.layered import batch
         f, p, wo_s, w, ps, d = self._run(batch.OP_NEE, wi, wo, nee=nee, rng=rng, nee_pdf=nee_pdf,

@@ -5,7 +5,7 @@ Schema (docs/materials.md, "layered")::
     {"type": "layered",
      "interfaces": [<interface>, ...],       # 0 = top; N >= 1
      "media": [<medium>, ...],               # exactly N − 1 (slab i between interfaces i, i+1)
-     "estimator": "bi" | "uni", "pdf": "lobes" | "approx" | "stochastic",
+     "estimator": "auto" | "bi" | "uni", "pdf": "lobes" | "approx" | "stochastic",
      "pdf_constant": 0.1, "max_vertices": 1024, "mis": true, "emission": ...}
 
 Interfaces: ``dielectric``, ``conductor``, ``diffuse`` (the standard materials' schema),
@@ -40,7 +40,7 @@ def parse_options(node: Node, defaults: Node | None) -> Options:
         if src is None:
             continue
         if src.has("estimator"):
-            values["estimator"] = src.string("estimator", choices=("bi", "uni"))
+            values["estimator"] = src.string("estimator", choices=("auto", "bi", "uni"))
         if src.has("pdf"):
             values["pdf"] = src.string("pdf", choices=("lobes", "approx", "stochastic"))
         if src.has("pdf_constant"):
@@ -82,10 +82,27 @@ class LayeredMaterial(Material):
             any(m.uses_textures for m in self.media) or \
             any(nm is not None and not nm.is_constant for nm in self.normals)
 
+    @property
+    def closed_form(self) -> dict | None:
+        """The parameters of the deterministic form that evaluates this stack
+        (layered/coated_diffuse.py), or None: the random walk (also whenever the material asks
+        for a walk estimator by name)."""
+        if self.options.estimator != "auto":
+            return None
+        if not hasattr(self, "_closed_form"):
+            from .coated_diffuse import qualifies
+            from .flat import flatten
+            self._closed_form = qualifies(flatten(self))
+        return self._closed_form
+
     def pack(self, row) -> None:
         from ..kernels import materials as km
         if len(self.interfaces) == 1 and self.normals[0] is None:
             self.interfaces[0].pack(row)   # a one-interface stack is that interface's BSDF
+            return
+        form = self.closed_form
+        if form is not None:
+            _pack_coated_diffuse(row, form)
             return
         row.kind = km.LAYERED
         if getattr(row, "stacks", None) is None:
@@ -109,8 +126,27 @@ class LayeredMaterial(Material):
         if len(self.interfaces) == 1:
             # A one-interface stack is that interface's analytic BSDF.
             return self.interfaces[0].bind(ctx)
+        if self.closed_form is not None:
+            from ..materials.row_bsdf import RowBSDF
+            return RowBSDF(self, ctx.uv if self.uses_textures else np.zeros((1, 2)), ctx.n)
         uv = ctx.uv if self.uses_textures else np.zeros((1, 2))
         return LayeredBSDF(self, uv, ctx.n, self.stats)
+
+
+def _pack_coated_diffuse(row, form: dict) -> None:
+    """A dielectric over a Lambertian body in closed form (kernels/bsdf/coated_diffuse.py)."""
+    from ..kernels import materials as km
+    from .coated_diffuse import table
+    rough = form["roughness"]
+    alpha = None if not rough.is_constant else float(np.asarray(rough.mean()).reshape(-1)[0])
+    block = table(form["eta"], form["tint"], alpha, form["dist"], form["masking"], form["tau"])
+    row.kind = km.COATED_DIFFUSE
+    row.values[km.CD_ETA] = form["eta"]
+    row.set(km.CD_AU, rough, 1)
+    row.set(km.CD_AV, rough, 1)
+    row.set(km.CD_RHO, form["color"], 3)
+    row.values[km.CD_TAB] = row.tables.add(block)
+    row.microfacet(form["dist"], form["masking"])
 
 
 def _transmits(material) -> bool:

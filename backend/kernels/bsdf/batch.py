@@ -7,6 +7,7 @@ or n (one value per lane): RGB (1|n, 3), scalars (1|n,), smooth flags (1|n,) boo
 from __future__ import annotations
 
 from . import conductor, dielectric, diffuse
+from .. import materials as km
 from ..jit import kernel
 
 
@@ -88,3 +89,43 @@ def dielectric_sample(eta, tint, au, av, smooth, dist, masking, mode, wi, u, wo,
         weight[i, 0], weight[i, 1], weight[i, 2] = v
         pdf[i] = p
         delta[i] = d
+
+
+# ----------------------------------------------------------------------------- any material row
+# One row of a material table (kernels/materials.py), bound per lane at its (u, v): the BSDFs
+# whose parameters travel as a row, such as the deterministic layered forms.
+@kernel
+def _uv(uv, i):
+    j = i if uv.shape[0] > 1 else 0
+    return uv[j, 0], uv[j, 1]
+
+
+@kernel
+def row_eval_pdf(MT, TX, m, uv, mode, wi, wo, f, pdf):
+    for i in range(wi.shape[0]):
+        u, v = _uv(uv, i)
+        p = km.bind(MT, TX, m, u, v)
+        val, q = km.eval_pdf(MT.tables, MT.kind[m], MT.dist[m], MT.masking[m], p, mode, _dir(wi, i), _dir(wo, i))
+        f[i, 0], f[i, 1], f[i, 2] = val
+        pdf[i] = q
+
+
+@kernel
+def row_sample(MT, TX, m, uv, mode, wi, u, wo, weight, pdf, delta):
+    for i in range(wi.shape[0]):
+        a, b = _uv(uv, i)
+        p = km.bind(MT, TX, m, a, b)
+        w, v, q, d = km.sample(MT.tables, MT.kind[m], MT.dist[m], MT.masking[m], p, mode, _dir(wi, i),
+                               u[i, 0], u[i, 1], u[i, 2])
+        wo[i, 0], wo[i, 1], wo[i, 2] = w
+        weight[i, 0], weight[i, 1], weight[i, 2] = v
+        pdf[i] = q
+        delta[i] = d
+
+
+@kernel
+def row_albedo(MT, TX, m, uv, wi, out):
+    for i in range(wi.shape[0]):
+        u, v = _uv(uv, i)
+        p = km.bind(MT, TX, m, u, v)
+        out[i, 0], out[i, 1], out[i, 2] = km.albedo(MT.tables, MT.kind[m], p, _dir(wi, i))
