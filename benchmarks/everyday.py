@@ -94,6 +94,12 @@ def scenes(size: int) -> dict:
             "fig. 2 stack sphere": sphere_scene(fig2_stack(), size)}
 
 
+def with_render(data: dict, **render) -> dict:
+    data = json.loads(json.dumps(data))
+    data["render"].update(render)
+    return data
+
+
 def with_estimator(data: dict, estimator: str | None) -> dict:
     if estimator:
         data = json.loads(json.dumps(data))

@@ -116,6 +116,13 @@ def reference_key(data: dict, spp: int, seed: int) -> str:
     for f in referenced_files(data):
         if f.is_file():
             h.update(f.read_bytes())
+    for m in data.get("materials", {}).values():
+        if isinstance(m, str):
+            # A preset named in the scene: the image depends on its file, not on its name.
+            from backend.presets import find_preset
+            f = find_preset(m)
+            if f is not None:
+                h.update(f.read_bytes())
     return h.hexdigest()[:20]
 
 

@@ -57,9 +57,12 @@ LOSSLESS_SAMPLER = {
 
 
 def load(material: dict, defaults: dict | None = None):
+    """A material as a scene would load it; layered stacks with the random walk's bidirectional
+    estimator unless the material or ``defaults`` say otherwise: these helpers serve the walk's
+    own tests (the deterministic forms have theirs: tests/test_coated_diffuse.py,
+    tests/test_tabulated.py, which pass ``{"estimator": "auto"}``)."""
     ctx = LoadContext("<test>")
-    if defaults is not None:
-        ctx.cache["layered_defaults"] = defaults
+    ctx.cache["layered_defaults"] = {"estimator": "bi"} if defaults is None else defaults
     return dispatch(Node(copy.deepcopy(material), "", ctx), load_all())
 
 

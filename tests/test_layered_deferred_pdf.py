@@ -28,7 +28,7 @@ TWO_SLABS = {"type": "layered",
              "media": [{"sigma_t": 0.5, "albedo": 0.8, "phase": {"type": "hg", "g": 0.3}},
                        {"sigma_t": 0.5, "albedo": [0.5, 0.9, 0.5],
                         "phase": {"type": "microflake", "stddev": 0.3, "orientation": [1, 0, 0]}}]}
-ONE_SLAB = {"type": "layered",
+ONE_SLAB = {"type": "layered", "estimator": "bi",        # the walk (its table would have no pdf to defer)
             "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.3},
                            {"type": "conductor", "metal": "Au", "roughness": 0.2}],
             "media": [{"sigma_t": 1.0, "albedo": [0.9, 0.6, 0.4], "phase": {"type": "hg", "g": 0.5}}]}

@@ -47,7 +47,8 @@ def test_options_from_scene_defaults_and_material():
     d = dict(REFERENCE, estimator="bi", max_vertices=64)
     mat = load(d, defaults={"estimator": "uni"})
     assert mat.options.estimator == "bi" and mat.options.max_vertices == 64
-    assert load(REFERENCE).options.estimator == "auto" and load(REFERENCE).options.pdf == "lobes"
+    plain = load(REFERENCE, defaults={})                 # no scene-level defaults: the schema's
+    assert plain.options.estimator == "auto" and plain.options.pdf == "lobes"
 
 
 def test_one_interface_and_constants():

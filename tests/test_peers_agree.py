@@ -161,7 +161,7 @@ def test_converter_passes_the_loaders_triangles_and_filter(tmp_path):
     assert convert.cycles_filter({"type": "box", "width": 1.0}) == ("BOX", 1.0)
     for sc in PEER_SCENES:
         data = sc.build(16)
-        job = json.loads(convert.prepare(data, tmp_path / sc.name).read_text())
+        job = json.loads(convert.prepare(data, tmp_path / sc.name, principled=sc.principled).read_text())
         geo = np.load(tmp_path / sc.name / "geometry.npz")
         soup = load_scene_data(copy.deepcopy(data)).soup
         assert sum(geo[f"o{o['index']}_pos"].shape[0] for o in job["objects"]) == soup.count
@@ -178,3 +178,44 @@ def test_command_line_refuses_contradictions(tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         main(["peers", "--peer-scenes", "cornell,nope", "--out", str(tmp_path)])
     assert e.value.code == 2 and "nope" in capsys.readouterr().err
+
+
+def test_principled_materials_reach_the_job_and_lamina_gets_the_addons_export(tmp_path):
+    import json
+
+    from benchmarks.peers.scenes import EVERYDAY, PRESET_PRINCIPLED, PRESETS, _principled_export
+    scenes = {s.name: s for s in PEER_SCENES}
+    sc = scenes["everyday"]
+    assert sc.principled is EVERYDAY and sc.same_material
+    data = sc.build(8)
+    for name, p in EVERYDAY.items():
+        # Lamina renders what the add-on exports for the same settings, within its reach.
+        material, notes = _principled_export().principled_material(p)
+        assert data["materials"][name] == material and notes == [], name
+    job = json.loads(convert.prepare(data, tmp_path / "everyday", principled=sc.principled).read_text())
+    assert job["materials"] == {}                     # nothing converted: Cycles gets Principled nodes
+    assert job["principled"]["gold"] == {"Base Color": [0.9, 0.7, 0.3], "Metallic": 1.0, "Roughness": 0.3}
+    assert job["principled"]["glass"]["Transmission Weight"] == 1.0
+    assert job["principled"]["coated copper"]["Coat Weight"] == 1.0
+    assert [(x["type"], x["strength"], x["angle"]) for x in job["lights"]] == [("sun", 3.0, 5.0)]
+
+    sc = scenes["presets"]
+    assert not sc.same_material
+    data = sc.build(8)
+    assert all(data["materials"][p] == p for p in PRESETS)          # Lamina renders the presets by name
+    job = json.loads(convert.prepare(data, tmp_path / "presets", principled=sc.principled).read_text())
+    assert set(job["principled"]) == {"ground", *PRESET_PRINCIPLED} and job["materials"] == {}
+    assert job["principled"]["anodized-aluminium-blue"]["Coat Tint"] == [0.01, 0.06, 0.42]
+    with pytest.raises(convert.Unsupported):          # a preset has no converted Cycles twin
+        convert.prepare(data, tmp_path / "bad")
+
+
+def test_converter_refuses_principled_settings_it_cannot_pass_on(tmp_path):
+    base = furnace(8)
+    for bad in ({"lambert": {"subsurface_weight": 1.0}},                 # not a principled_material key
+                {"lambert": {"base_color": (1.0, 1.0)}},                 # not an RGB colour
+                {"lambert": {"distribution": "multi_ggx"}},              # Lamina is single-scattering
+                {"lambert": {"emission": (1.0, 1.0, 1.0)}},              # no emitting surfaces
+                {"no such material": {"roughness": 0.5}}):              # a typo would convert the original
+        with pytest.raises(convert.Unsupported):
+            convert.prepare(copy.deepcopy(base), tmp_path / "bad", principled=bad)

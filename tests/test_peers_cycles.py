@@ -93,3 +93,56 @@ def test_white_furnace_in_cycles(built):
         px = img[lab == names.index(strip)].mean(axis=1)
         mean, se = px.mean(), px.std(ddof=1) / math.sqrt(px.size)
         assert lo - 4 * se <= mean <= hi + 4 * se, (strip, mean, se)
+
+
+def test_principled_materials_and_sun_in_cycles(built, tmp_path):
+    # Runs last: it replaces the furnace scene the module's fixture built.
+    bpy, to_cycles, *_ = built
+    from benchmarks.peers.scenes import EVERYDAY, everyday
+    to_cycles.build(convert.prepare(everyday(16), tmp_path / "everyday", principled=EVERYDAY), 2)
+    inputs = {"base_color": "Base Color", "metallic": "Metallic", "roughness": "Roughness",
+              "transmission": "Transmission Weight", "coat_weight": "Coat Weight"}
+    for name, p in EVERYDAY.items():
+        node = bpy.data.materials[name].node_tree.nodes["Principled BSDF"]
+        assert node.distribution == "GGX", name
+        for key, value in p.items():
+            got = node.inputs[inputs[key]].default_value
+            want = (*value, 1.0) if isinstance(value, tuple) else (value,)
+            np.testing.assert_allclose(tuple(got) if isinstance(value, tuple) else (got,), want, rtol=1e-6)
+        # Everything the settings do not name stays at Blender's default.
+        assert math.isclose(node.inputs["Coat Roughness"].default_value, 0.03, rel_tol=1e-6)
+        assert node.inputs["IOR"].default_value == 1.5 and node.inputs["Specular IOR Level"].default_value == 0.5
+    suns = [o for o in bpy.data.objects if o.type == "LIGHT"]
+    assert len(suns) == 1 and suns[0].data.type == "SUN" and not suns[0].visible_camera
+    assert suns[0].data.energy == 3.0 and math.isclose(suns[0].data.angle, math.radians(5.0), rel_tol=1e-6)
+
+
+def test_sun_irradiance_in_cycles(built, tmp_path):
+    # A Lambertian plane (albedo ρ) under a sun of strength E (irradiance, W/m²) whose direction
+    # makes 60° with the normal, direct light only: L = ρ E cos 60° / π at every pixel. For a sun
+    # of angular diameter 5° this is exact too (the integral of the cosine over a cap is the
+    # cosine at its centre times the cap's projected area), so strength, angle and direction of
+    # the converted light are all checked.
+    bpy, to_cycles, *_ = built
+    import OpenImageIO as oiio
+
+    from benchmarks.peers.scenes import _scene
+    from benchmarks.scenes import _quad, look_at
+    theta = math.radians(60.0)
+    sun = {"type": "sun", "strength": 2.0, "angle": 5.0,
+           "to_world": look_at((math.sin(theta), 0.0, math.cos(theta)), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0))}
+    camera = {"type": "perspective", "to_world": look_at((0, 0, 3), (0, 0, 0), up=(0, 1, 0)),
+              "frame": [[0.2, 0.2, -1], [0.2, -0.2, -1], [-0.2, -0.2, -1], [-0.2, 0.2, -1]]}
+    data = _scene(8, camera, {"plane": {"type": "diffuse", "color": [0.5, 0.5, 0.5]}},
+                  {"plane": _quad([-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0])},
+                  [{"name": "plane", "mesh": "plane", "materials": ["plane"]}], [sun])
+    data["render"]["max_bounces"] = 0
+    to_cycles.build(convert.prepare(data, tmp_path / "sun"), 2)
+    path = tmp_path / "sun.exr"
+    to_cycles.render(path, 16, 1)
+    inp = oiio.ImageInput.open(str(path))
+    img = np.asarray(inp.read_image(0, 0, 0, 3, oiio.FLOAT), dtype=np.float64).reshape(8, 8, 3)
+    inp.close()
+    want = 0.5 * 2.0 * math.cos(theta) / math.pi
+    mean, se = img.mean(), img.std(ddof=1) / math.sqrt(img.size)
+    assert abs(mean - want) <= 4 * se + 1e-5 * want, (mean, want, se)

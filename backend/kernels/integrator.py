@@ -854,7 +854,7 @@ def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
         # each weighted 1/S.glossy_nee. Measured (docs/scene-format.md): 2 samples cut the IES
         # room's variance at equal samples 1497 -> 1194 for +2 % CPU, the grazing strips' 72 -> 62;
         # rough dielectrics gained nothing (their light samples mostly end inside the object).
-        reps = S.glossy_nee if kind == km.CONDUCTOR else 1
+        reps = S.glossy_nee if (kind == km.CONDUCTOR or kind == km.TABULATED) else 1
         if all_lights and not delta_only:
             for k in range(S.nee_all * reps):
                 lk = LT.sel_active[k % S.nee_all]

@@ -6,7 +6,8 @@
                     in the stack table (kernels/layered/table.py) sits in slot LAYER_ID; shaded
                     per lane by kernels/layered/batch.shade_lane), COATED_DIFFUSE (a layered
                     stack in closed form: kernels/bsdf/coated_diffuse.py, its table block at
-                    ``tables[values[CD_TAB]]``), MIX or ADD (a Mix / Add Shader: the
+                    ``tables[values[CD_TAB]]``), TABULATED (a uniform stack solved into a table:
+                    kernels/bsdf/tabulated.py, its block at ``tables[values[TB_TAB]]``), MIX or ADD (a Mix / Add Shader: the
                     integrator picks one component row per hit, ``_resolve_mix``)
   dist, masking     microfacet codes (kernels/microfacet.py)
   two_sided bool    reflection-only materials are seen from both sides (the integrator turns the
@@ -25,7 +26,7 @@
 Per lane, ``bind`` evaluates a row's parameters at a UV into a fixed 12-tuple ``p`` (so every
 kind returns the same Numba type): diffuse (colour); conductor (eta, k, tint, αu, αv, smooth);
 dielectric (eta, tint, αu, αv, smooth); coated diffuse (eta, αu, αv, smooth, body colour, table
-offset). ``eval_pdf`` / ``sample`` / ``albedo`` dispatch on kind.
+offset); tabulated (table offset). ``eval_pdf`` / ``sample`` / ``albedo`` dispatch on kind.
 """
 from __future__ import annotations
 
@@ -33,12 +34,12 @@ from collections import namedtuple
 
 import numpy as np
 
-from .bsdf import coated_diffuse, conductor, dielectric, diffuse
+from .bsdf import coated_diffuse, conductor, dielectric, diffuse, tabulated
 from .jit import inlined, kernel
 from .microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from .params import ParamPacker, param_rgb, param_scalar
 
-DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK, LAYERED, MIX, ADD, COATED_DIFFUSE = 0, 1, 2, 3, 4, 5, 6, 7
+DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK, LAYERED, MIX, ADD, COATED_DIFFUSE, TABULATED = 0, 1, 2, 3, 4, 5, 6, 7, 8
 NSLOT = 22
 EMISSION = 0                 # RGB, every kind
 N_MAP, N_STRENGTH = 16, 19   # every kind: the normal map (RGB) and its strength
@@ -49,6 +50,7 @@ D_ETA, D_TINT, D_AU, D_AV = 3, 4, 7, 8           # dielectric: relative eta, tra
 LAYER_ID = 3                 # layered: the stack's row in the stack table
 MIX_FACTOR, MIX_N, MIX_C0 = 3, 4, 5   # mix/add (materials/mix.py): factor, count, component rows (≤ 8)
 CD_ETA, CD_AU, CD_AV, CD_RHO, CD_TAB = 3, 4, 5, 6, 9   # coated diffuse: relative eta, α, body colour, table
+TB_TAB = 3                   # tabulated stack: its table block
 
 MaterialTable = namedtuple("MaterialTable", ["kind", "dist", "masking", "two_sided", "emits",
                                              "values", "tex", "emit_front", "nmode", "bump", "tables"])
@@ -143,7 +145,7 @@ def is_mix(kind):
 @inlined
 def is_stack(kind):
     """A layered stack, whatever evaluates it (its reflection's ray type is the stack's)."""
-    return kind == LAYERED or kind == COATED_DIFFUSE
+    return kind == LAYERED or kind == COATED_DIFFUSE or kind == TABULATED
 
 
 def _pack_normal_map(row: MaterialRow, normal, strength: float) -> None:
@@ -215,6 +217,8 @@ def bind(mt, tx, m, u, v):
         smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
         return (mt.values[m, CD_ETA], max(au, ALPHA_MIN), max(av, ALPHA_MIN), smooth, c[0], c[1], c[2],
                 mt.values[m, CD_TAB], 0.0, 0.0, 0.0, 0.0)
+    if kind == TABULATED:
+        return (mt.values[m, TB_TAB], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
@@ -242,6 +246,8 @@ def eval_pdf(T, kind, dist, masking, p, mode, wi, wo):
     if kind == COATED_DIFFUSE:
         return coated_diffuse.eval_pdf(T, int(p[7]), p[0], p[1], p[2], p[3] > 0.0, (p[4], p[5], p[6]),
                                        dist, masking, wi, wo)
+    if kind == TABULATED:
+        return tabulated.eval_pdf(T, int(p[0]), wi, wo)
     return (0.0, 0.0, 0.0), 0.0
 
 
@@ -259,6 +265,8 @@ def sample(T, kind, dist, masking, p, mode, wi, u0, u1, u2):
     if kind == COATED_DIFFUSE:
         return coated_diffuse.sample(T, int(p[7]), p[0], p[1], p[2], p[3] > 0.0, (p[4], p[5], p[6]),
                                      dist, masking, wi, u0, u1, u2)
+    if kind == TABULATED:
+        return tabulated.sample(T, int(p[0]), wi, u0, u1, u2)
     return (0.0, 0.0, 1.0 if wi[2] >= 0.0 else -1.0), (0.0, 0.0, 0.0), 0.0, False
 
 
@@ -273,4 +281,6 @@ def albedo(T, kind, p, wi):
         return (p[1], p[2], p[3])
     if kind == COATED_DIFFUSE:
         return coated_diffuse.albedo(T, int(p[7]), p[1], (p[4], p[5], p[6]), wi[2])
+    if kind == TABULATED:
+        return tabulated.albedo(T, int(p[0]), wi[2])
     return (0.0, 0.0, 0.0)

@@ -95,6 +95,17 @@ class LayeredMaterial(Material):
             self._closed_form = qualifies(flatten(self))
         return self._closed_form
 
+    @property
+    def table_block(self):
+        """The table of a uniform stack solved by adding-doubling (layered/tabulated.py), built
+        once; None: no table (a closed form, the walk by request, or a stack it does not cover)."""
+        if self.options.estimator != "auto" or self.closed_form is not None:
+            return None
+        if not hasattr(self, "_table_block"):
+            from .tabulated import build
+            self._table_block = build(self)
+        return self._table_block
+
     def pack(self, row) -> None:
         from ..kernels import materials as km
         if len(self.interfaces) == 1 and self.normals[0] is None:
@@ -103,6 +114,11 @@ class LayeredMaterial(Material):
         form = self.closed_form
         if form is not None:
             _pack_coated_diffuse(row, form)
+            return
+        block = self.table_block
+        if block is not None:
+            row.kind = km.TABULATED
+            row.values[km.TB_TAB] = row.tables.add(block)
             return
         row.kind = km.LAYERED
         if getattr(row, "stacks", None) is None:
@@ -126,7 +142,7 @@ class LayeredMaterial(Material):
         if len(self.interfaces) == 1:
             # A one-interface stack is that interface's analytic BSDF.
             return self.interfaces[0].bind(ctx)
-        if self.closed_form is not None:
+        if self.closed_form is not None or self.table_block is not None:
             from ..materials.row_bsdf import RowBSDF
             return RowBSDF(self, ctx.uv if self.uses_textures else np.zeros((1, 2)), ctx.n)
         uv = ctx.uv if self.uses_textures else np.zeros((1, 2))

@@ -6,6 +6,13 @@ and transforms therefore reach Cycles as exactly the same triangles and normals,
 re-tessellated. Everything else (camera, film, lights, materials, world, render settings) is copied
 from the dict itself; ``to_cycles.py`` (run in the bpy child) turns the job into a Blender scene.
 
+Materials reach Cycles in one of two ways: converted from the Lamina material (diffuse,
+conductor, dielectric, the coat over a diffuse body), or, for the names a scene gives Principled
+BSDF settings (``prepare``'s ``principled``), as a Principled BSDF node with those settings, the
+Lamina material being whatever the scene says (the add-on's export of the same settings, a
+preset, ...). ``principled_inputs`` translates the settings to the node's input names here, so the
+child only sets sockets.
+
 A feature the converter does not support raises :class:`Unsupported` naming it: a benchmark
 scene that used one would otherwise be compared with a scene Cycles never saw.
 """
@@ -18,7 +25,19 @@ from pathlib import Path
 import numpy as np
 
 SUPPORTED_MATERIALS = ("diffuse", "conductor", "dielectric", "layered")
-SUPPORTED_LIGHTS = ("area", "point")
+SUPPORTED_LIGHTS = ("area", "point", "sun")
+
+#: Principled settings (the keys of addon/export/principled.py's ``principled_material``) → the
+#: Principled BSDF node's inputs. ``emission`` is left out on purpose: no benchmark scene has an
+#: emitting surface (see ``check_material``).
+PRINCIPLED_INPUTS = {
+    "base_color": "Base Color", "metallic": "Metallic", "roughness": "Roughness", "ior": "IOR",
+    "specular_ior_level": "Specular IOR Level", "specular_tint": "Specular Tint",
+    "transmission": "Transmission Weight", "coat_weight": "Coat Weight", "coat_roughness": "Coat Roughness",
+    "coat_ior": "Coat IOR", "coat_tint": "Coat Tint", "sheen_weight": "Sheen Weight",
+    "sheen_roughness": "Sheen Roughness", "sheen_tint": "Sheen Tint",
+}
+_PRINCIPLED_COLOURS = ("base_color", "specular_tint", "coat_tint", "sheen_tint")
 
 
 class Unsupported(ValueError):
@@ -71,6 +90,37 @@ def coat_over_body(name: str, m: dict) -> tuple[dict, dict]:
     return ifs[0], ifs[1]
 
 
+def principled_inputs(name: str, p: dict) -> dict:
+    """Principled settings ``p`` → {node input name: value} (colours as 3 floats). Unknown keys,
+    colours that are not 3 numbers and a distribution other than GGX are refused: a typo would
+    otherwise leave Blender's default in Cycles while Lamina's export read the intended value."""
+    out = {}
+    for key, value in p.items():
+        if key == "distribution":
+            if str(value).lower() != "ggx":
+                raise Unsupported(f"material {name}: Principled distribution {value!r}: only plain GGX is "
+                                  "compared (Lamina is single-scattering)")
+            continue
+        if key not in PRINCIPLED_INPUTS:
+            raise Unsupported(f"material {name}: Principled setting {key!r} is not converted "
+                              f"(known: {', '.join(PRINCIPLED_INPUTS)})")
+        if key in _PRINCIPLED_COLOURS:
+            if isinstance(value, (int, float)) or len(value) != 3:
+                raise Unsupported(f"material {name}: Principled {key} must be 3 numbers (linear RGB)")
+            out[PRINCIPLED_INPUTS[key]] = [float(x) for x in value]
+        else:
+            out[PRINCIPLED_INPUTS[key]] = float(value)
+    return out
+
+
+def check_light(i: int, light: dict) -> None:
+    if light.get("type") not in SUPPORTED_LIGHTS:
+        raise Unsupported(f"lights[{i}]: type {light.get('type')} is not converted")
+    if "cutoff_angle" in light or "beam_width" in light:
+        raise Unsupported(f"lights[{i}]: Lamina's cutoff/beam directional light has no Cycles counterpart "
+                          "(use spread)")
+
+
 def cycles_filter(filt: dict) -> tuple[str, float]:
     """Lamina ``film.filter`` → (Cycles filter type, ``filter_width``): the same type and width,
     which mean the same filter in both (backend/film.py follows Cycles' ``filter_table``)."""
@@ -79,19 +129,26 @@ def cycles_filter(filt: dict) -> tuple[str, float]:
     return {"box": "BOX", "blackman-harris": "BLACKMAN_HARRIS", "gaussian": "GAUSSIAN"}[kind], width
 
 
-def prepare(data: dict, job_dir: Path, cycles_overrides: dict | None = None) -> Path:
+def prepare(data: dict, job_dir: Path, cycles_overrides: dict | None = None,
+            principled: dict | None = None) -> Path:
     """Write ``job.json`` + ``geometry.npz`` for the bpy child into ``job_dir``; returns the json path.
-    ``cycles_overrides`` (deliberate mistakes, for ``sensitivity.py`` only) is passed through."""
+    ``cycles_overrides`` (deliberate mistakes, for ``sensitivity.py`` only) is passed through.
+    ``principled`` (material name → Principled settings, ``PeerScene.principled``): Cycles renders
+    those materials as a Principled BSDF with the settings instead of converting Lamina's."""
     from backend.scene.loader import load_scene_data
 
-    for name, m in data.get("materials", {}).items():
-        check_material(name, m)
+    principled = dict(principled or {})
+    materials = data.get("materials", {})
+    missing = sorted(set(principled) - set(materials))
+    if missing:
+        # A name that matches no material would leave the material it was meant for converted.
+        raise Unsupported(f"Principled settings for unknown material(s) {', '.join(missing)}")
+    job_principled = {name: principled_inputs(name, p) for name, p in principled.items()}
+    for name, m in materials.items():
+        if name not in principled:
+            check_material(name, m)
     for i, light in enumerate(data.get("lights", [])):
-        if light.get("type") not in SUPPORTED_LIGHTS:
-            raise Unsupported(f"lights[{i}]: type {light.get('type')} is not converted")
-        if "cutoff_angle" in light or "beam_width" in light:
-            raise Unsupported(f"lights[{i}]: Lamina's cutoff/beam directional light has no Cycles counterpart "
-                              "(use spread)")
+        check_light(i, light)
     world = data.get("world", {"type": "none"})
     if world.get("type", "none") not in ("constant", "none"):
         raise Unsupported(f"world type {world.get('type')} is not converted")
@@ -116,7 +173,8 @@ def prepare(data: dict, job_dir: Path, cycles_overrides: dict | None = None) -> 
         objects.append({"index": oi, "name": obj.get("name", f"object {oi}"), "materials": slot_names,
                         "visible_camera": obj.get("visible_camera", True)})
     job = {"film": data["film"], "cycles_filter": cycles_filter_, "camera": data["camera"], "render": data.get("render", {}),
-           "materials": data.get("materials", {}), "lights": data.get("lights", []), "world": world,
+           "materials": {k: v for k, v in materials.items() if k not in principled},
+           "principled": job_principled, "lights": data.get("lights", []), "world": world,
            "objects": objects}
     if cycles_overrides:
         job["cycles_overrides"] = dict(cycles_overrides)

@@ -97,7 +97,7 @@ def main(argv=None) -> int:
                 print(f"lamina/{smp}: CPU per render {np.median([r.cpu for r in runs]):.3f} s (median of {len(runs)})")
                 var[f"lamina/{smp}"] = _variance(imgs)
             if cy is not None:
-                job = convert.prepare(data, cache / f"{args.scene}-{nb}")
+                job = convert.prepare(data, cache / f"{args.scene}-{nb}", principled=sc.principled)
                 cy.build(job, os.cpu_count() or 1)
                 imgs = [cy.render(args.spp, 9000 + k)[0] for k in range(args.seeds)]
                 var["cycles"] = _variance(imgs)

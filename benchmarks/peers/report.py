@@ -25,7 +25,7 @@ EQUAL = [
      "written to Blender meshes as they are (custom normals; flat faces where Lamina's are flat)"),
     ("camera", "the same `to_world` and image-plane frame",
      "checked: Blender's `view_frame`, normalised, equals the description to < 1e-7"),
-    ("resolution", "96 × 96 (layered scene 80 × 80), 100 %", ""),
+    ("resolution", "96 × 96 (layered and presets scenes 80 × 80), 100 %", ""),
     ("pixel filter", "Blackman-Harris spanning ±1.5 px (Cycles' default look)",
      f"`film.filter` width {FILM_FILTER['width']:g} = Cycles `filter_width` {FILM_FILTER['width']:g} "
      "(the same definition: Cycles' filter_table)"),
@@ -49,6 +49,12 @@ EQUAL = [
     ("point light + IES", "same power, radius 0, soft falloff off",
      "Blender's default soft falloff is on: set from the scene; profile through an IES Texture node (Fac → Strength)"),
     ("emitter sidedness", "area lights emit from their −Z side only in both", "no mesh emitters in these scenes"),
+    ("sun", "the same strength (W/m² of irradiance), angular diameter, colour and direction",
+     "Cycles SUN light: `energy` = strength, `angle` = the same diameter, `matrix_world` = `to_world`; hidden from "
+     "camera rays in both"),
+    ("Principled BSDF (everyday; the presets scene's ground)", "one set of Principled settings per material",
+     "Cycles: a Principled BSDF node with them (GGX, every other input at Blender's default); Lamina: what the add-on "
+     "exports for them (`addon/export/principled.py`)"),
     ("world", "constant colour × strength (or black)", "Background node"),
     ("shadow terminator", "no offset", "Cycles `shadow_terminator_geometry_offset` 0 (default 0.1)"),
     ("per-render start-up", "every render loads the scene and builds its BVH",
@@ -72,6 +78,13 @@ DIFFERENT = [
     ("arithmetic", "float64 shading, float32 ray casting (embree)", "float32 (embree)", "architecture"),
     ("layered scene material", "2-interface stack (random walk between coat and body)",
      "Principled BSDF with Coat (albedo-scaling layering), base specular off",
+     "different materials: compared at equal *own relative* noise, images not compared"),
+    ("Principled BSDF (everyday)", "the add-on's export: dielectric over Lambert, conductor, coat, glass, chosen to have "
+     "Cycles' albedo under uniform light", "Principled BSDF (albedo-scaling layers, F82 metal)",
+     "the same .blend as an artist renders it in each; the lobes differ, so lit regions may differ by a few percent "
+     "(the agreement check shows by how much)"),
+    ("presets scene material", "the layered presets (media, Beckmann interfaces, ...)",
+     "hand-made Principled stand-ins with each preset's albedo (`scenes.PRESET_PRINCIPLED`)",
      "different materials: compared at equal *own relative* noise, images not compared"),
 ]
 
@@ -230,7 +243,7 @@ def section(results: list, summaries: list, info: dict, link) -> str:
                   f"{s['load_avg'][0]:.2f} → {s['load_avg'][1]:.2f} |")
     md += ["", "± = standard error from the least-squares fit of CPU time against spp (the marginal cost, and through "
            "it the start-up-excluded ratio; the spp ratio's own scatter is not included).", "",
-           "† different materials (Lamina's 2-interface coat vs Cycles' Principled BSDF with Coat): the ratios "
+           "† different materials (Lamina's layered stacks vs Cycles' Principled BSDF stand-ins): the ratios "
            "compare CPU time to equal **own relative** noise (relative RMSE = RMSE / mean of the own reference), "
            "not equal work.", "",
            "Ratios are geometric means over the targets of each scene (per-target values below). A ratio > 1 means "

@@ -2,8 +2,9 @@
 
 Per scene:
 
-1. The scene dict (``scenes.py``) is converted once (``convert.prepare``) and built in the bpy
-   child. Both renderers get the same sample counts.
+1. The scene dict (``scenes.py``) is converted once (``convert.prepare``, with the scene's
+   Principled materials for Cycles, ``PeerScene.principled``) and built in the bpy child. Both
+   renderers get the same sample counts.
 2. References: Lamina's from ``benchmarks.measure.reference`` (cached, keyed by the scene and a
    hash of backend/); Cycles' as ``REF_SPLIT`` independent renders of ref_spp / REF_SPLIT samples
    (mean, and per-pixel variance of the mean from their spread), cached keyed by the job, the
@@ -158,7 +159,7 @@ def measure_scene(cy: CyclesProcess, sc: PeerScene, quick: bool, cache: Path, lo
     repeats = 1 if quick else REPEATS
     data = sc.build(size)
     job_dir = cache / "peers-jobs" / sc.name
-    job = convert.prepare(data, job_dir)
+    job = convert.prepare(data, job_dir, principled=sc.principled)
     build = cy.build(job, workers)
     load0 = os.getloadavg()[0]
     log(f"  {sc.name}: {size}x{size}, Cycles scene built ({build['info']['triangles']} triangles, "

@@ -4,7 +4,14 @@ Lamina loads the dict directly; Cycles gets it through ``convert.py`` (the same 
 from Lamina's own loader) and ``to_cycles.py``. Only features the converter supports are used:
 meshes (built-in shapes and inline quads), diffuse / conductor with explicit complex IOR per RGB /
 dielectric (rough or smooth), the two-interface coat (layered scene only), area lights with
-``spread``, a point light with an IES profile, a constant world and a perspective camera.
+``spread``, a point light with an IES profile, a sun, a constant world and a perspective camera.
+
+Two scenes describe some materials as Blender's **Principled BSDF** instead (``PeerScene.principled``,
+material name → Principled settings): Cycles renders those names as a Principled BSDF node with the
+settings, Lamina renders the scene dict's material. In "everyday" the scene dict's material is what
+the add-on exports for the very same settings (``addon/export/principled.py``), so both renderers
+render the same .blend as an artist would build it; in "presets" Lamina renders layered presets
+and the Principled settings are hand-made approximations for Cycles (different materials).
 
 Settings shared by every scene (see docs/benchmarks.md, "Lamina vs Cycles"): GGX with the
 height-correlated Smith masking (Lamina's default, what Cycles uses), Blender's default pixel
@@ -16,10 +23,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 from backend.materials.metals import metal_ior
 
-from ..scenes import IES_DIR, _m, _quad, perspective
+from ..everyday import principled_module
+from ..scenes import IES_DIR, _m, _quad, look_at, perspective
 
 #: Bounces for both renderers (Lamina ``max_bounces`` has Cycles' meaning: 0 = direct light only).
 MAX_BOUNCES = 8
@@ -191,6 +200,127 @@ def layered(size: int) -> dict:
     return _scene(size, camera, materials, meshes, objects, lights, world=world)
 
 
+# --------------------------------------------------------------------------- Principled BSDF scenes
+
+@lru_cache(maxsize=1)
+def _principled_export():
+    # The add-on's own module, loaded once without bpy (the add-on package imports bpy).
+    return principled_module()
+
+
+def principled(p: dict) -> dict:
+    """The Lamina material the Blender add-on exports for Principled BSDF settings ``p``."""
+    return _principled_export().principled_material(p)[0]
+
+
+def _sun_and_world() -> tuple[list, dict]:
+    """A sun (5°, 3 W/m²) from the front left, behind the camera (so neither renderer's camera
+    sees its disk), and a constant pale-blue world: the daylight set-up of benchmarks/everyday.py."""
+    to_sun = (-0.45, -0.55, 0.70)
+    # look_at's local −Z points from its eye to the target: from the sun's side to the origin,
+    # the direction the sun shines.
+    sun = {"type": "sun", "strength": 3.0, "angle": 5.0, "color": [1.0, 0.97, 0.92],
+           "to_world": look_at(to_sun, (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0))}
+    world = {"type": "constant", "color": [0.3, 0.35, 0.42], "strength": 1.0}
+    return [sun], world
+
+
+#: The everyday scene's materials as an artist sets them in Blender's Principled BSDF: the keys of
+#: ``principled_material`` (addon/export/principled.py); every other input at Blender's default.
+EVERYDAY = {
+    "ground": {"base_color": (0.45, 0.45, 0.45), "roughness": 0.5},        # default grey, darker
+    "wall": {"base_color": (0.6, 0.45, 0.32), "roughness": 0.5},
+    "red plastic": {"base_color": (0.8, 0.05, 0.04), "roughness": 0.3},
+    "gold": {"base_color": (0.9, 0.7, 0.3), "metallic": 1.0, "roughness": 0.3},
+    "coated blue": {"base_color": (0.05, 0.2, 0.6), "roughness": 0.5, "coat_weight": 1.0},
+    "coated copper": {"base_color": (0.9, 0.55, 0.45), "metallic": 1.0, "roughness": 0.4, "coat_weight": 1.0},
+    "glass": {"base_color": (1.0, 1.0, 1.0), "transmission": 1.0, "roughness": 0.0},
+}
+
+
+SPHERE_R = 0.35
+
+
+def _five_spheres(materials: list) -> list:
+    """Three spheres in front, two behind in the gaps (each material its own sphere)."""
+    places = [(-0.9, -0.3), (0.0, -0.3), (0.9, -0.3), (-0.45, 0.55), (0.45, 0.55)]
+    return [{"name": f"{m} sphere", "mesh": "sphere", "to_world": _m(x, y, SPHERE_R), "materials": [m]}
+            for m, (x, y) in zip(materials, places)]
+
+
+def _five_spheres_camera(size: int) -> dict:
+    # High enough that the back row shows above the front row.
+    return perspective((0, -3.9, 2.1), (0, 0.15, 0.3), 40.0, size, size)
+
+
+def everyday(size: int) -> dict:
+    """Blender's default material as an artist uses it: a Principled ground and wall, and
+    Principled spheres (plastic, gold, coat over a blue base, coat over copper, clear glass) under
+    a sun and a constant world. Lamina renders what its add-on exports for each Principled
+    setting, Cycles the Principled BSDF itself: the same .blend in both renderers."""
+    meshes = {"ground": _quad([-4, -4, 0], [4, -4, 0], [4, 1.6, 0], [-4, 1.6, 0]),
+              "wall": _quad([-4, 1.6, 0], [4, 1.6, 0], [4, 1.6, 3], [-4, 1.6, 3]),
+              "sphere": {"shape": "sphere", "radius": SPHERE_R, "segments": 96}}
+    materials = {name: principled(p) for name, p in EVERYDAY.items()}
+    objects = [{"name": "ground", "mesh": "ground", "materials": ["ground"]},
+               {"name": "wall", "mesh": "wall", "materials": ["wall"]}]
+    objects += _five_spheres(["red plastic", "glass", "gold", "coated blue", "coated copper"])
+    lights, world = _sun_and_world()
+    return _scene(size, _five_spheres_camera(size), materials, meshes, objects, lights, world=world)
+
+
+#: The presets on the spheres of the presets scene (untextured, isotropic).
+PRESETS = ["plastic-red-glossy", "car-paint-red", "ceramic-glaze-white", "guo-coated-copper",
+           "anodized-aluminium-blue"]
+
+#: Cycles' stand-ins for the presets: Principled settings by hand, with the free colour (base
+#: colour or coat tint) chosen so that Cycles' albedo under uniform light (principled.py's tables,
+#: ``info["target"]``) equals the preset's own, measured with ``python -m backend bsdf albedo
+#: PRESET --theta T --samples 40000`` at θ = 20.7°, 37.8°, 52.2°, 69.3° (cos²θ at the midpoints of
+#: four equal bins, so their mean is the cosine-weighted albedo). Roughness sliders are √α of the
+#: preset's interfaces. They look alike, they are not the same materials.
+PRESET_PRINCIPLED = {
+    # Smooth dielectric over a red Lambertian body: exactly Principled's specular-over-diffuse
+    # shape. The body's weak green and blue (0.04, 0.03) are lost to internal reflection under
+    # the smooth interface: the stack reflects no more than Cycles' specular layer alone there.
+    "plastic-red-glossy": {"base_color": (0.365, 0.0, 0.0), "roughness": 0.045},
+    # Clear coat over a red scattering basecoat (optical depth 3) over aluminium: a coat over a
+    # diffuse red base with its own specular layer off (the basecoat has no interface of its own);
+    # the aluminium's flop through the thin basecoat at normal incidence is not reproduced.
+    "car-paint-red": {"base_color": (0.12, 0.0, 0.0), "roughness": 0.5, "specular_ior_level": 0.0,
+                      "coat_weight": 1.0, "coat_roughness": 0.071},
+    # Smooth glaze over a dense, nearly white scattering layer over a clay body: specular over a
+    # diffuse base; the layer's milky depth is approximated as a diffuse colour (no subsurface:
+    # the slab's thickness is dimensionless, so there is no lateral scale to give Cycles).
+    "ceramic-glaze-white": {"base_color": (0.422, 0.373, 0.281), "roughness": 0.055},
+    # Rough coat (Beckmann α 0.05) over rough copper with a blue forward-scattering medium between:
+    # a coated metal (GGX, √α) whose base colour carries the medium's blue haze and absorption.
+    "guo-coated-copper": {"base_color": (0.12, 0.105, 0.214), "metallic": 1.0, "roughness": 0.224,
+                          "coat_weight": 1.0, "coat_roughness": 0.224},
+    # Clear oxide with a purely absorbing blue dye over aluminium: an aluminium metal under a coat
+    # whose tint is the dye (Cycles' coat tint deepens at grazing angles like a path through dye);
+    # red stays 0.0866 against the preset's 0.080 (the coat's own reflection).
+    "anodized-aluminium-blue": {"base_color": (0.912, 0.914, 0.92), "metallic": 1.0, "roughness": 0.387,
+                                "coat_weight": 1.0, "coat_roughness": 0.224, "coat_tint": (0.01, 0.06, 0.42)},
+}
+
+
+def presets(size: int) -> dict:
+    """Layered presets on spheres over a Principled ground, under the sun and world of
+    "everyday". Lamina renders the presets (named in the scene as a user would name them);
+    Cycles renders ``PRESET_PRINCIPLED``: different materials, so this scene compares time to
+    equal *own* relative noise."""
+    # Ground to 40 m: the camera's highest rays meet it at about 30 m, so the world is seen only
+    # in reflections. Seen directly it is noise-free in both renderers, and the agreement table
+    # would list float rounding as infinitely many standard errors.
+    meshes = {"ground": _quad([-40, -40, 0], [40, -40, 0], [40, 40, 0], [-40, 40, 0]),
+              "sphere": {"shape": "sphere", "radius": SPHERE_R, "segments": 96}}
+    materials = {"ground": principled(EVERYDAY["ground"]), **{p: p for p in PRESETS}}
+    objects = [{"name": "ground", "mesh": "ground", "materials": ["ground"]}] + _five_spheres(PRESETS)
+    lights, world = _sun_and_world()
+    return _scene(size, _five_spheres_camera(size), materials, meshes, objects, lights, world=world)
+
+
 # --------------------------------------------------------------------------- registry
 
 @dataclass
@@ -202,6 +332,10 @@ class PeerScene:
     spp: list                   # test sample counts, for both renderers
     ref_spp: int                # reference samples (both renderers; Cycles as REF_SPLIT renders)
     same_material: bool = True  # False: compare at equal own relative noise, no image agreement
+    #: material name → Principled BSDF settings (``principled_material``'s keys): Cycles renders
+    #: these names as a Principled BSDF node with the settings instead of converting the scene
+    #: dict's material (convert.prepare's ``principled``).
+    principled: dict = field(default_factory=dict)
     quick_size: int = 24
     quick_spp: list = field(default_factory=lambda: [1, 2, 4, 8])
     quick_ref_spp: int = 64
@@ -227,4 +361,10 @@ PEER_SCENES = [
               ies_room, 96, _pow2(0, 6), 1024),
     PeerScene("layered", "Coated spheres: Lamina's 2-interface coat vs Cycles' Principled with Coat",
               layered, 80, _pow2(0, 5), 512, same_material=False),
+    PeerScene("everyday", "Principled BSDF ground, wall and spheres (plastic, gold, coated, coated copper, glass) "
+              "under a 5° sun and a constant world: the same .blend in both renderers",
+              everyday, 96, _pow2(0, 6), 1024, principled=EVERYDAY),
+    PeerScene("presets", "Layered presets (Lamina) vs hand-made Principled stand-ins (Cycles) on spheres over a "
+              "Principled ground, sun and world", presets, 80, _pow2(0, 5), 512, same_material=False,
+              principled={"ground": EVERYDAY["ground"], **PRESET_PRINCIPLED}),
 ]

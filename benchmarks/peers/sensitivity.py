@@ -45,7 +45,7 @@ def main(argv=None) -> int:
             size, ref_spp = (sc.quick_size, sc.quick_ref_spp) if args.quick else (sc.size, sc.ref_spp)
             data = sc.build(size)
             lam = lamina_reference(data, name, ref_spp, args.cache, log)
-            job = convert.prepare(data, args.cache / "peers-jobs" / f"{name}-sensitivity", overrides)
+            job = convert.prepare(data, args.cache / "peers-jobs" / f"{name}-sensitivity", overrides, sc.principled)
             cy.build(job, 2)
             imgs = [cy.render(ref_spp // REF_SPLIT, 9_000_001 + k)[0] for k in range(REF_SPLIT)]
             img, var = agree.split_variance(imgs)

@@ -25,6 +25,12 @@ i.e. from the Lamina scene dict):
   Cycles' height-correlated Smith term (Lamina's ``"masking": "height-correlated"``, its default);
   roughness slider r = √α (Cycles squares it);
 * conductors: Metallic BSDF in Physical Conductor mode with Lamina's (eta, k) per RGB channel;
+* Principled materials (the scene's ``principled`` mapping, ``convert.principled_inputs``): a
+  Principled BSDF node with exactly the scene's settings, plain GGX (Blender's default is
+  Multiscatter GGX), every other input and option at Blender's defaults; the roughness sliders are
+  the settings themselves (Lamina's side is the add-on's export of the same settings, or a preset);
+* sun: a SUN light with the same strength (``energy``, W/m² of irradiance), angular diameter
+  (``angle``), colour and ``matrix_world`` (both shine along the light's local −Z);
 * area lights: one-sided (both), ``spread`` and ``normalize`` as given, visible to camera rays only
   where the scene says so (both default to hidden, Blender 5.0's default); lights do not occlude
   other rays in either renderer; point lights: the same radius, soft falloff off (Blender's default
@@ -73,12 +79,27 @@ def _ggx(node) -> None:
     node.distribution = _OVERRIDES.get("distribution", "GGX")
 
 
-def _new_material(name: str, spec: dict):
+def _principled_node(tree, inputs: dict):
+    """A Principled BSDF with ``inputs`` (node input name → number or RGB, from
+    ``convert.principled_inputs``); everything else stays at Blender's defaults."""
+    node = tree.nodes.new("ShaderNodeBsdfPrincipled")
+    _ggx(node)
+    for key, value in inputs.items():
+        socket = node.inputs[key]
+        socket.default_value = (*_rgb(value), 1.0) if socket.type == "RGBA" else float(value)
+    return node
+
+
+def _new_material(name: str, spec: dict | None, principled: dict | None = None):
     mat = bpy.data.materials.new(name)
     tree = mat.node_tree
     for n in list(tree.nodes):
         tree.nodes.remove(n)
     out = tree.nodes.new("ShaderNodeOutputMaterial")
+    if principled is not None:
+        node = _principled_node(tree, principled)
+        tree.links.new(node.outputs[0], out.inputs["Surface"])
+        return mat
     kind = spec["type"]
     if kind == "diffuse":
         node = tree.nodes.new("ShaderNodeBsdfDiffuse")
@@ -146,9 +167,12 @@ def _lights(sc, specs: list) -> None:
     for i, spec in enumerate(specs):
         kind = spec["type"]
         light = bpy.data.lights.new(f"light {i}", kind.upper())
-        light.energy = float(spec["power"])
+        # Blender's one strength field: W for point and area lights, W/m² of irradiance for a sun.
+        light.energy = float(spec["strength"] if kind == "sun" else spec["power"])
         light.color = _rgb(spec.get("color", 1.0))
-        if kind == "area":
+        if kind == "sun":
+            light.angle = math.radians(float(spec.get("angle", 0.0)))     # both: the full angular diameter
+        elif kind == "area":
             light.shape = spec.get("shape", "square").upper()
             light.size = float(spec.get("size", 1.0))
             light.size_y = float(spec.get("size_y", spec.get("size", 1.0)))
@@ -184,7 +208,7 @@ def _world(sc, spec: dict) -> None:
         bg.inputs["Strength"].default_value = 0.0
 
 
-def _objects(sc, objects: list, geometry, materials: dict) -> int:
+def _objects(sc, objects: list, geometry, materials: dict, principled: dict) -> int:
     made = {}
     triangles = 0
     for o in objects:
@@ -197,7 +221,7 @@ def _objects(sc, objects: list, geometry, materials: dict) -> int:
         me.from_pydata(pos.reshape(-1, 3), [], np.arange(3 * t).reshape(t, 3))
         for name in o["materials"]:
             if name not in made:
-                made[name] = _new_material(name, materials[name])
+                made[name] = _new_material(name, materials.get(name), principled.get(name))
             me.materials.append(made[name])
         me.polygons.foreach_set("material_index", slot.astype(np.int32))
         flat = True
@@ -277,7 +301,7 @@ def build(job_path: Path, threads: int) -> dict:
     _world(sc, job.get("world", {}))
     frame_err, aspect = _camera(sc, job["camera"], sc.render.resolution_x, sc.render.resolution_y)
     _lights(sc, job.get("lights", []))
-    tris = _objects(sc, job["objects"], geometry, job.get("materials", {}))
+    tris = _objects(sc, job["objects"], geometry, job.get("materials", {}), job.get("principled", {}))
     info = settings(sc, job.get("render", {}), threads)
     info.update({"camera_frame_error": frame_err, "pixel_aspect": aspect, "triangles": tris,
                  "blender": bpy.app.version_string})

@@ -117,10 +117,22 @@ def _body(T, o, alpha, rho, mu_i):
     return e, (k0 * INV_PI, k1 * INV_PI, k2 * INV_PI), d, _at(T, a, b, t, RS_AT, mu_i)
 
 
+SHARP_ALPHA = 0.02          # a reflection lobe this sharp or sharper is sampled at least ...
+SHARP_SHARE = 0.5          # ... this often
+
+
 @kernel
-def _specular_share(rs, d):
+def specular_share(rs, d, alpha):
+    """The probability of sampling the interface's own reflection: its share of the albedo, but
+    at least SHARP_SHARE for a sharp lobe (α ≤ SHARP_ALPHA, smooth included). A small light
+    (the sun) mirrored in a sharp lobe is found by BSDF sampling alone (light sampling rarely
+    lands inside the lobe), so there the albedo share (4–10 % for a coat) left the highlight to
+    rare samples of large weight."""
     s = rs + (d[0] + d[1] + d[2]) / 3.0
-    return rs / s if s > 0.0 else 0.5
+    w = rs / s if s > 0.0 else 0.5
+    if alpha <= SHARP_ALPHA and rs > 0.0:
+        w = max(w, SHARP_SHARE)
+    return w
 
 
 @kernel
@@ -161,7 +173,7 @@ def _sample_exit(T, o, alpha, u0, u1, u2):
 
 
 @kernel
-def _reflection_density(dist, au, av, wi, wo):
+def reflection_density(dist, au, av, wi, wo):
     """Density of a visible normal reflected about: D_wi(h) / (4 |wo·h|) (the reflection's
     solid-angle Jacobian), h the half vector."""
     hx, hy, hz = wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]
@@ -186,7 +198,7 @@ def eval_pdf(T, o, eta, au, av, smooth, rho, dist, masking, wi, wo):
     e_o = _exit(T, o, au, wo[2])
     mo = wo[2]
     f = (k[0] * e_i[0] * e_o[0] * mo, k[1] * e_i[1] * e_o[1] * mo, k[2] * e_i[2] * e_o[2] * mo)
-    w_s = _specular_share(rs, d)
+    w_s = specular_share(rs, d, 0.0 if smooth else au)
     if smooth:
         pdf = (1.0 - w_s) * _exit_density(T, o, au, mo)
     else:
@@ -195,7 +207,7 @@ def eval_pdf(T, o, eta, au, av, smooth, rho, dist, masking, wi, wo):
         pdf = (1.0 - w_s + w_s * down) * _exit_density(T, o, au, mo)
         fr, _ = dielectric.eval_pdf(eta, (1.0, 1.0, 1.0), au, av, False, dist, masking, IMPORTANCE, wi, wo)
         f = (f[0] + fr[0], f[1] + fr[1], f[2] + fr[2])
-        pdf += w_s * _reflection_density(dist, au, av, wi, wo)
+        pdf += w_s * reflection_density(dist, au, av, wi, wo)
     return f, pdf
 
 
@@ -206,7 +218,7 @@ def sample(T, o, eta, au, av, smooth, rho, dist, masking, wi, u0, u1, u2):
     if not wi[2] > 0.0:
         return (0.0, 0.0, 1.0), ZERO3, 0.0, False
     _, _, d, rs = _body(T, o, au, rho, wi[2])
-    w_s = _specular_share(rs, d)
+    w_s = specular_share(rs, d, 0.0 if smooth else au)
     if u2 < w_s:
         if smooth:
             F = fresnel(wi[2], eta)[0] / w_s
