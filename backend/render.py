@@ -436,6 +436,8 @@ class Renderer:
         else:
             from .warmup import ensure_compiled
             ensure_compiled(self.on_progress)
+            from .layered.tabulated import prepare as prepare_tables
+            prepare_tables(scene.materials, self.on_progress)
             parallel = self.options.parallel or default_parallel(scene)
             if workers > 1 and parallel == "processes":
                 runner = _ProcessItems(workers, self.source, self.options, self._warn, scene)

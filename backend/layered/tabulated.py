@@ -30,13 +30,17 @@ et al.'s Fig. 2 stack (α 0.05 coat and copper): twice the orders change nothing
 double the error at the highlight's peak and shoulders (docs/materials.md).
 Approximations (stated with their measured error in docs/materials.md and tests/test_tabulated.py):
 the finite nodes and orders, bilinear interpolation between nodes, and for a nearly smooth top its
-refraction taken as smooth. Tables are cached per process by the bound stack's content.
+refraction taken as smooth. Tables are cached per process and on disk (the kernel cache folder,
+tables/<hash of the bound stack, the settings and this file>.npy), so a stack is solved once per
+machine.
 """
 from __future__ import annotations
 
 import hashlib
 import math
+import os
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -203,7 +207,7 @@ class _Solver:
         alpha = B[o + IF_P + (9 if B[o + IF_KIND] == CONDUCTOR else 4)]
         refl = np.zeros((n, n, self.M, 3))
         trans = np.zeros((n, n, self.M, 3))
-        interface_projection(B, o, self.mu, s_in, self.w, GRID, refl, trans)
+        _in_threads(lambda j0, j1: interface_projection(B, o, self.mu, j0, j1, s_in, self.w, GRID, refl, trans), n)
         # Orders beyond the lobe's own bandwidth hold only the projection's sampling noise, which
         # the series would add up coherently at Δφ = 0 (measured: a copper lobe of α 0.3 under a
         # coat of α 0.05 read 0.02 instead of 0.6 at its mirror direction).
@@ -302,10 +306,15 @@ class _Solver:
             T[:, c] = np.transpose(ps[:, :, :mp], (2, 1, 0)) * scale * tfac[None]
         idx = np.arange(n)
         T[:, :, idx, idx] += np.exp(-dt[:, None] * inv[None, :])[None]
-        for _ in range(K):                                           # doubling: two equal halves
-            X = np.linalg.solve(self.eye - R @ R, T)
-            R = R + T @ (R @ X)
-            T = T @ X
+        def double(j0, j1):                                          # two equal halves, K times
+            r, t = R[j0:j1], T[j0:j1]
+            for _ in range(K):
+                x = np.linalg.solve(self.eye - r @ r, t)
+                r = r + t @ (r @ x)
+                t = t @ x
+            R[j0:j1], T[j0:j1] = r, t
+
+        _in_threads(double, mp)                  # NumPy's solver and products release the GIL
         return R, T, mp, att
 
     def add_medium(self, below: np.ndarray, md: int) -> np.ndarray:
@@ -324,6 +333,18 @@ class _Solver:
         """(the reflection of a rough interface over ``below``, its own reflection from above)."""
         Ra, Td, Rb, Tu = self.interface(o)
         return Ra + Tu @ np.linalg.solve(self.eye - below @ Rb, below @ Td), Ra
+
+
+def _in_threads(work, n: int) -> None:
+    """work(j0, j1) over rows 0 … n − 1 in chunks on every core (the compiled kernels release
+    the GIL and write disjoint rows)."""
+    from concurrent.futures import ThreadPoolExecutor
+    from ..limits import cpu_count
+    workers = max(1, min(cpu_count(), n))
+    bounds = np.linspace(0, n, 4 * workers + 1).astype(int)      # smaller pieces balance better
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        for f in [pool.submit(work, int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]:
+            f.result()
 
 
 def _bottom(S: _Solver, o: int, kind: str) -> np.ndarray:
@@ -430,8 +451,9 @@ def _bound_kinds(B, N: int) -> list:
     return [names.get(int(B[if_offset(l) + IF_KIND]), "null") for l in range(N)]
 
 
-def build(material) -> np.ndarray | None:
-    """The table block of a layered material (None if it does not qualify)."""
+def _identity(material):
+    """(key, bound block, fiber table, interface kinds, settings) of a stack that qualifies, or
+    None: the key hashes everything the table depends on."""
     from .flat import flatten
     flat = flatten(material)
     settings = plan(material, flat)
@@ -440,15 +462,85 @@ def build(material) -> np.ndarray | None:
     ST, _, sid = material.kernel_table()
     B = np.array(ST.bound[sid])
     kinds = _bound_kinds(B, len(flat.interfaces))
-    key = hashlib.sha1(B.tobytes() + repr((kinds, sorted(settings.items()))).encode()).hexdigest()
+    key = hashlib.sha1(B.tobytes() + repr((kinds, sorted(settings.items()))).encode() + _SOURCE).hexdigest()
+    return key, B, np.ascontiguousarray(ST.FT), kinds, settings
+
+
+def build(material) -> np.ndarray | None:
+    """The table block of a layered material (None if it does not qualify): from this process's
+    memory, the disk cache, or solved now (and kept in both)."""
+    ident = _identity(material)
+    if ident is None:
+        return None
+    key, B, FT, kinds, settings = ident
     block = _CACHE.get(key)
     if block is None:
-        block = _block(B, np.ascontiguousarray(ST.FT), kinds, settings)
+        block = _load(key)
+        if block is None:
+            block = _block(B, FT, kinds, settings)
+            _SOLVED[0] += 1
+            _store(key, block)
         _CACHE[key] = block
     return block
 
 
+def prepare(materials, emit) -> None:
+    """Solve the tables of a scene's tabulated stacks before the workers start (this process keeps
+    them, worker processes find them on disk), saying so when some must be solved (seconds each
+    the first time on a machine): ``emit`` gets a "compiling" event before and a "compiled" one
+    after, as the first compilation of the kernels does."""
+    from .material import LayeredMaterial
+    todo = [m for m in materials if isinstance(m, LayeredMaterial) and m.options.estimator == "auto"
+            and m.closed_form is None and not hasattr(m, "_table_block")]
+    idents = [(m, _identity(m)) for m in todo]
+    missing = {i[0] for _, i in idents if i is not None and i[0] not in _CACHE and not _cache_file(i[0]).exists()}
+    t0 = time.perf_counter()
+    if missing:
+        emit({"event": "compiling", "message": f"solving {len(missing)} layered stack(s) into tables "
+                                               f"(once per stack and machine) ..."})
+    for m, _ in idents:
+        _ = m.table_block
+    if missing:
+        dt = time.perf_counter() - t0
+        emit({"event": "compiled", "seconds": round(dt, 2),
+              "message": f"solved {len(missing)} layered stack(s) into tables in {dt:.1f} s "
+                         f"(cached in {_cache_file('x').parent})"})
+
+
 _CACHE: dict = {}        # content hash of the bound stack → its block, for this process
+_SOLVED = [0]            # tables solved (not loaded) by this process
+# The solver's own source is part of a table's key (the kernel cache folder's key covers
+# backend/kernels/, not this file).
+_SOURCE = hashlib.sha1(Path(__file__).read_bytes()).digest()
+
+
+def _cache_file(key: str) -> Path:
+    from ..kernels.cache import configure
+    return configure() / "tables" / f"{key}.npy"
+
+
+def _load(key: str):
+    """A table solved before on this machine (the kernel cache folder, keyed by the kernels'
+    sources: tables/<content hash>.npy), or None."""
+    try:
+        block = np.load(_cache_file(key), allow_pickle=False)
+    except (OSError, ValueError):
+        return None
+    block.setflags(write=False)
+    return block
+
+
+def _store(key: str, block: np.ndarray) -> None:
+    """Keep a table for the next render (atomically: a partial file never has the final name).
+    A cache that cannot be written only costs the solve next time."""
+    try:
+        path = _cache_file(key)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.npy")
+        np.save(tmp, block, allow_pickle=False)
+        os.replace(tmp, path)
+    except OSError:
+        pass
 
 
 def _block(B, FT, kinds, settings) -> np.ndarray:

@@ -57,7 +57,7 @@ def _deposit(out, j, i, weight, cos_d, scale):
 
 
 @kernel(nogil=True, error_model="numpy")
-def interface_projection(B, o, mu_in, s_in, weights, grid, refl, trans):
+def interface_projection(B, o, mu_in, j0, j1, s_in, weights, grid, refl, trans):
     """The cosine coefficients (over Δφ) of the interface's flux kernels from the nodes mu_in
     (light arriving from above, s_in = +1, or from below, −1) to the same nodes on each side:
     refl[j, i, m, c] (back to the arriving side) and trans[j, i, m, c]. Each sample's flux is
@@ -69,10 +69,11 @@ def interface_projection(B, o, mu_in, s_in, weights, grid, refl, trans):
     Projected through the interface's own sampler on a grid × grid of stratified numbers (its
     microfacet normals): each normal's reflection weighted by its Fresnel factor and its
     refraction by the rest, so the flux lands exactly where the interface sends it, however
-    narrow the lobe (a point-sampled kernel would need nodes finer than a lobe)."""
+    narrow the lobe (a point-sampled kernel would need nodes finer than a lobe). Rows j0 … j1 − 1
+    only (threads share the rows)."""
     inv = 1.0 / grid
     norm = inv * inv / (2.0 * math.pi)
-    for j in range(mu_in.shape[0]):
+    for j in range(j0, j1):
         mi = mu_in[j]
         si = math.sqrt(max(1.0 - mi * mi, 0.0))
         wi = (-si, 0.0, s_in * mi)          # the light travels along −wi: azimuth 0
