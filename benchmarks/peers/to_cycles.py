@@ -18,8 +18,11 @@ i.e. from the Lamina scene dict):
   ``min_light_bounces`` = ``rr_depth`` − 2 (until issue 17's diagnosis this was ``rr_depth`` − 1,
   which started Cycles' roulette one surface later than Lamina's). Both use the survival
   probability min(1, √max(throughput)), decided after the emission the ray found;
-* clamping off (``sample_clamp_direct`` = ``sample_clamp_indirect`` = 0; Cycles' default for
-  indirect is 10), Filter Glossy off (``blur_glossy`` = 0; default 1), reflective and refractive
+* clamping: the scene's ``clamp`` as Cycles' ``sample_clamp_indirect`` (Lamina clamps what the
+  vertices after the camera hit add, never the first hit's light: ``sample_clamp_direct`` 0);
+  off (0) in every scene but "everyday" and "presets", which use Cycles' default indirect clamp
+  10 as artists render (their sunlit glass and smooth coats make caustic fireflies that leave
+  unclamped errors of a few hundred samples dominated by single paths); Filter Glossy off (``blur_glossy`` = 0; default 1), reflective and refractive
   caustics on (Lamina's paths are unbiased), denoising off, adaptive sampling off;
 * microfacets: plain GGX (not Cycles' default Multiscatter GGX: Lamina is single-scattering) with
   Cycles' height-correlated Smith term (Lamina's ``"masking": "height-correlated"``, its default);
@@ -256,7 +259,9 @@ def settings(sc, render: dict, threads: int) -> dict:
     c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = bounces
     c.volume_bounces = 0
     c.min_light_bounces = max(int(render.get("rr_depth", 3)) - 2, 0)
-    c.sample_clamp_direct = float(render.get("clamp", 0.0))
+    # Lamina's "clamp" limits what each vertex after the camera hit adds (kernels/integrator.py
+    # _clamped): Cycles' indirect clamp; light at the first hit is never clamped in Lamina.
+    c.sample_clamp_direct = 0.0
     c.sample_clamp_indirect = float(render.get("clamp", 0.0))
     c.blur_glossy = 0.0
     c.caustics_reflective = True

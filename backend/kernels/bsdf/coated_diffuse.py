@@ -173,6 +173,25 @@ def _sample_exit(T, o, alpha, u0, u1, u2):
 
 
 @kernel
+def reflected_visible(dist, au, av, wi, u0, u1):
+    """wi mirrored about a visible normal (it may point below the surface)."""
+    m = mf.sample_visible(dist, au, av, wi, u0, u1)
+    c = wi[0] * m[0] + wi[1] * m[1] + wi[2] * m[2]
+    return (2.0 * c * m[0] - wi[0], 2.0 * c * m[1] - wi[1], 2.0 * c * m[2] - wi[2])
+
+
+@kernel
+def three_from_one(x):
+    """Three uniform numbers from one: its first 12 bits (to a cell's centre), the next 12, and
+    the rest (for a rare second draw, where stratification no longer matters)."""
+    y = x * 4096.0
+    k = math.floor(y)
+    z = (y - k) * 4096.0
+    j = math.floor(z)
+    return (k + 0.5) / 4096.0, (j + 0.5) / 4096.0, z - j
+
+
+@kernel
 def reflection_density(dist, au, av, wi, wo):
     """Density of a visible normal reflected about: D_wi(h) / (4 |wo·h|) (the reflection's
     solid-angle Jacobian), h the half vector."""
@@ -223,17 +242,12 @@ def sample(T, o, eta, au, av, smooth, rho, dist, masking, wi, u0, u1, u2):
         if smooth:
             F = fresnel(wi[2], eta)[0] / w_s
             return (-wi[0], -wi[1], wi[2]), (F, F, F), 0.0, True
-        m = mf.sample_visible(dist, au, av, wi, u0, u1)
-        c = wi[0] * m[0] + wi[1] * m[1] + wi[2] * m[2]
-        wo = (2.0 * c * m[0] - wi[0], 2.0 * c * m[1] - wi[1], 2.0 * c * m[2] - wi[2])
+        wo = reflected_visible(dist, au, av, wi, u0, u1)
         if not wo[2] > 0.0:
             # Below the surface: the body's exit distribution, from u2/w_s (uniform, independent
             # of the normal) split into three numbers.
-            x = (u2 / w_s) * 4096.0
-            k = math.floor(x)
-            y = (x - k) * 4096.0
-            j = math.floor(y)
-            wo = _sample_exit(T, o, au, (k + 0.5) / 4096.0, (j + 0.5) / 4096.0, y - j)
+            a, b, c = three_from_one(u2 / w_s)
+            wo = _sample_exit(T, o, au, a, b, c)
     else:
         wo = _sample_exit(T, o, au, u0, u1, (u2 - w_s) / (1.0 - w_s))
     if not wo[2] > 0.0:

@@ -56,8 +56,7 @@ import math
 
 from . import IMPORTANCE
 from . import conductor, dielectric, diffuse
-from .coated_diffuse import reflection_density, specular_share
-from .. import microfacet as mf
+from .coated_diffuse import reflected_visible, reflection_density, specular_share, three_from_one
 from ..fresnel import dielectric as fresnel
 from ..jit import kernel
 from ..turns import cos_sin_turns
@@ -356,16 +355,11 @@ def sample(T, o, wi, u0, u1, u2):
         if smooth:
             F = fresnel(wi[2], eta)[0] / w_s
             return (-wi[0], -wi[1], wi[2]), (F, F, F), 0.0, True
-        m = mf.sample_visible(dist, alpha, alpha, wi, u0, u1)
-        c = wi[0] * m[0] + wi[1] * m[1] + wi[2] * m[2]
-        wo = (2.0 * c * m[0] - wi[0], 2.0 * c * m[1] - wi[1], 2.0 * c * m[2] - wi[2])
+        wo = reflected_visible(dist, alpha, alpha, wi, u0, u1)
         if not wo[2] > 0.0:
             # below the surface: the table part's sampler, from u2/w_s split into three numbers
-            x = (u2 / w_s) * 4096.0
-            k = math.floor(x)
-            y = (x - k) * 4096.0
-            j = math.floor(y)
-            wo = _sample_table(T, o, wi, (k + 0.5) / 4096.0, (j + 0.5) / 4096.0, y - j)
+            a, b, c = three_from_one(u2 / w_s)
+            wo = _sample_table(T, o, wi, a, b, c)
     else:
         wo = _sample_table(T, o, wi, u0, u1, (u2 - w_s) / (1.0 - w_s))
     if not wo[2] > 0.0:
