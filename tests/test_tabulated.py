@@ -245,3 +245,23 @@ def test_which_stacks_are_tabulated():
     ]
     for doc in no:
         assert load(doc).table_block is None, doc
+
+
+def test_tables_are_solved_once_and_cached_on_disk(tmp_path, monkeypatch):
+    """A scene's tables are solved before rendering with a "compiling" / "compiled" pair of events
+    (as the kernels' first compilation), stored on disk, and the next load (another process: the
+    memory cache cleared) reads the same table without solving or saying anything."""
+    monkeypatch.setattr(tb, "_cache_file", lambda key: tmp_path / f"{key}.npy")
+    monkeypatch.setattr(tb, "_CACHE", {})
+    doc = STACKS["glaze over clay"][0]
+    events = []
+    first = load(doc)
+    tb.prepare([first], events.append)
+    assert [e["event"] for e in events] == ["compiling", "compiled"], events
+    assert len(list(tmp_path.glob("*.npy"))) == 1
+    monkeypatch.setattr(tb, "_CACHE", {})
+    events.clear()
+    again = load(doc)
+    tb.prepare([again], events.append)
+    assert events == []
+    assert np.array_equal(first.table_block, again.table_block)

@@ -490,8 +490,8 @@ def prepare(materials, emit) -> None:
     the first time on a machine): ``emit`` gets a "compiling" event before and a "compiled" one
     after, as the first compilation of the kernels does."""
     # layered materials (duck-typed: layered/material.py imports this module)
-    todo = [m for m in materials if hasattr(m, "table_block") and m.options.estimator == "auto"
-            and m.closed_form is None and not hasattr(m, "_table_block")]
+    todo = [m for m in materials if isinstance(getattr(type(m), "table_block", None), property)
+            and m.options.estimator == "auto" and m.closed_form is None and not hasattr(m, "_table_block")]
     idents = [(m, _identity(m)) for m in todo]
     missing = {i[0] for _, i in idents if i is not None and i[0] not in _CACHE and not _cache_file(i[0]).exists()}
     t0 = time.perf_counter()
