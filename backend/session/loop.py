@@ -238,6 +238,7 @@ class Session:
         self.workers = max(1, min(workers or os.cpu_count() or 1, 64))
         self.samples = samples
         self.state = SessionScene()
+        self.state.on_event = lambda e: self.events(e.pop("event"), **e)
         self.generation = -1
         self.progress: Progressive | None = None
         self.error: str | None = None

@@ -68,6 +68,9 @@ class FileCache(dict):
 
 class SessionScene:
     def __init__(self):
+        # Told of long preparations (tables of layered stacks solved for the first time on this
+        # machine: backend/layered/tabulated.prepare): a callable taking an event dict.
+        self.on_event = None
         self.doc: dict | None = None
         self.where = "<session>"
         self.base: Path | None = None
@@ -235,6 +238,8 @@ class SessionScene:
         scene = loader.assemble_scene(ctx, *film, camera, settings, material_list, material_names, soup,
                                       lights, world, bounds=bounds)
         from ..integrator import PathTracer
+        from ..layered.tabulated import prepare as prepare_tables
+        prepare_tables(material_list, self.on_event or (lambda event: None))
         tracer = PathTracer(scene, accel)
         done("tables")
 
