@@ -26,7 +26,7 @@
 Per lane, ``bind`` evaluates a row's parameters at a UV into a fixed 12-tuple ``p`` (so every
 kind returns the same Numba type): diffuse (colour); conductor (eta, k, tint, αu, αv, smooth);
 dielectric (eta, tint, αu, αv, smooth); coated diffuse (eta, αu, αv, smooth, body colour, table
-offset); tabulated (table offset). ``eval_pdf`` / ``sample`` / ``albedo`` dispatch on kind.
+offset); tabulated (table offset, a textured body's colour). ``eval_pdf`` / ``sample`` / ``albedo`` dispatch on kind.
 """
 from __future__ import annotations
 
@@ -50,7 +50,7 @@ D_ETA, D_TINT, D_AU, D_AV = 3, 4, 7, 8           # dielectric: relative eta, tra
 LAYER_ID = 3                 # layered: the stack's row in the stack table
 MIX_FACTOR, MIX_N, MIX_C0 = 3, 4, 5   # mix/add (materials/mix.py): factor, count, component rows (≤ 8)
 CD_ETA, CD_AU, CD_AV, CD_RHO, CD_TAB = 3, 4, 5, 6, 9   # coated diffuse: relative eta, α, body colour, table
-TB_TAB = 3                   # tabulated stack: its table block
+TB_TAB, TB_RHO = 3, 4        # tabulated stack: its table block, a textured body's colour (RGB)
 
 MaterialTable = namedtuple("MaterialTable", ["kind", "dist", "masking", "two_sided", "emits",
                                              "values", "tex", "emit_front", "nmode", "bump", "tables"])
@@ -218,7 +218,8 @@ def bind(mt, tx, m, u, v):
         return (mt.values[m, CD_ETA], max(au, ALPHA_MIN), max(av, ALPHA_MIN), smooth, c[0], c[1], c[2],
                 mt.values[m, CD_TAB], 0.0, 0.0, 0.0, 0.0)
     if kind == TABULATED:
-        return (mt.values[m, TB_TAB], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        c = _rgb(mt, tx, m, TB_RHO, u, v)
+        return (mt.values[m, TB_TAB], c[0], c[1], c[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
@@ -247,7 +248,7 @@ def eval_pdf(T, kind, dist, masking, p, mode, wi, wo):
         return coated_diffuse.eval_pdf(T, int(p[7]), p[0], p[1], p[2], p[3] > 0.0, (p[4], p[5], p[6]),
                                        dist, masking, wi, wo)
     if kind == TABULATED:
-        return tabulated.eval_pdf(T, int(p[0]), wi, wo)
+        return tabulated.eval_pdf(T, int(p[0]), (p[1], p[2], p[3]), wi, wo)
     return (0.0, 0.0, 0.0), 0.0
 
 
@@ -266,7 +267,7 @@ def sample(T, kind, dist, masking, p, mode, wi, u0, u1, u2):
         return coated_diffuse.sample(T, int(p[7]), p[0], p[1], p[2], p[3] > 0.0, (p[4], p[5], p[6]),
                                      dist, masking, wi, u0, u1, u2)
     if kind == TABULATED:
-        return tabulated.sample(T, int(p[0]), wi, u0, u1, u2)
+        return tabulated.sample(T, int(p[0]), (p[1], p[2], p[3]), wi, u0, u1, u2)
     return (0.0, 0.0, 1.0 if wi[2] >= 0.0 else -1.0), (0.0, 0.0, 0.0), 0.0, False
 
 
@@ -282,5 +283,5 @@ def albedo(T, kind, p, wi):
     if kind == COATED_DIFFUSE:
         return coated_diffuse.albedo(T, int(p[7]), p[1], (p[4], p[5], p[6]), wi[2])
     if kind == TABULATED:
-        return tabulated.albedo(T, int(p[0]), wi[2])
+        return tabulated.albedo(T, int(p[0]), (p[1], p[2], p[3]), wi[2])
     return (0.0, 0.0, 0.0)

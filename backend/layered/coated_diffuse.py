@@ -22,7 +22,7 @@ import numpy as np
 from ..kernels.microfacet_codes import DISTRIBUTION_CODES, MASKING_CODES
 
 ALPHA_NODES = 17            # a roughness texture: nodes uniform in √α on [0, 1]
-STRATA = 64                 # visible normals per table integral: STRATA × STRATA (tests: error)
+STRATA = 64                 # visible normals per table integral: STRATA² (a Fibonacci lattice)
 GAUSS_NODES = 48            # Gauss–Legendre nodes of r and Ē
 
 

@@ -119,6 +119,10 @@ class LayeredMaterial(Material):
         if block is not None:
             row.kind = km.TABULATED
             row.values[km.TB_TAB] = row.tables.add(block)
+            from .flat import flatten
+            body = flatten(self).interfaces[-1]
+            if getattr(body, "type_name", "") == "diffuse":
+                row.set(km.TB_RHO, body.color, 3)       # read only by a textured body's table
             return
         row.kind = km.LAYERED
         if getattr(row, "stacks", None) is None:

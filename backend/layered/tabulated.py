@@ -50,7 +50,7 @@ N_RANGE = (48, 128)
 M_RANGE = (16, 128)
 DTAU0 = 2.0 ** -13          # the optical depth a slab starts from (single scattering)
 START_FRACTION = 0.001       # ... and at most this fraction of the grazing node's μ (an albedo-1 slab of τ 8 kept 99.4 % of its light at 1 %, 99.92 % at 0.1 %, 99.995 % at 0.01 %)
-GRID = 96                   # stratified numbers per side projecting an interface (GRID² normals a node)
+GRID = 96                   # GRID² microfacet normals project an interface per node (a Fibonacci lattice)
 BANDWIDTH = 8.0             # a sampled interface keeps its first 8/α azimuthal orders
 POLE_REFINE = 0.5           # node spacing at the pole: 1 − POLE_REFINE times the uniform one
 S_I, S_O, S_B = 32, 48, 64  # the sampler's nodes in θi, cells in θo, bins in Δφ
@@ -67,9 +67,18 @@ def _alpha(m) -> float | None:
     return float(np.asarray(m.roughness.mean()).reshape(-1)[0])
 
 
+def _textured_body_only(flat) -> bool:
+    """Is the diffuse body's colour the stack's only texture?"""
+    *above, body = flat.interfaces
+    return (getattr(body, "type_name", "") == "diffuse" and body.uses_textures
+            and not any(getattr(m, "uses_textures", False) for m in above)
+            and not any(m.uses_textures for m in flat.media))
+
+
 def plan(material, flat) -> dict | None:
     """The tabulation's settings for a stack, or None (the walk)."""
-    if material.uses_textures or flat.transmissive or any(n is not None for n in flat.normals):
+    body = material.uses_textures and _textured_body_only(flat)
+    if (material.uses_textures and not body) or flat.transmissive or any(n is not None for n in flat.normals):
         return None
     ifaces = flat.interfaces
     if len(ifaces) < 2:
@@ -115,7 +124,7 @@ def plan(material, flat) -> dict | None:
     a = min(sharp) if sharp else 1.0
     n = int(np.clip(math.ceil(6.4 / a), *N_RANGE))
     M = int(np.clip(math.ceil(4.0 / a), *M_RANGE))
-    return {"rough_top": top_alpha > ALPHA_SMOOTH, "top_alpha": top_alpha, "n": n, "M": M}
+    return {"rough_top": top_alpha > ALPHA_SMOOTH, "top_alpha": top_alpha, "n": n, "M": M, "body": bool(body)}
 
 
 # ----------------------------------------------------------------------------- the solver
@@ -347,13 +356,13 @@ def _in_threads(work, n: int) -> None:
             f.result()
 
 
-def _bottom(S: _Solver, o: int, kind: str) -> np.ndarray:
-    """The bottom interface's reflection from above."""
+def _bottom(S: _Solver, o: int, kind: str, rho=None) -> np.ndarray:
+    """The bottom interface's reflection from above (a diffuse body: of albedo ``rho`` if given)."""
     from ..kernels.layered.iface import IF_DELTA, IF_P
     B = S.B
     if kind == "diffuse":
         A = np.zeros((S.M, 3, S.n, S.n))
-        rho = np.array(B[o + IF_P:o + IF_P + 3])
+        rho = np.array(B[o + IF_P:o + IF_P + 3]) if rho is None else np.full(3, float(rho))
         # k_0 = ρ μ_i / π, A_0 = 2π k_0 w_j
         A[0] = 2.0 * rho[:, None, None] * S.mu[None, :, None] * S.w[None, None, :]
         return A
@@ -365,9 +374,10 @@ def _bottom(S: _Solver, o: int, kind: str) -> np.ndarray:
     return S.interface(o)[0]
 
 
-def solve(B: np.ndarray, FT: np.ndarray, kinds: list, settings: dict) -> tuple[np.ndarray, np.ndarray, bool]:
+def solve(B: np.ndarray, FT: np.ndarray, kinds: list, settings: dict, rho=None) -> tuple[np.ndarray, np.ndarray, bool]:
     """(nodes μ, y (n, n, M, 3), whether the first interface's single reflection is left out of
-    y) of a bound stack (kernels/bsdf/tabulated.py's layout)."""
+    y) of a bound stack (kernels/bsdf/tabulated.py's layout); ``rho``: the diffuse body's albedo
+    instead of the bound one."""
     from ..kernels.layered.table import M_TAU, if_offset, md_offset
     n, M = settings["n"], settings["M"]
     split = None
@@ -379,8 +389,9 @@ def solve(B: np.ndarray, FT: np.ndarray, kinds: list, settings: dict) -> tuple[n
     S = _Solver(B, FT, n, M, split)
     n = S.n
     N = len(kinds)
-    R = _bottom(S, if_offset(N - 1), kinds[-1])
-    first = R if N == 2 else None                  # the first interface's own reflection
+    R = _bottom(S, if_offset(N - 1), kinds[-1], rho)
+    # the first interface's own reflection (not a textured body: its colour is per lane)
+    first = R if N == 2 and not settings.get("body") else None
     for k in range(N - 2, -1, -1):
         R = S.add_medium(R, md_offset(k))
         if k > 0 and kinds[k] != "null":
@@ -459,8 +470,16 @@ def _identity(material):
     settings = plan(material, flat)
     if settings is None:
         return None
-    ST, _, sid = material.kernel_table()
+    ST, TX, sid = material.kernel_table()
     B = np.array(ST.bound[sid])
+    if settings["body"]:
+        # A textured body: the stack is bound anywhere (nothing else varies) and the body's own
+        # colour is left out (the table is solved for albedos 0, ½ and 1; kernels/bsdf/tabulated.py)
+        from ..kernels.layered.iface import IF_P
+        from ..kernels.layered.table import UNIT_DUV, bind_into, if_offset
+        bind_into(ST, TX, sid, 0.5, 0.5, UNIT_DUV, B)
+        body = if_offset(len(flat.interfaces) - 1) + IF_P
+        B[body:body + 3] = 0.0
     kinds = _bound_kinds(B, len(flat.interfaces))
     key = hashlib.sha1(B.tobytes() + repr((kinds, sorted(settings.items()))).encode() + _SOURCE).hexdigest()
     return key, B, np.ascontiguousarray(ST.FT), kinds, settings
@@ -548,8 +567,13 @@ def _block(B, FT, kinds, settings) -> np.ndarray:
     from ..kernels.layered.iface import IF_DIST, IF_MASK, IF_P
     from ..kernels.layered.table import if_offset
     t0 = time.perf_counter()
-    mu, y, split = solve(B, FT, list(kinds), settings)
+    body = settings.get("body", False)
+    mu, y, split = solve(B, FT, list(kinds), settings, 0.0 if body else None)
     n, M = mu.size, settings["M"]
+    if body:
+        G, H, rbar = _body_factors(B, FT, kinds, settings, y)
+    else:
+        G, H, rbar = np.zeros((3, n)), np.zeros((3, n)), np.zeros(3)
     o = if_offset(0)
     top = kinds[0]
     alpha = settings["top_alpha"] if top == "dielectric" else 0.0
@@ -559,8 +583,10 @@ def _block(B, FT, kinds, settings) -> np.ndarray:
     cells = S_O * S_B
     head = np.zeros(kt.HEAD)
     packed, yoff, ycnt = _pack(y)
-    parts = [mu, packed, yoff, ycnt, np.zeros(S_I * (cells + 1)), np.zeros(3 * S_I), np.zeros(S_I), np.zeros(S_I)]
+    parts = [mu, packed, yoff, ycnt, np.zeros(S_I * (cells + 1)), np.zeros(3 * S_I), np.zeros(S_I), np.zeros(S_I),
+             G.ravel(), H.ravel(), rbar, np.zeros(3 * S_I)]
     offsets = np.cumsum([kt.HEAD] + [p.size for p in parts[:-1]])
+    head[kt.H_BODY] = 1.0 if body else 0.0
     head[kt.H_N], head[kt.H_M] = n, M
     head[kt.H_MODE] = kt.ROUGH_TOP if settings["rough_top"] else kt.SMOOTH_TOP
     head[kt.H_ETA], head[kt.H_ALPHA], head[kt.H_DIST], head[kt.H_MASK] = eta, alpha, dist, masking
@@ -575,7 +601,8 @@ def _block(B, FT, kinds, settings) -> np.ndarray:
         head[kt.H_F1_DIST], head[kt.H_F1_MASK] = B[o1 + IF_DIST], B[o1 + IF_MASK]
         head[kt.H_F1_P:kt.H_F1_P + 12] = B[o1 + IF_P:o1 + IF_P + 12]
         head[kt.H_TAU0:kt.H_TAU0 + 3] = B[md_offset(0) + M_TAU:md_offset(0) + M_TAU + 3]
-    for h, off in zip((kt.H_MU, kt.H_Y, kt.H_YOFF, kt.H_YCNT, kt.H_CDF, kt.H_ALB, kt.H_RS, kt.H_FAIL), offsets):
+    for h, off in zip((kt.H_MU, kt.H_Y, kt.H_YOFF, kt.H_YCNT, kt.H_CDF, kt.H_ALB, kt.H_RS, kt.H_FAIL,
+                       kt.H_G, kt.H_H, kt.H_RBAR, kt.H_KBODY), offsets):
         head[h] = off
     block = np.concatenate([head] + parts)
     _sampling_tables(block, kt)
@@ -590,6 +617,31 @@ def _block(B, FT, kinds, settings) -> np.ndarray:
     stats.add("layered_table_seconds", time.perf_counter() - t0)
     stats.add("layered_table_bytes", block.nbytes)
     return block
+
+
+def _body_factors(B, FT, kinds, settings, y0):
+    """A textured diffuse body of albedo ρ adds to the black-bodied table, in its order 0,
+    ρ·G(μ1)·H(μ2)/(1 − ρ·r̄) per channel: the body re-emits uniformly whatever reaches it, so its
+    light is rank one in (μ1, μ2), and what the stack above sends back to it is one number r̄ (the
+    discretised stack has exactly this form: a Lambertian reflector's matrix is rank one, the
+    Sherman–Morrison identity does the rest). G, H (3, n) and r̄ (3,) from the order 0 of two more
+    solves, with albedos 1 and ½: D(ρ) = ρ P/(1 − ρ r̄), so D(1)/D(½) = 2(1 − ½r̄)/(1 − r̄)."""
+    one = dict(settings, M=1)
+    y1 = solve(B, FT, list(kinds), one, 1.0)[1][:, :, 0, :] - y0[:, :, 0, :]
+    yh = solve(B, FT, list(kinds), one, 0.5)[1][:, :, 0, :] - y0[:, :, 0, :]
+    n = y0.shape[0]
+    G, H, rbar = np.zeros((3, n)), np.zeros((3, n)), np.zeros(3)
+    for c in range(3):
+        d1, dh = y1[:, :, c], yh[:, :, c]
+        j, i = np.unravel_index(np.argmax(np.abs(d1)), d1.shape)
+        if not abs(dh[j, i]) > 0.0:
+            continue
+        q = d1[j, i] / dh[j, i]
+        rbar[c] = (2.0 - q) / (1.0 - q) if q != 1.0 else 0.0
+        P = d1 * (1.0 - rbar[c])
+        G[c] = P[:, i]
+        H[c] = P[j, :] / P[j, i]
+    return G, H, rbar
 
 
 def _pack(y: np.ndarray):
@@ -620,7 +672,8 @@ def _sampling_tables(block: np.ndarray, kt) -> None:
     mu_o = (c_hi[:, None] + (c_lo - c_hi)[:, None] * sub[None, :]).reshape(-1)          # (S_O·2,)
     d = ((np.arange(S_B)[:, None] + sub[None, :]) * math.pi / S_B).reshape(-1)            # (S_B·2,)
     omega = (c_hi - c_lo)[:, None] * np.full(S_B, 2.0 * math.pi / S_B)[None, :]          # (S_O, S_B)
-    cdf_at, alb_at = int(head[kt.H_CDF]), int(head[kt.H_ALB])
+    cdf_at, alb_at, k_at = int(head[kt.H_CDF]), int(head[kt.H_ALB]), int(head[kt.H_KBODY])
+    body = head[kt.H_BODY] > 0.0
     for k, th in enumerate(theta_i):
         mi = max(math.cos(th), 1e-3)
         wi = np.array([math.sqrt(1.0 - mi * mi), 0.0, mi])
@@ -629,12 +682,20 @@ def _sampling_tables(block: np.ndarray, kt) -> None:
         az = math.pi + d
         wo = np.stack([so[:, None] * np.cos(az)[None, :], so[:, None] * np.sin(az)[None, :],
                        np.broadcast_to(mu_o[:, None], (mu_o.size, d.size))], axis=-1).reshape(-1, 3)
+        wis = np.ascontiguousarray(np.broadcast_to(wi, wo.shape))
+        wo = np.ascontiguousarray(wo)
         out = np.empty((wo.shape[0], 3))
-        kt.eval_table_part(block, 0, np.ascontiguousarray(np.broadcast_to(wi, wo.shape)),
-                           np.ascontiguousarray(wo), out)
+        # a textured body: the sampler follows a white one, the albedo keeps the black-bodied
+        # part and the white body's addition apart (kernels/bsdf/tabulated.py ``_table_albedo``)
+        kt.eval_table_part(block, 0, np.ones(3), wis, wo, out)
         v = out.reshape(S_O, 2, S_B, 2, 3).mean(axis=(1, 3))                             # (S_O, S_B, 3)
         integral = v * omega[:, :, None]
         alb = integral.sum(axis=(0, 1))
+        if body:
+            kt.eval_table_part(block, 0, np.zeros(3), wis, wo, out)
+            black = (out.reshape(S_O, 2, S_B, 2, 3).mean(axis=(1, 3)) * omega[:, :, None]).sum(axis=(0, 1))
+            block[k_at + 3 * k:k_at + 3 * k + 3] = alb - black
+            alb = black
         block[alb_at + 3 * k:alb_at + 3 * k + 3] = alb
         p = integral.mean(axis=2).reshape(-1)
         total = p.sum()

@@ -24,7 +24,7 @@ no tint it conserves energy exactly (1 − r = Ē/η², the two Fresnel identiti
 tests/test_coated_diffuse.py checks together with the agreement with the walk itself.
 
 E and R↓ are integrals of the standard dielectric's own sampler (kernels/bsdf/dielectric.py,
-the same maths as the walk's interfaces): visible normals on a stratified grid, each normal's
+the same maths as the walk's interfaces): visible normals on a Fibonacci lattice, each normal's
 reflection and refraction weighted by its Fresnel factor (no random choice), so the tables are
 deterministic; ``integrate_node`` fills one table node (backend/layered/coated_diffuse.py calls
 it and caches the tables).
@@ -70,6 +70,7 @@ CDF_AT = ES_AT + NU
 FAIL_AT = CDF_AT + NU + 1
 NODE = FAIL_AT + NMU
 MU_MIN = 1e-4                 # node μ = 0 is evaluated here (the visible normals degenerate at 0)
+GOLDEN = 0.6180339887498949   # (√5 − 1)/2: the integrals' normals form a Fibonacci lattice
 
 
 # ----------------------------------------------------------------------------- lookups
@@ -268,8 +269,8 @@ def albedo(T, o, au, rho, mu):
 # ----------------------------------------------------------------------------- the tables
 @kernel
 def _interface_integrals(eta, tint, alpha, smooth, dist, masking, tau, mu, n):
-    """(E per channel, Rs) at μ from above and (R↓ per channel) at μ from below, on an n × n
-    grid of visible normals (the dielectric sampler's; each normal's reflection weighted by F
+    """(E per channel, Rs) at μ from above and (R↓ per channel) at μ from below, on an n²-point
+    lattice of visible normals (the dielectric sampler's; each normal's reflection weighted by F
     and its refraction by 1 − F)."""
     st = math.sqrt(max(1.0 - mu * mu, 0.0))
     above = (st, 0.0, mu)
@@ -290,38 +291,39 @@ def _interface_integrals(eta, tint, alpha, smooth, dist, masking, tau, mu, n):
         return ((e0, e1, e2), F, (Fb * math.exp(-tau[0] * x), Fb * math.exp(-tau[1] * x), Fb * math.exp(-tau[2] * x)),
                 0.0)
     inv = 1.0 / n
-    for i in range(n):
-        for j in range(n):
-            u0 = (i + 0.5) * inv
-            u1 = (j + 0.5) * inv
-            # from above: the normal's Fresnel factor, then each branch's weight (G2/G1, tint)
-            m = mf.sample_visible(dist, alpha, alpha, above, u0, u1)
-            F = fresnel(above[0] * m[0] + above[1] * m[1] + above[2] * m[2], eta)[0]
-            wr, vr, _, _ = dielectric.sample(eta, tint, alpha, alpha, False, dist, masking, IMPORTANCE,
-                                             above, u0, u1, 0.0)
-            if wr[2] > 0.0:
-                rs += F * vr[0]
-            c = above[0] * m[0] + above[1] * m[1] + above[2] * m[2]
-            if not 2.0 * c * m[2] - above[2] > 0.0:     # the normal's mirror direction points down
-                down += 1.0
-            if F < 1.0:
-                wt, vt, _, _ = dielectric.sample(eta, tint, alpha, alpha, False, dist, masking, IMPORTANCE,
-                                                 above, u0, u1, 1.0)
-                if wt[2] < 0.0:
-                    x = 1.0 / abs(wt[2])
-                    e0 += (1.0 - F) * vt[0] * math.exp(-tau[0] * x)
-                    e1 += (1.0 - F) * vt[1] * math.exp(-tau[1] * x)
-                    e2 += (1.0 - F) * vt[2] * math.exp(-tau[2] * x)
-            # from below: what the interface reflects back down
-            mb = mf.sample_visible(dist, alpha, alpha, (-below[0], -below[1], -below[2]), u0, u1)  # as the sampler: −wi
-            Fb = fresnel(below[0] * mb[0] + below[1] * mb[1] + below[2] * mb[2], eta)[0]
-            wb, vb, _, _ = dielectric.sample(eta, tint, alpha, alpha, False, dist, masking, IMPORTANCE,
-                                             below, u0, u1, 0.0)
-            if wb[2] < 0.0:
-                x = 1.0 / abs(wb[2])
-                d0 += Fb * vb[0] * math.exp(-tau[0] * x)
-                d1 += Fb * vb[1] * math.exp(-tau[1] * x)
-                d2 += Fb * vb[2] * math.exp(-tau[2] * x)
+    for q in range(n * n):
+        # a Fibonacci lattice (a grid's points fall on n rings of tilt at normal incidence:
+        # the share of normals mirrored below the surface came out in steps of 1/n)
+        u0 = (q + 0.5) * inv * inv
+        u1 = (0.5 + q * GOLDEN) % 1.0
+        # from above: the normal's Fresnel factor, then each branch's weight (G2/G1, tint)
+        m = mf.sample_visible(dist, alpha, alpha, above, u0, u1)
+        F = fresnel(above[0] * m[0] + above[1] * m[1] + above[2] * m[2], eta)[0]
+        wr, vr, _, _ = dielectric.sample(eta, tint, alpha, alpha, False, dist, masking, IMPORTANCE,
+                                         above, u0, u1, 0.0)
+        if wr[2] > 0.0:
+            rs += F * vr[0]
+        c = above[0] * m[0] + above[1] * m[1] + above[2] * m[2]
+        if not 2.0 * c * m[2] - above[2] > 0.0:     # the normal's mirror direction points down
+            down += 1.0
+        if F < 1.0:
+            wt, vt, _, _ = dielectric.sample(eta, tint, alpha, alpha, False, dist, masking, IMPORTANCE,
+                                             above, u0, u1, 1.0)
+            if wt[2] < 0.0:
+                x = 1.0 / abs(wt[2])
+                e0 += (1.0 - F) * vt[0] * math.exp(-tau[0] * x)
+                e1 += (1.0 - F) * vt[1] * math.exp(-tau[1] * x)
+                e2 += (1.0 - F) * vt[2] * math.exp(-tau[2] * x)
+        # from below: what the interface reflects back down
+        mb = mf.sample_visible(dist, alpha, alpha, (-below[0], -below[1], -below[2]), u0, u1)  # as the sampler: −wi
+        Fb = fresnel(below[0] * mb[0] + below[1] * mb[1] + below[2] * mb[2], eta)[0]
+        wb, vb, _, _ = dielectric.sample(eta, tint, alpha, alpha, False, dist, masking, IMPORTANCE,
+                                         below, u0, u1, 0.0)
+        if wb[2] < 0.0:
+            x = 1.0 / abs(wb[2])
+            d0 += Fb * vb[0] * math.exp(-tau[0] * x)
+            d1 += Fb * vb[1] * math.exp(-tau[1] * x)
+            d2 += Fb * vb[2] * math.exp(-tau[2] * x)
     s = inv * inv
     return (e0 * s, e1 * s, e2 * s), rs * s, (d0 * s, d1 * s, d2 * s), down * s
 

@@ -46,6 +46,11 @@ Block layout (``T[o:]``, the H_* offsets; arrays at the offsets stored in the he
   H_F1 …                    a smooth top: the first interface below it (its kind, NO_FIRST when the
                             table holds it, microfacet codes, 12 parameters as kernels/materials.bind)
                             and the top slab's optical depth (RGB), for its exact single reflection
+  H_BODY, H_G, H_H, H_RBAR  a textured diffuse body (1): y is for a black body, and its albedo ρ
+                            (per lane) adds ρ·G(μ1)·H(μ2)/(1 − ρ·r̄) per channel to order 0 of y
+                            (G, H: 3 × n over the nodes; r̄: 3; backend/layered/tabulated.py
+                            ``_body_factors``); H_KBODY: per sampling node the albedo a white
+                            body adds (3), so the albedo is ALB + ρ·K·(1 − r̄)/(1 − ρ·r̄)
   H_CDF, H_ALB, H_RS, H_FAIL   per sampling node: running sums over the SO·SB cells (SO·SB + 1),
                             the table part's albedo (RGB), the top's reflection albedo, the share of
                             its visible normals whose mirror direction points below the surface
@@ -66,7 +71,8 @@ H_N, H_M, H_MODE, H_ETA, H_ALPHA, H_DIST, H_MASK, H_TINT = 0, 1, 2, 3, 4, 5, 6, 
 H_SI, H_SO, H_SB, H_MU, H_Y, H_CDF, H_ALB, H_RS, H_FAIL = 10, 11, 12, 13, 14, 15, 16, 17, 18
 H_F1, H_F1_DIST, H_F1_MASK, H_TAU0, H_F1_P = 19, 20, 21, 22, 25
 H_YOFF, H_YCNT = 37, 38
-HEAD = 40
+H_BODY, H_G, H_H, H_RBAR, H_KBODY = 39, 40, 41, 42, 43
+HEAD = 48
 NO_FIRST, FIRST_DIFFUSE, FIRST_CONDUCTOR, FIRST_DIELECTRIC = -1.0, 0.0, 1.0, 2.0   # H_F1
 ZERO3 = (0.0, 0.0, 0.0)
 HALF_PI = 0.5 * math.pi
@@ -202,17 +208,40 @@ def _first(T, o, a, b):
 
 
 @kernel
-def table_part(T, o, wi, wo):
-    """The flux kernel of the light that entered the stack, f·cos θo per channel."""
+def _node_lerp(T, at, n, mu_at, mu):
+    k, t = _bracket(T, mu_at, n, mu)
+    return T[at + k] + t * (T[at + k + 1] - T[at + k])
+
+
+@kernel
+def _with_body(T, o, x, rho, mu1, mu2):
+    """x plus a textured body's light: ρ·G(μ1)·H(μ2)·μ2/(1 − ρ·r̄) per channel."""
+    if T[o + H_BODY] <= 0.0:
+        return x
+    n = int(T[o + H_N])
+    mu_at = o + int(T[o + H_MU])
+    g = o + int(T[o + H_G])
+    h = o + int(T[o + H_H])
+    rb = o + int(T[o + H_RBAR])
+    out0 = x[0] + rho[0] * _node_lerp(T, g, n, mu_at, mu1) * _node_lerp(T, h, n, mu_at, mu2) * mu2 / max(1.0 - rho[0] * T[rb], 1e-3)
+    out1 = x[1] + rho[1] * _node_lerp(T, g + n, n, mu_at, mu1) * _node_lerp(T, h + n, n, mu_at, mu2) * mu2 / max(1.0 - rho[1] * T[rb + 1], 1e-3)
+    out2 = x[2] + rho[2] * _node_lerp(T, g + 2 * n, n, mu_at, mu1) * _node_lerp(T, h + 2 * n, n, mu_at, mu2) * mu2 / max(1.0 - rho[2] * T[rb + 2], 1e-3)
+    return (max(out0, 0.0), max(out1, 0.0), max(out2, 0.0))
+
+
+@kernel
+def table_part(T, o, rho, wi, wo):
+    """The flux kernel of the light that entered the stack, f·cos θo per channel (``rho``: a
+    textured body's albedo at the lane)."""
     cd = _cos_delta(wi, wo)
     if T[o + H_MODE] == ROUGH_TOP:
-        return series(T, o, wi[2], wo[2], cd)
+        return _with_body(T, o, series(T, o, wi[2], wo[2], cd), rho, wi[2], wo[2])
     eta = T[o + H_ETA]
     m1, t1 = _inside(eta, wi[2])
     m2, t2 = _inside(eta, wo[2])
     if not (m1 > 0.0 and m2 > 0.0):
         return ZERO3
-    x = series(T, o, m1, m2, cd)
+    x = _with_body(T, o, series(T, o, m1, m2, cd), rho, m1, m2)
     if T[o + H_F1] != NO_FIRST:
         a = (wi[0] / eta, wi[1] / eta, m1)
         b = (wo[0] / eta, wo[1] / eta, m2)
@@ -315,27 +344,41 @@ def _top(T, o):
 
 
 @kernel
-def _table_albedo(T, o, mu):
-    """The table part's directional albedo per channel (interpolated between sampling nodes)."""
+def _rgb_per_node(T, o, h, mu):
     a, b, t = _node_weights(T, o, mu)
-    at = o + int(T[o + H_ALB])
+    at = o + int(T[o + h])
     return ((1.0 - t) * T[at + 3 * a] + t * T[at + 3 * b], (1.0 - t) * T[at + 3 * a + 1] + t * T[at + 3 * b + 1],
             (1.0 - t) * T[at + 3 * a + 2] + t * T[at + 3 * b + 2])
 
 
 @kernel
-def _share(T, o, mu):
-    return specular_share(_per_node(T, o, H_RS, mu), _table_albedo(T, o, mu), T[o + H_ALPHA])
+def _table_albedo(T, o, rho, mu):
+    """The table part's directional albedo per channel (interpolated between sampling nodes; a
+    textured body's part for its albedo ρ)."""
+    a = _rgb_per_node(T, o, H_ALB, mu)
+    if T[o + H_BODY] <= 0.0:
+        return a
+    k = _rgb_per_node(T, o, H_KBODY, mu)
+    rb = o + int(T[o + H_RBAR])
+    return (a[0] + rho[0] * k[0] * (1.0 - T[rb]) / max(1.0 - rho[0] * T[rb], 1e-3),
+            a[1] + rho[1] * k[1] * (1.0 - T[rb + 1]) / max(1.0 - rho[1] * T[rb + 1], 1e-3),
+            a[2] + rho[2] * k[2] * (1.0 - T[rb + 2]) / max(1.0 - rho[2] * T[rb + 2], 1e-3))
 
 
 @kernel
-def eval_pdf(T, o, wi, wo):
-    """(f·cos θo RGB, pdf of ``sample``) of the non-delta part; 0 unless wi, wo are above."""
+def _share(T, o, rho, mu):
+    return specular_share(_per_node(T, o, H_RS, mu), _table_albedo(T, o, rho, mu), T[o + H_ALPHA])
+
+
+@kernel
+def eval_pdf(T, o, rho, wi, wo):
+    """(f·cos θo RGB, pdf of ``sample``) of the non-delta part; 0 unless wi, wo are above.
+    ``rho``: a textured body's albedo at the lane (unused otherwise)."""
     if not (wi[2] > 0.0 and wo[2] > 0.0):
         return ZERO3, 0.0
     eta, alpha, dist, masking, smooth = _top(T, o)
-    f = table_part(T, o, wi, wo)
-    w_s = _share(T, o, wi[2])
+    f = table_part(T, o, rho, wi, wo)
+    w_s = _share(T, o, rho, wi[2])
     down = 0.0 if smooth else _per_node(T, o, H_FAIL, wi[2])
     pdf = (1.0 - w_s + w_s * down) * _table_density(T, o, wi, wo)
     if not smooth:
@@ -346,11 +389,11 @@ def eval_pdf(T, o, wi, wo):
 
 
 @kernel
-def sample(T, o, wi, u0, u1, u2):
+def sample(T, o, rho, wi, u0, u1, u2):
     if not wi[2] > 0.0:
         return (0.0, 0.0, 1.0), ZERO3, 0.0, False
     eta, alpha, dist, masking, smooth = _top(T, o)
-    w_s = _share(T, o, wi[2])
+    w_s = _share(T, o, rho, wi[2])
     if u2 < w_s:
         if smooth:
             F = fresnel(wi[2], eta)[0] / w_s
@@ -364,24 +407,25 @@ def sample(T, o, wi, u0, u1, u2):
         wo = _sample_table(T, o, wi, u0, u1, (u2 - w_s) / (1.0 - w_s))
     if not wo[2] > 0.0:
         return wo, ZERO3, 0.0, False
-    f, pdf = eval_pdf(T, o, wi, wo)
+    f, pdf = eval_pdf(T, o, rho, wi, wo)
     if not pdf > 0.0:
         return wo, ZERO3, 0.0, False
     return wo, (f[0] / pdf, f[1] / pdf, f[2] / pdf), pdf, False
 
 
 @kernel
-def albedo(T, o, mu):
+def albedo(T, o, rho, mu):
     """The directional albedo at cos θ = μ (the top's reflection + the table part's): the
     denoising AOV."""
     rs = _per_node(T, o, H_RS, mu)
-    a = _table_albedo(T, o, mu)
+    a = _table_albedo(T, o, rho, mu)
     return (a[0] + rs, a[1] + rs, a[2] + rs)
 
 
 @kernel(nogil=True)
-def eval_table_part(T, o, wi, wo, out):
+def eval_table_part(T, o, rho, wi, wo, out):
     """``table_part`` over arrays of directions (building the sampling tables)."""
+    r = (rho[0], rho[1], rho[2])
     for k in range(wi.shape[0]):
-        v = table_part(T, o, (wi[k, 0], wi[k, 1], wi[k, 2]), (wo[k, 0], wo[k, 1], wo[k, 2]))
+        v = table_part(T, o, r, (wi[k, 0], wi[k, 1], wi[k, 2]), (wo[k, 0], wo[k, 1], wo[k, 2]))
         out[k, 0], out[k, 1], out[k, 2] = v

@@ -20,6 +20,8 @@ from . import phase as ph
 from ..fresnel import dielectric as fresnel_dielectric
 from ..jit import kernel
 
+GOLDEN = 0.6180339887498949     # (√5 − 1)/2
+
 
 @kernel(error_model="numpy")
 def _between(nodes, x):
@@ -78,40 +80,42 @@ def interface_projection(B, o, mu_in, j0, j1, s_in, weights, grid, refl, trans):
         si = math.sqrt(max(1.0 - mi * mi, 0.0))
         wi = (-si, 0.0, s_in * mi)          # the light travels along −wi: azimuth 0
         kind = B[o + ki.IF_KIND]
-        for a in range(grid):
-            for b in range(grid):
-                u0 = (a + 0.5) * inv
-                u1 = (b + 0.5) * inv
-                if kind == ki.DIELECTRIC:
-                    p = o + ki.IF_P
-                    au, av = B[p + 4], B[p + 5]
-                    m = ki._normal(int(B[o + ki.IF_DIST]), au, av, (wi[0] * s_in, wi[1] * s_in, wi[2] * s_in),
-                                   u0, u1)
-                    F = fresnel_dielectric(wi[0] * m[0] + wi[1] * m[1] + wi[2] * m[2], B[p])[0]
-                    branches = 2
-                else:
-                    F = 1.0
-                    branches = 1
-                for r in range(branches):
-                    u2 = 0.0 if r == 0 else 1.0
-                    share = F if r == 0 else 1.0 - F
-                    if not share > 0.0:
-                        continue
-                    wo, w, _, _, _ = ki.sample(B, o, wi, u0, u1, u2, False)
-                    if not (w[0] > 0.0 or w[1] > 0.0 or w[2] > 0.0):
-                        continue
-                    mo = abs(wo[2])
-                    so = math.sqrt(max(1.0 - mo * mo, 0.0))
-                    cd = wo[0] / so if so > 1e-12 else 1.0
-                    same_side = wo[2] * wi[2] > 0.0
-                    target = refl if same_side else trans
-                    i, t = _between(mu_in, mo)
-                    v = (w[0] * share, w[1] * share, w[2] * share)
-                    cdc = min(max(cd, -1.0), 1.0)
-                    if t < 1.0:
-                        _deposit(target, j, i, v, cdc, norm * (1.0 - t) / weights[i])
-                    if t > 0.0:
-                        _deposit(target, j, i + 1, v, cdc, norm * t / weights[i + 1])
+        for q in range(grid * grid):
+            # a Fibonacci lattice rather than a grid: at normal incidence a grid's second number
+            # alone sets the normals' tilt, so its grid × grid points fell on `grid` rings of θ,
+            # whose comb the node hats aliased (±4 % ripples); the lattice's are all distinct
+            u0 = (q + 0.5) * inv * inv
+            u1 = (0.5 + q * GOLDEN) % 1.0
+            if kind == ki.DIELECTRIC:
+                p = o + ki.IF_P
+                au, av = B[p + 4], B[p + 5]
+                m = ki._normal(int(B[o + ki.IF_DIST]), au, av, (wi[0] * s_in, wi[1] * s_in, wi[2] * s_in),
+                               u0, u1)
+                F = fresnel_dielectric(wi[0] * m[0] + wi[1] * m[1] + wi[2] * m[2], B[p])[0]
+                branches = 2
+            else:
+                F = 1.0
+                branches = 1
+            for r in range(branches):
+                u2 = 0.0 if r == 0 else 1.0
+                share = F if r == 0 else 1.0 - F
+                if not share > 0.0:
+                    continue
+                wo, w, _, _, _ = ki.sample(B, o, wi, u0, u1, u2, False)
+                if not (w[0] > 0.0 or w[1] > 0.0 or w[2] > 0.0):
+                    continue
+                mo = abs(wo[2])
+                so = math.sqrt(max(1.0 - mo * mo, 0.0))
+                cd = wo[0] / so if so > 1e-12 else 1.0
+                same_side = wo[2] * wi[2] > 0.0
+                target = refl if same_side else trans
+                i, t = _between(mu_in, mo)
+                v = (w[0] * share, w[1] * share, w[2] * share)
+                cdc = min(max(cd, -1.0), 1.0)
+                if t < 1.0:
+                    _deposit(target, j, i, v, cdc, norm * (1.0 - t) / weights[i])
+                if t > 0.0:
+                    _deposit(target, j, i + 1, v, cdc, norm * t / weights[i + 1])
 
 
 @kernel(nogil=True, error_model="numpy")
