@@ -48,9 +48,16 @@ def scene_dict() -> dict:
         "plastic": {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.3},
                                                       {"type": "diffuse", "color": [0.2, 0.5, 0.3]}],
                     "media": [{"thickness": 1.0, "sigma_t": 0.0}]},
-        "coat": {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.05},
-                                                   {"type": "diffuse", "color": [0.5, 0.2, 0.1]}],
+        "coat": {"type": "layered", "estimator": "bi",
+                 "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.05},
+                                {"type": "diffuse", "color": [0.5, 0.2, 0.1]}],
                  "media": [{"thickness": 1.0, "sigma_t": 0.5, "albedo": 0.5}]},
+        # A uniform stack: its table (backend/layered/tabulated.py; a small one, 48 nodes: the
+        # warm-up compiles the solver's kernels, it is not there to solve big tables)
+        "table": {"type": "layered",
+                  "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.3},
+                                 {"type": "conductor", "metal": "Cu", "roughness": 0.4}],
+                  "media": [{"thickness": 1.0, "sigma_t": 0.5, "albedo": 0.5, "phase": {"type": "hg", "g": 0.3}}]},
         # Every layered stack runs the same compiled code; this one walks more of it (three
         # interfaces, a normal map, fiber microflakes, chromatic extinction, the stochastic pdf).
         "stack": {"type": "layered", "pdf": "stochastic",
