@@ -120,6 +120,8 @@ class PathTracer:
         packer = ParamPacker()
         stacks = StackBuilder(packer)
         self.materials = build_material_table(scene.materials, packer, stacks)
+        # Tabulated stacks take more light samples (kernels/integrator.py TABLE_NEE): room for them.
+        self._nee_factor = ki.TABLE_NEE if bool((self.materials.kind == km.TABULATED).any()) else 1
         # Next-event estimation never samples a constant world: BSDF sampling is the better
         # strategy for it everywhere (exact for a Lambertian surface: zero variance, as in
         # Cycles), and its escaped rays then keep MIS weight 1 (selection probability 0).
@@ -203,7 +205,8 @@ class PathTracer:
         if sc is None or sc.n < n:
             # Shadow rays per lane: next-event estimation's (glossy_nee per light at a glossy
             # vertex), and one dedicated ray per light with shadow linking (kernels/integrator.py).
-            per_lane = max(1, self.settings.nee_all) * self.settings.glossy_nee + int(self.vis.shadow_linked.size)
+            per_lane = max(1, self.settings.nee_all) * self.settings.glossy_nee * self._nee_factor \
+                + int(self.vis.shadow_linked.size)
             sc = self._local.scratch = _Scratch(n, self.walk_capacity, per_lane, self.settings.defer_pdf,
                                                 self.queue_per_lane)
         return sc

@@ -61,7 +61,7 @@ import math
 
 from . import IMPORTANCE
 from . import conductor, dielectric, diffuse
-from .coated_diffuse import reflected_visible, reflection_density, specular_share, three_from_one
+from .coated_diffuse import SHARP_ALPHA, reflected_visible, reflection_density, specular_share, three_from_one
 from ..fresnel import dielectric as fresnel
 from ..jit import kernel
 from ..turns import cos_sin_turns
@@ -363,6 +363,14 @@ def _table_albedo(T, o, rho, mu):
     return (a[0] + rho[0] * k[0] * (1.0 - T[rb]) / max(1.0 - rho[0] * T[rb], 1e-3),
             a[1] + rho[1] * k[1] * (1.0 - T[rb + 1]) / max(1.0 - rho[1] * T[rb + 1], 1e-3),
             a[2] + rho[2] * k[2] * (1.0 - T[rb + 2]) / max(1.0 - rho[2] * T[rb + 2], 1e-3))
+
+
+@kernel
+def more_light_samples(T, o):
+    """Should next-event estimation take more light samples here (kernels/integrator.py
+    TABLE_NEE)? Yes unless the top is (nearly) a mirror: BSDF sampling then finds the light's
+    reflection, and more light samples only shift the MIS weights towards the worse strategy."""
+    return T[o + H_ALPHA] > SHARP_ALPHA
 
 
 @kernel
