@@ -517,13 +517,15 @@ def prepare(materials, emit) -> None:
     if missing:
         emit({"event": "compiling", "message": f"solving {len(missing)} layered stack(s) into tables "
                                                f"(once per stack and machine) ..."})
+    size = 0
     for m, _ in idents:
-        _ = m.table_block
+        block = m.table_block
+        size += block.nbytes if block is not None else 0
     if missing:
         dt = time.perf_counter() - t0
-        emit({"event": "compiled", "seconds": round(dt, 2),
-              "message": f"solved {len(missing)} layered stack(s) into tables in {dt:.1f} s "
-                         f"(cached in {_cache_file('x').parent})"})
+        emit({"event": "compiled", "seconds": round(dt, 2), "bytes": int(size),
+              "message": f"solved {len(missing)} layered stack(s) into tables in {dt:.1f} s, "
+                         f"{size / 2 ** 20:.1f} MiB (cached in {_cache_file('x').parent})"})
 
 
 _CACHE: dict = {}        # content hash of the bound stack → its block, for this process
