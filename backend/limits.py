@@ -33,8 +33,10 @@ MAX_COORDINATE = 1e12
 # --------------------------------------------------------------------------- materials
 #: Levels of ``layered`` materials inside each other (1 = a stack without nested stacks).
 MAX_LAYER_NESTING = 3
-#: Interfaces in one layered material, nested stacks counted by their own interfaces.
-MAX_STACK_INTERFACES = 64
+#: Interfaces in one layered material, nested stacks counted by their own interfaces: the
+#: compiled stack table's room (backend/kernels/layered/table.py takes its MAX_INTERFACES from
+#: here). Each interface is a fixed block of that table, per stack.
+MAX_STACK_INTERFACES = 16
 
 # --------------------------------------------------------------------------- files
 #: Length of a file path given in a scene (characters), and of each of its components (bytes

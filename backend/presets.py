@@ -270,14 +270,17 @@ def check_document(doc: dict, path: Path) -> None:
 
 
 def parse_material_document(material: dict, where: str, base_dir: Path | None,
-                            layered_defaults: dict | None = None, path: str = "material"):
+                            layered_defaults: dict | None = None, path: str = "material",
+                            chain: tuple = ()):
     """Parse a material dict as the scene loader parses a scene's material (the fields every
     material takes included: normal and bump maps, emission sides, pass index); returns
-    (Material, warnings)."""
+    (Material, warnings). ``chain``: the presets being parsed around this one, outermost first
+    (a preset that refers back to one of them is a cycle)."""
     from .scene.loader import parse_material
     from .scene.reader import LoadContext, Node
     ctx = LoadContext(where, base_dir)
     ctx.cache["layered_defaults"] = layered_defaults or {}
+    ctx.cache["preset_chain"] = tuple(chain)
     material = parse_material(Node(material, path, ctx))
     return material, ctx.warnings
 
@@ -287,7 +290,7 @@ def check_preset(path: Path):
     path = Path(path)
     doc = load_preset_document(path)
     check_document(doc, path)
-    return parse_material_document(doc["material"], str(path), path.parent)
+    return parse_material_document(doc["material"], str(path), path.parent, chain=(path.stem,))
 
 
 # --------------------------------------------------------------------------- resolution
@@ -317,12 +320,18 @@ def unknown_preset_message(name: str) -> str:
 def resolve_preset(name: str, node):
     """Parse preset ``name`` as a material (scene loader hook); errors name the preset file and field."""
     from .scene.inputs import local_file, preset_file
+    chain = node.ctx.cache.get("preset_chain", ())
+    if name in chain:
+        from .limits import short
+        cycle = " → ".join(chain[chain.index(name):] + (name,))
+        raise node.fail(f"presets refer to each other in a cycle: {short(cycle, 240)}")
     path = preset_file(name, find_preset(name))     # a cluster worker uses the master's preset
     if path is None:
         raise node.fail(unknown_preset_message(name))
     doc = load_preset_document(local_file(path))
     material, warnings = parse_material_document(doc["material"], str(path), path.parent,
-                                                 node.ctx.cache.get("layered_defaults", {}))
+                                                 node.ctx.cache.get("layered_defaults", {}),
+                                                 chain=chain + (name,))
     node.ctx.warnings.extend(warnings)
     return material
 

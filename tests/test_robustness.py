@@ -113,19 +113,33 @@ def test_inputs_that_raised_give_one_line_naming_the_field(run, text, expected):
         assert code == 2 and expected in one_error(lines), (command, lines)
 
 
+def wide_stack(dielectrics: int) -> dict:
+    """``dielectrics`` rough dielectric interfaces over a diffuse base."""
+    return {"type": "layered",
+            "interfaces": [{"type": "dielectric", "ior": 1.5 if i % 2 == 0 else 1.3, "roughness": 0.1}
+                           for i in range(dielectrics)] + [{"type": "diffuse"}],
+            "media": [{"thickness": 0.1, "sigma_t": 1, "albedo": 0.5}] * dielectrics}
+
+
 def test_layered_nesting_is_limited(tmp_path):
     """Nested stacks cost a factor of ~10 per level with the NumPy walks (60 levels never
-    finished); 3 levels load, the 4th is refused naming the field, and so are 65 interfaces."""
+    finished); 3 levels load, the 4th is refused naming the field, and so are 17 interfaces (the
+    compiled stack table holds 16; issue 39: 17 to 64 passed the loader and raised a TypeError)."""
     load_scene_data(edited(lambda d: d["materials"].update(grey=layered(2))), "s.json")
     with pytest.raises(SceneError) as info:
         load_scene_data(edited(lambda d: d["materials"].update(grey=layered(3))), "s.json")
     assert str(info.value).startswith("s.json: materials.grey.interfaces[1].interfaces[1].interfaces[1]: "
                                       "layered materials nested 4 deep; at most 3")
-    wide = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5}] * 64 + [{"type": "diffuse"}],
-            "media": [{"thickness": 0.1, "sigma_t": 1, "albedo": 0.5}] * 64}
+    wide = wide_stack(16)
     with pytest.raises(SceneError) as info:
         load_scene_data(edited(lambda d: d["materials"].update(grey=wide)), "s.json")
-    assert "materials.grey.interfaces: 65 interfaces; at most 64" in str(info.value)
+    assert "materials.grey.interfaces: 17 interfaces; at most 16" in str(info.value)
+    # Nested stacks count with their own interfaces: 8 + 9 = 17 after flattening.
+    nested = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5}] * 8 + [wide_stack(8)],
+              "media": [{"thickness": 0.1}] * 8}
+    with pytest.raises(SceneError) as info:
+        load_scene_data(edited(lambda d: d["materials"].update(grey=nested)), "s.json")
+    assert "materials.grey.interfaces: 17 interfaces (nested stacks included); at most 16" in str(info.value)
     deep = json.dumps(edited(lambda d: d["materials"].update(grey=layered(40))))
     (tmp_path / "deep.json").write_text(deep)
     with pytest.raises(SceneError) as info:
@@ -310,11 +324,61 @@ def test_validate_and_render_accept_the_same_scenes(run):
              edited(lambda d: d["materials"].update(grey=layered(3))),
              edited(lambda d: d["lights"][0].update(power=1e31)),
              edited(lambda d: d["render"].update(layered={"mis": False})),
-             edited(lambda d: d["camera"].update(dof={"focus_distance": 1, "aperture_radius": 1, "ratio": 1e4}))]
+             edited(lambda d: d["camera"].update(dof={"focus_distance": 1, "aperture_radius": 1, "ratio": 1e4})),
+             # issue 39: these two passed validate and raised at render (TypeError, NotImplementedError)
+             edited(lambda d: d["materials"].update(grey=wide_stack(16))),
+             edited(lambda d: d["materials"].update(grey={"type": "layered", "interfaces": [{"type": "null"}]}))]
+    codes = []
     for data in cases:
         v, _, _ = run(data, command="validate")
-        r, _, _ = run(data)
+        r, _, image = run(data)
         assert v == r, (v, r, data)
+        assert image is None or np.all(np.isfinite(image))
+        codes.append(v)
+    assert codes.count(0) >= 1 and codes.count(2) >= 5, codes     # both outcomes are exercised
+    # The widest stack the kernels hold renders.
+    code, _, image = run(edited(lambda d: d["materials"].update(grey=wide_stack(15))))
+    assert code == 0 and np.all(np.isfinite(image)) and image[..., :3].max() > 0
+
+
+def test_a_stack_whose_only_interface_is_null_is_refused_naming_the_field(run):
+    code, lines, _ = run(edited(lambda d: d["materials"].update(
+        grey={"type": "layered", "interfaces": [{"type": "null"}]})), command="validate")
+    assert code == 2 and len(lines) == 1
+    assert "materials.grey.interfaces[0].type: a stack whose only interface is 'null' has no surface" in lines[0]
+    # Two null interfaces bound a medium: a volume slab, which renders.
+    slab = {"type": "layered", "interfaces": [{"type": "null"}, {"type": "null"}],
+            "media": [{"thickness": 0.1, "sigma_t": 1, "albedo": 0.5}]}
+    code, _, image = run(edited(lambda d: d["materials"].update(grey=slab)))
+    assert code == 0 and np.all(np.isfinite(image))
+
+
+def test_presets_that_refer_to_each_other_are_a_cycle_named_in_one_line(run, tmp_path, monkeypatch):
+    """issue 39: user presets mixing each other (or themselves) raised RecursionError."""
+    folder = tmp_path / "user-presets"
+    folder.mkdir()
+
+    def preset(name, material):
+        (folder / f"{name}.json").write_text(json.dumps(
+            {"format": "lamina-preset", "version": 1, "name": name, "material": material}))
+
+    mix = lambda a, b: {"type": "mix", "factor": 0.5, "materials": [a, b]}
+    preset("ring-a", mix({"type": "diffuse"}, "ring-b"))
+    preset("ring-b", mix("ring-c", {"type": "diffuse"}))
+    preset("ring-c", mix("ring-a", {"type": "diffuse"}))
+    preset("self", mix("self", {"type": "diffuse"}))
+    preset("fine", mix("ring-free", {"type": "diffuse", "color": 0.2}))
+    preset("ring-free", {"type": "diffuse", "color": 0.7})
+    monkeypatch.setenv("LAMINA_PRESET_PATH", str(folder))
+    for name, cycle in (("ring-a", "ring-a → ring-b → ring-c → ring-a"), ("self", "self → self")):
+        for command in ("validate", "render"):
+            code, lines, _ = run(edited(lambda d: d["materials"].update(grey=name)), command=command)
+            assert code == 2 and len(lines) == 1, lines
+            assert f"presets refer to each other in a cycle: {cycle}" in lines[0], lines
+    # A preset used twice, without a cycle, still loads.
+    code, _, image = run(edited(lambda d: d["materials"].update(
+        grey=mix("fine", "ring-free"))))
+    assert code == 0 and np.all(np.isfinite(image))
 
 
 # --------------------------------------------------------------------------- temporary files

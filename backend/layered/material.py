@@ -293,6 +293,11 @@ def _parse_layered(node: Node, eta_above: float) -> LayeredMaterial:
         key = next(k for k in DETAIL_KEYS if inodes[0].has(k))
         raise inodes[0].fail("a one-interface stack is that interface's BSDF: put the normal or "
                              "bump map on the material instead of its interface", key)
+    if len(interfaces) == 1 and getattr(interfaces[0], "type_name", "") == "null":
+        # A lone null interface has no surface and no medium: nothing for light to meet. (Null
+        # interfaces belong between media, where they bound a slab.)
+        raise inodes[0].fail("a stack whose only interface is 'null' has no surface; give it a "
+                             "surface interface, or a medium between two interfaces", "type")
     return LayeredMaterial(interfaces, media, list(eta_slab), etas[-1], options, emission, eta_above,
                            normals)
 

@@ -39,8 +39,11 @@ class StackBuilder:
             return self._ids[key]
         flat = flatten(material)
         if len(flat.interfaces) > MAX_INTERFACES:
-            raise SceneError(f"a layered stack has {len(flat.interfaces)} interfaces (nested stacks "
-                             f"flattened); at most {MAX_INTERFACES} are supported")
+            # The loader checks limits.MAX_STACK_INTERFACES (the same number) with the field's
+            # path; this guards a material built in code.
+            raise SceneError("", "interfaces", f"a layered stack has {len(flat.interfaces)} "
+                             f"interfaces (nested stacks flattened); at most {MAX_INTERFACES} are "
+                             f"supported")
         opts = material.options
         sid = len(self.stacks)
         head = np.zeros(HEAD)
