@@ -34,8 +34,8 @@ MAX_COORDINATE = 1e12
 #: Levels of ``layered`` materials inside each other (1 = a stack without nested stacks).
 MAX_LAYER_NESTING = 3
 #: Interfaces in one layered material, nested stacks counted by their own interfaces: the
-#: compiled stack table's room (backend/kernels/layered/table.py takes its MAX_INTERFACES from
-#: here). Each interface is a fixed block of that table, per stack.
+#: compiled stack table's room (MAX_INTERFACES in backend/kernels/layered/table.py, which imports
+#: nothing above the kernels; tests/test_robustness.py holds the two equal).
 MAX_STACK_INTERFACES = 16
 
 # --------------------------------------------------------------------------- files

@@ -53,3 +53,30 @@ def test_a_time_limit_shorter_than_one_pass_still_samples_every_pixel():
     assert counts.min() >= 1 and counts.min() == counts.max(), (counts.min(), counts.max())
     assert not result.interrupted
     assert np.all(np.isfinite(result.film.combined()))
+
+
+def test_the_reported_spp_is_what_the_image_holds():
+    """issue 39: a time limit that stops inside a pass left more samples in some pixels than the
+    'wrote … (N spp …)' line said (it counted whole passes). The summary now reads the film's
+    per-pixel counts: their range and mean when they differ."""
+    from backend.cli.render_one import format_summary, summarise
+    result = render(half_sky_scene(100000, 0.0, 16), time_limit=1.0)
+    counts = result.film.counts()
+    summary = summarise(result)
+    line = format_summary(summary, "out.exr").splitlines()[0]
+    assert summary["spp"] == counts.max()
+    if counts.min() == counts.max():
+        assert f"({counts.max()} spp," in line, line
+    else:
+        assert summary["spp_min"] == counts.min() and abs(summary["spp_mean"] - counts.mean()) < 0.05
+        assert f"({counts.min()}–{counts.max()} spp, mean {counts.mean():.1f}," in line, line
+    # A film whose pixels hold different counts (as a pass cut short leaves it), deterministic.
+    result.film.count[:] = 16
+    result.film.count[: result.film.count.size // 4] = 32
+    summary = summarise(result)
+    assert (summary["spp"], summary["spp_min"], summary["spp_mean"]) == (32, 16, 20.0)
+    assert "(16–32 spp, mean 20.0," in format_summary(summary, "out.exr"), format_summary(summary, "out.exr")
+    result.film.count[:] = 48
+    summary = summarise(result)
+    assert summary["spp"] == 48 and "spp_min" not in summary
+    assert "(48 spp," in format_summary(summary, "out.exr")

@@ -130,6 +130,8 @@ def test_layered_nesting_is_limited(tmp_path):
         load_scene_data(edited(lambda d: d["materials"].update(grey=layered(3))), "s.json")
     assert str(info.value).startswith("s.json: materials.grey.interfaces[1].interfaces[1].interfaces[1]: "
                                       "layered materials nested 4 deep; at most 3")
+    from backend.kernels.layered.table import MAX_INTERFACES
+    assert limits.MAX_STACK_INTERFACES == MAX_INTERFACES       # the loader's limit is the kernels'
     wide = wide_stack(16)
     with pytest.raises(SceneError) as info:
         load_scene_data(edited(lambda d: d["materials"].update(grey=wide)), "s.json")

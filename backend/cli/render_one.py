@@ -200,14 +200,28 @@ def summarise(result) -> dict:
     st = result.stats
     paths = st.get("paths", 0)
     rays = st.get("rays", 0)
-    out = {"elapsed": round(result.elapsed, 3), "spp": result.spp_done, "interrupted": result.interrupted,
+    out = {"elapsed": round(result.elapsed, 3), "interrupted": result.interrupted,
            "paths": paths, "rays": rays, "worker_cpu_time": round(result.cpu_time, 3),
            "paths_per_second": round(paths / max(result.elapsed, 1e-9), 1),
            "rays_per_second": round(rays / max(result.elapsed, 1e-9), 1)}
+    out.update(samples_held(result.film.count))
     for k, v in st.items():
         if k not in ("paths", "rays", "cpu_time", "master_cpu_time"):
             out[k] = v
     return out
+
+
+def samples_held(count) -> dict:
+    """What the image holds, read from the film's per-pixel sample counts (the EXR's): ``spp`` the
+    most any pixel has, and where pixels differ (a time limit stopped inside a pass, adaptive
+    sampling stopped converged pixels) ``spp_min`` and ``spp_mean`` too. Counting whole passes
+    instead under-reported a time-limited render."""
+    if count.size == 0:
+        return {"spp": 0}
+    lo, hi = int(count.min()), int(count.max())
+    if lo == hi:
+        return {"spp": hi}
+    return {"spp": hi, "spp_min": lo, "spp_mean": round(float(count.mean()), 2)}
 
 
 #: Statistics that describe the work done, not a problem: in the summary (``--json``), not printed.
@@ -215,9 +229,12 @@ QUIET_STATISTICS = ("layered_pdfs_deferred",)
 
 
 def format_summary(summary: dict, output: Path) -> str:
-    lines = [f"wrote {output}  ({summary['spp']} spp, {summary['elapsed']:.2f} s, "
+    spp = (f"{summary['spp_min']}–{summary['spp']} spp, mean {summary['spp_mean']:.1f}"
+           if "spp_min" in summary else f"{summary['spp']} spp")
+    lines = [f"wrote {output}  ({spp}, {summary['elapsed']:.2f} s, "
              f"{summary['paths_per_second'] / 1e3:.1f} k paths/s, {summary['rays_per_second'] / 1e6:.2f} M rays/s)"]
-    extra = {k: v for k, v in summary.items() if k not in ("elapsed", "spp", "interrupted", "paths", "rays",
+    extra = {k: v for k, v in summary.items() if k not in ("elapsed", "spp", "spp_min", "spp_mean",
+                                                          "interrupted", "paths", "rays",
                                                           "worker_cpu_time", "paths_per_second", "rays_per_second")
              and k not in QUIET_STATISTICS}
     if extra:

@@ -47,7 +47,6 @@ import numpy as np
 
 from .. import bump as _bump
 from .. import materials as km
-from ...limits import MAX_STACK_INTERFACES
 from ..jit import inlined, kernel
 from ..microfacet import ALPHA_MIN
 from ..params import param_rgb, param_scalar
@@ -55,7 +54,7 @@ from ..textures import lookup_gradient
 from . import iface as ki
 from . import phase as ph
 
-MAX_INTERFACES = MAX_STACK_INTERFACES
+MAX_INTERFACES = 16
 EMPTY, ABSORBING, SCATTERING = 0, 1, 2
 BI, UNI = 0, 1
 APPROX, STOCHASTIC = 0, 1
