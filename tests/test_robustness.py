@@ -296,6 +296,28 @@ def test_dark_lights_warn_by_name(run, tmp_path):
         f"warning: {tmp_path / 'scene.json'}: lights[4]: light emits nothing (black colour): it is dark"]
 
 
+def test_inputs_that_make_a_light_or_an_object_vanish_warn(run, tmp_path):
+    """issue 39: an IES candela multiplier of 1e-320 (a denormal) rendered a dark light, and a
+    dielectric of IOR 1e-300 made its object vanish, both without a word."""
+    faint_ies = IES.replace("1 -1 1 3", "1 -1 1e-320 3")
+    data = edited(lambda d: d["lights"].append(
+        {"type": "point", "_name": "Bulb", "to_world": SUN, "power": 50, "ies": {"data": faint_ies}}))
+    data["materials"]["grey"] = {"type": "dielectric", "ior": 1e-300}
+    code, lines, image = run(data)
+    assert code == 0 and np.all(np.isfinite(image))
+    warnings = [ln for ln in lines if ln.startswith("warning: ")]
+    where = tmp_path / "scene.json"
+    assert any(w.startswith(f"warning: {where}: lights[1]: light ('Bulb') emits only ") and
+               "practically dark" in w and "IES multiplier" in w for w in warnings), warnings
+    assert f"warning: {where}: materials.grey.ior: index of refraction 1e-300 is far outside real materials'" \
+        in "\n".join(warnings), warnings
+    # Real indices, bubbles (0.75) and ordinary lights stay quiet.
+    for ior in (0.75, 1.0, 1.33, 2.42, 4.0):
+        quiet = edited(lambda d: d["materials"].update(grey={"type": "dielectric", "ior": ior}))
+        code, lines, _ = run(quiet, command="validate")
+        assert code == 0 and not [ln for ln in lines if ln.startswith("warning: ")], (ior, lines)
+
+
 def test_accepted_and_ignored_inputs_now_warn_or_fail(run):
     code, lines, _ = run(edited(lambda d: d["camera"].update(
         dof={"focus_distance": 5, "aperture_radius": 0.1, "blades": 2})), command="validate")

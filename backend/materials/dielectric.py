@@ -122,10 +122,24 @@ class DielectricMaterial(Material):
         return any_textured(self.ior, self.roughness, self.roughness_v, self.transmission_color)
 
 
+#: Indices of refraction that real materials span, with margin (germanium's 4.0 is the highest
+#: common one; 1/4 that of an inverted interface); outside it a dielectric gets a warning.
+PLAUSIBLE_IOR = (0.2, 5.0)
+
+
 @register("dielectric")
 def parse_dielectric(node) -> DielectricMaterial:
     ior = node.param("ior", 1.5, lo=0.0, lo_open=True, color=False)
     ior_above = node.number("ior_above", 1.0, lo=0.0, lo_open=True)
+    for key, value in (("ior", float(np.mean(ior.mean()))), ("ior_above", ior_above)):
+        if not PLAUSIBLE_IOR[0] <= value <= PLAUSIBLE_IOR[1]:
+            # Legal, and rendered as asked, but no real material is near it: at 1e-300 an object
+            # vanished without a word (issue 39). Below 1 stays quiet down to 0.2 (an air bubble
+            # in water is 0.75).
+            node.ctx.warn(node.sub(key), f"index of refraction {value:.3g} is far outside real "
+                                         f"materials' ({PLAUSIBLE_IOR[0]:g}–{PLAUSIBLE_IOR[1]:g}; water "
+                                         f"1.33, glass 1.5, diamond 2.42): the surface will look "
+                                         f"like a mirror or vanish")
     ru, rv = parse_roughness(node, 0.0)
     dist, masking = parse_microfacet_kind(node)
     tint = node.param("transmission_color", [1.0, 1.0, 1.0], channels=3, lo=0.0, color=True)

@@ -543,12 +543,23 @@ def warn_dark_lights(lights: list, nodes: list, ctx: LoadContext) -> None:
             power = float(light.power())
         except (ValueError, ArithmeticError):
             power = 0.0
-        if power > 0.0:
-            continue
-        why = dark_reason(light)
         name = node.value.get("_name") if isinstance(node.value, dict) else None
         label = f" ({short(name)!r})" if isinstance(name, str) and name else ""
+        if power >= FAINT_LIGHT_WATTS:
+            continue
+        if power > 0.0:
+            # A denormal IES multiplier (1e-320) rendered a dark light without a word (issue 39).
+            ctx.warn(node.path, f"light{label} emits only {power:.3g} W (below "
+                                f"{FAINT_LIGHT_WATTS:g} W): it is practically dark; check its power, "
+                                f"strength, colour or IES multiplier")
+            continue
+        why = dark_reason(light)
         ctx.warn(node.path, f"light{label} emits nothing ({why}): it is dark")
+
+
+#: A light emitting less than this (in watts) is warned about as practically dark: a trillionth
+#: of a small LED's power, far below anything a scene lights with.
+FAINT_LIGHT_WATTS = 1e-12
 
 
 def dark_reason(light) -> str:
