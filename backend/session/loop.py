@@ -340,12 +340,22 @@ class Session:
             if scene_cmd is not None:
                 rebuilt.update(self.state.load(scene_cmd["scene"], scene_cmd.get("where", "<session scene>"),
                                                scene_cmd.get("base")))
-            for change in changes:
-                for part, seconds in self.state.update(change).items():
+            if changes:
+                # All the batch's edits, then one build (a failing edit and its fix arrive together
+                # when the artist corrects a field quickly: the fix must win).
+                for part, seconds in self.state.update_all(changes).items():
                     rebuilt[part] = round(rebuilt.get(part, 0.0) + seconds, 4)
         except LaminaError as exc:
             self.error = str(exc)
             self.events("error", generation=generation, message=str(exc), fatal=False)
+            return
+        except Exception as exc:  # noqa: BLE001 - an input the loader did not foresee: not fatal
+            # The half-built state is dropped: the next 'scene' starts clean.
+            self.state = SessionScene()
+            self.state.on_event = lambda e: self.events(e.pop("event"), **e)
+            self.error = f"internal error while loading the scene: {type(exc).__name__}: {str(exc)[:200]}"
+            self.events("error", generation=generation, message=self.error + " (send the scene again)",
+                        fatal=False)
             return
         self.error = None
         for w in self.state.warnings:

@@ -23,6 +23,7 @@ import threading
 from pathlib import Path
 
 from ..errors import LaminaError
+from ..limits import MAX_SPP
 
 PROTOCOL = 1
 SECTIONS = ("film", "camera", "render", "materials", "meshes", "objects", "lights", "world")
@@ -36,49 +37,82 @@ class ProtocolError(LaminaError):
     """A command the session cannot understand (reported, then ignored)."""
 
 
+#: Largest generation: frames carry it as a 64-bit field (frames.py) and clients read it as a
+#: signed 64-bit integer.
+MAX_GENERATION = 2 ** 63 - 1
+
+
 def _generation(msg: dict) -> int:
     g = msg.get("generation")
-    if isinstance(g, bool) or not isinstance(g, int) or g < 0:
-        raise ProtocolError(f"{msg['cmd']}: 'generation' must be an integer >= 0, got {g!r}")
+    if isinstance(g, bool) or not isinstance(g, int) or not 0 <= g <= MAX_GENERATION:
+        raise ProtocolError(f"{msg['cmd']}: 'generation' must be an integer from 0 to 2^63 - 1, "
+                            f"got {_describe(g)}")
     return g
 
 
-def _read_json_file(path, what: str):
+def _describe(value) -> str:
+    from ..scene.reader import _describe as describe
+    return describe(value)
+
+
+def _string(msg: dict, key: str) -> str:
+    value = msg.get(key)
+    if not isinstance(value, str):
+        raise ProtocolError(f"{msg['cmd']}: '{key}' must be a string, got {_describe(value)}")
+    from ..scene.reader import path_problem
+    problem = path_problem(value)
+    if problem:
+        raise ProtocolError(f"{msg['cmd']}: '{key}': {problem}")
+    return value
+
+
+def _read_json(text: str, what: str):
+    """JSON with the scene reader's limits (nesting depth, integer digits): a command nested
+    100 000 deep or a 5 000-digit number is an error, not a dead reader."""
+    from ..errors import SceneError
+    from ..scene.reader import read_json
     try:
-        return json.loads(Path(path).read_text(encoding="utf-8"))
+        return read_json(text, what)
+    except SceneError as exc:
+        raise ProtocolError(str(exc)) from None
+
+
+def _read_json_file(path: str, what: str):
+    try:
+        text = Path(path).read_text(encoding="utf-8")
     except OSError as exc:
         raise ProtocolError(f"{what}: cannot read {path}: {exc.strerror or exc}") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ProtocolError(f"{what}: {path} is not valid JSON: {exc}") from None
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise ProtocolError(f"{what}: {path} is not valid UTF-8 text: {exc}") from None
+    return _read_json(text, f"{what}: {path}")
 
 
 def parse_command(line: str) -> dict:
     """A validated command: ``{"cmd": ...}`` with its fields (files named by the command are
     read here, so the render loop gets the data)."""
-    try:
-        msg = json.loads(line)
-    except json.JSONDecodeError as exc:
-        raise ProtocolError(f"not a JSON command: {exc.msg} (column {exc.colno}): {line[:80]!r}") from None
+    msg = _read_json(line, "not a JSON command")
     if not isinstance(msg, dict):
-        raise ProtocolError(f"a command must be a JSON object, got {line[:80]!r}")
+        raise ProtocolError(f"a command must be a JSON object, got {_describe(msg)}")
     cmd = msg.get("cmd")
     if cmd not in COMMANDS:
-        raise ProtocolError(f"unknown command {cmd!r} (known: {', '.join(COMMANDS)})")
+        raise ProtocolError(f"unknown command {_describe(cmd)} (known: {', '.join(COMMANDS)})")
     if cmd == "scene":
         _generation(msg)
+        if "base" in msg:
+            _string(msg, "base")
         if "path" in msg:
-            path = Path(str(msg["path"]))
-            msg["scene"] = _read_json_file(path, "scene")
+            path = Path(_string(msg, "path"))
+            msg["scene"] = _read_json_file(str(path), "scene")
             msg.setdefault("base", str(path.parent))
             msg["where"] = str(path)
         elif not isinstance(msg.get("scene"), dict):
             raise ProtocolError("scene: give 'path' (a scene file) or 'scene' (the document)")
         else:
-            msg.setdefault("where", "<session scene>")
+            msg["where"] = "<session scene>"
     elif cmd == "update":
         _generation(msg)
         if "changes_file" in msg:
-            msg["changes"] = _read_json_file(msg["changes_file"], "update")
+            msg["changes"] = _read_json_file(_string(msg, "changes_file"), "update")
         changes = msg.get("changes")
         if not isinstance(changes, dict):
             raise ProtocolError("update: 'changes' must be an object of scene sections")
@@ -91,9 +125,28 @@ def parse_command(line: str) -> dict:
                 raise ProtocolError(f"update: '{key}' must be an object of entries by name (null removes one)")
     elif cmd == "samples":
         n = msg.get("samples")
-        if isinstance(n, bool) or not isinstance(n, int) or n < 0:
-            raise ProtocolError(f"samples: 'samples' must be an integer >= 0 (0 = no limit), got {n!r}")
+        if isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= MAX_SPP:
+            raise ProtocolError(f"samples: 'samples' must be an integer from 0 (no limit) to {MAX_SPP}, "
+                                f"got {_describe(n)}")
+    elif cmd == "ping":
+        try:
+            json.dumps(msg.get("id"), allow_nan=False)
+        except (TypeError, ValueError):
+            raise ProtocolError(f"ping: 'id' must be a JSON value the answer can carry (finite numbers "
+                                f"only), got {_describe(msg.get('id'))}") from None
     return msg
+
+
+def read_command(line: str):
+    """``parse_command``, or the ProtocolError that answers the line, whatever it holds (the
+    reader thread must live on: a dead reader left the session deaf and never exiting)."""
+    try:
+        return parse_command(line)
+    except ProtocolError as exc:
+        return exc
+    except Exception as exc:  # noqa: BLE001 - any line gets an answer
+        return ProtocolError(f"cannot read this command ({type(exc).__name__}: {str(exc)[:200]}): "
+                             f"{line[:80]!r}")
 
 
 class EventWriter:
@@ -130,10 +183,7 @@ class CommandQueue:
                 line = line.strip()
                 if not line:
                     continue
-                try:
-                    item = parse_command(line)
-                except ProtocolError as exc:
-                    item = exc
+                item = read_command(line)
                 # Queued before the flag is raised: a raised flag always has its command waiting
                 # (a flag raised for a command already taken only costs one empty look).
                 self._queue.put(item)
@@ -141,8 +191,10 @@ class CommandQueue:
                     self._restart.set()
         except (OSError, ValueError):
             pass
-        self._queue.put(_EOF)
-        self._restart.set()
+        finally:
+            # Whatever ends the reader ends the session: it never outlives its client's input.
+            self._queue.put(_EOF)
+            self._restart.set()
 
     def restart_pending(self) -> bool:
         """Whether a command that makes the current image obsolete is waiting (cheap: the

@@ -124,8 +124,18 @@ class SessionScene:
         """Apply changed sections (``materials``/``meshes`` merge by name, ``null`` removes).
         Returns {part: seconds} of what was rebuilt; raises LaminaError (state kept) on a bad
         section."""
+        return self.update_all([changes])
+
+    def update_all(self, batch: list) -> dict:
+        """Apply several updates in order, then build once: an update that fails alone and the
+        one that fixes it, taken together, build the fixed scene."""
         if self.doc is None:
             raise LaminaError("update before any scene: send a 'scene' command first")
+        for changes in batch:
+            self._merge(changes)
+        return self._build()
+
+    def _merge(self, changes: dict) -> None:
         for key, value in changes.items():
             if key in MERGED_SECTIONS:
                 merged = dict(self.doc.get(key) or {})
@@ -140,7 +150,6 @@ class SessionScene:
             else:
                 self.doc[key] = value
             self._dirty.add(key)
-        return self._build()
 
     # ------------------------------------------------------------------ building
 
