@@ -8,6 +8,7 @@ benchmarks/worker_kill.py.
 import copy
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -316,6 +317,31 @@ def test_inputs_that_make_a_light_or_an_object_vanish_warn(run, tmp_path):
         quiet = edited(lambda d: d["materials"].update(grey={"type": "dielectric", "ior": ior}))
         code, lines, _ = run(quiet, command="validate")
         assert code == 0 and not [ln for ln in lines if ln.startswith("warning: ")], (ior, lines)
+
+
+def test_a_scene_of_several_gib_is_announced_with_its_memory_and_load_time(run, monkeypatch, tmp_path):
+    """issue 39: 10^6 lights (4.2 GiB, 84 s) and a small compressed mesh expanding to 10 M
+    triangles (4.45 GiB) loaded without a word. The estimate comes from the counts (measured
+    constants in backend/limits.py) and is printed before the loading, not after it."""
+    message = limits.heavy_scene_message(0, 1_000_000)
+    assert message.startswith("0 triangles (instances counted) and 1000000 lights: loading will take about 4.2 GiB")
+    assert message.endswith("and about 90 s")
+    assert "about 8.4 GiB" in limits.heavy_scene_message(10_000_000, 0)
+    assert limits.heavy_scene_message(1_000_000, 1000) is None          # 0.85 GiB: no word
+    # Through the CLI, with the threshold lowered so that a small scene crosses it: 400 lights
+    # (one of them dark) and 1000 instances of the triangle.
+    monkeypatch.setattr(limits, "HEAVY_SCENE_BYTES", 1 << 20)
+    data = edited(lambda d: d["lights"].extend(
+        [{"type": "point", "to_world": SUN, "power": 1}] * 398 + [{"type": "point", "to_world": SUN, "power": 0}]))
+    data["objects"] = data["objects"] * 1000
+    code, lines, image = run(data)
+    assert code == 0 and np.all(np.isfinite(image))
+    warnings = [ln for ln in lines if ln.startswith("warning: ")]
+    assert re.fullmatch(re.escape(f"warning: {tmp_path / 'scene.json'}: 1000 triangles (instances counted) and "
+                                  f"400 lights: loading will take about 3 MiB of memory (of ") + r"[0-9.]+ [GM]iB"
+                        + re.escape(" available) and about 0 s"), warnings[0]), warnings
+    assert any("lights[399]" in w and "emits nothing" in w for w in warnings[1:])   # after it: the load's own
+    assert sum("instances counted" in w for w in warnings) == 1                      # said once
 
 
 def test_accepted_and_ignored_inputs_now_warn_or_fail(run):

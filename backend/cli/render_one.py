@@ -87,7 +87,12 @@ def render_scene(args, scene_path: Path, output: Path, png: str | None, printer,
 
     emit = emit or printer.emit
     check_outputs(output, png, args.partial)
-    scene = load_scene(scene_path)
+    from ..scene.loader import HEAVY_SCENE_NOTICE
+    token = HEAVY_SCENE_NOTICE.set(lambda message: emit({"event": "warning", "message": message}))
+    try:
+        scene = load_scene(scene_path)
+    finally:
+        HEAVY_SCENE_NOTICE.reset(token)
     options = options or options_from_args(args)
     options.apply(scene)
     if args.resolution is not None:

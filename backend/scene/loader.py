@@ -6,6 +6,7 @@ in ``Scene.warnings`` for the CLI/add-on to show.
 """
 from __future__ import annotations
 
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -196,8 +197,9 @@ def _load_scene_data(data, where: str, base_dir: Path | None) -> Scene:
 
     materials, names = parse_materials(root.optional_child("materials"))
     meshes = parse_meshes(root.optional_child("meshes"))
-    soup = flatten_objects(root.optional_child("objects"), meshes, materials, names, ctx)
     lights_node = root.optional_child("lights")
+    announce_heavy_scene(root.optional_child("objects"), meshes, lights_node, ctx)
+    soup = flatten_objects(root.optional_child("objects"), meshes, materials, names, ctx)
     lights = parse_lights(lights_node)
     light_nodes = lights_node.items() if lights_node is not None else []   # for the warnings
     world = parse_world(root.optional_child("world"))
@@ -208,6 +210,29 @@ def _load_scene_data(data, where: str, base_dir: Path | None) -> Scene:
     scene.origin = tuple(float(v) for v in offset) if offset is not None else (0.0, 0.0, 0.0)
     scene.views = views
     return scene
+
+
+#: Where a warning about a heavy scene goes the moment it is known (render_one sets it, so the
+#: user reads it before the minutes of loading, not after); None: into the scene's warnings.
+HEAVY_SCENE_NOTICE: ContextVar = ContextVar("heavy_scene_notice", default=None)
+
+
+def announce_heavy_scene(objects: Node | None, meshes: dict, lights: Node | None, ctx: LoadContext) -> None:
+    """Warn, before flattening and the lights' tables, about a scene that will take several GiB
+    (a million lights, a small compressed mesh instanced into tens of millions of triangles)."""
+    from ..limits import heavy_scene_message
+    items = objects.items() if objects is not None else []
+    triangles = sum(meshes[o.value["mesh"]].triangle_count for o in items
+                    if isinstance(o.value, dict) and isinstance(o.value.get("mesh"), str) and o.value["mesh"] in meshes)
+    count = len(lights.value) if lights is not None and isinstance(lights.value, list) else 0
+    message = heavy_scene_message(triangles, count)
+    if message is None:
+        return
+    notice = HEAVY_SCENE_NOTICE.get()
+    if notice is not None:
+        notice(f"{ctx.where}: {message}")
+    else:
+        ctx.warn("", message)
 
 
 def parse_views(node: Node | None, offset) -> dict:
