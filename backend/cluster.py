@@ -188,6 +188,7 @@ class ClusterItems:
         self.package, self.blobs = cluster_files.make_package(scene, source, shared=shared_files)
         self.client, self.cluster = connect(address, timeout)
         self.futures: list = []
+        self._submitted = 0             # items submitted by this runner (their priority order)
         self.stats = {"cluster_scene_bytes_sent": 0, "cluster_scene_files_sent": 0}
         self.render_id = uuid.uuid4().hex[:12]
         try:
@@ -262,22 +263,38 @@ class ClusterItems:
 
     # ---- items
 
-    def _submit(self, item, index: int, count: int):
+    def _submit(self, item, index: int):
         key, *_ = item
         # Earlier items first (merged in order); an earlier frame's items before a later one's.
-        priority = self.options.cluster_priority * PRIORITY_SPAN + (count - index)
+        priority = self.options.cluster_priority * PRIORITY_SPAN + (PRIORITY_SPAN - 1 - min(index, PRIORITY_SPAN - 1))
         return self.client.submit(render_task, self.package, self.options, item, pure=False,
                                   key=f"lamina-{self.render_id}-{key[0]}-{key[1]}-{uuid.uuid4().hex[:6]}",
                                   priority=priority)
 
-    def run(self, items, should_stop):
-        self.futures = [self._submit(item, i, len(items)) for i, item in enumerate(items)]
+    def run(self, items, should_stop, window: int):
+        """Results in item order, ``window`` items submitted ahead of the one merged (the
+        Renderer sizes it from the cluster's worker threads)."""
+        from collections import deque
+        source = iter(items)
+        pending: deque = deque()          # [index, item, future]: merged items leave it (and their
+        taken = 0                         # results leave the workers)
         resent: dict = {}               # item index -> times its worker was sent missing files
         try:
-            for i in range(len(items)):
+            while True:
+                for item in source:
+                    future = self._submit(item, self._submitted)
+                    self._submitted += 1
+                    pending.append([taken, item, future])
+                    taken += 1
+                    if len(pending) >= window:
+                        break
+                if not pending:
+                    break
+                entry = pending[0]
+                i, item = entry[0], entry[1]
                 while True:
                     try:
-                        result = self._wait(self.futures[i], should_stop)
+                        result = self._wait(entry[2], should_stop)
                     except MissingSceneFiles as exc:
                         resent[i] = resent.get(i, 0) + 1
                         if resent[i] > MAX_RESENDS:
@@ -288,18 +305,19 @@ class ClusterItems:
                             self._send_files([exc.address])
                         except LaminaError as error:
                             raise Failed(str(error)) from None
-                        self.futures[i] = self._submit(items[i], i, len(items))
+                        entry[2] = self._submit(item, i)
                         continue
                     except (Stopped, Failed):
                         raise
                     except Exception as exc:  # noqa: BLE001 - any failure stops the render, named
                         raise Failed(self._failure(exc, failure_text)) from exc
                     break
-                self.futures[i] = None            # merged once; drop the worker's copy
-                if i == len(items) - 1:
-                    self._check_workers(force=True)   # a loss during a short round is still told
+                pending.popleft()
+                if not pending:
+                    self._check_workers(force=True)   # a loss during a short render is still told
                 yield result
         finally:
+            self.futures = [e[2] for e in pending]
             self._cancel()
 
     def _wait(self, future, should_stop):

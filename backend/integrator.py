@@ -20,12 +20,14 @@ from .geometry.accel import NO_TIMES
 from .kernels import integrator as ki
 from .kernels import materials as km
 from .kernels.camera import camera_rays, camera_vector
+from .kernels.item_loop import STOPPED, run_item, start_lanes
 from .kernels.layered import batch as layered_batch
 from .kernels.layered.table import H_MAXV, H_PDF, H_TRANS, LOBES
 from .kernels.lights.table import build_light_table
 from .kernels.params import ParamPacker
 from .kernels.sampler import SAMPLERS
 from .kernels.soup import shading_rows
+from .kernels.trace import RAYHIT_WORDS
 from .layered.stack_table import StackBuilder
 from .passes import NO_LANES, PassLayout
 from .scene.links import CAMERA, NO_RECEIVER
@@ -98,6 +100,16 @@ class _Scratch:
         self.sh_c = np.empty((m, 3))
         self.sh_mask = np.empty(m, np.int64)
         self.walk = layered_batch.scratch(walk_capacity)
+        # The compiled bounce loop's (kernels/item_loop.py): hits, shadow-ray times and answers,
+        # embree's ray block, the loop's state.
+        self.prim = np.empty(n, np.int32)
+        self.b1 = np.empty(n, np.float32)
+        self.b2 = np.empty(n, np.float32)
+        self.times = np.empty(n, np.float32)
+        self.sh_time = np.empty(m, np.float32)
+        self.blocked = np.empty(m, np.int32)
+        self.rayhit = np.empty(RAYHIT_WORDS, np.float32)
+        self.state = np.zeros(8, np.int64)
 
 
 class RenderInterrupted(Exception):
@@ -109,6 +121,10 @@ class PathTracer:
     #: item is abandoned (RenderInterrupted). The viewport session sets it so that an edit does
     #: not wait for a whole work item.
     interrupt = None
+    #: uint8[1] that another thread may set non-zero to the same end, read by the compiled
+    #: bounce loop before every bounce (the session's restart flag); None: never.
+    stop_flag = None
+    _never = np.zeros(1, np.uint8)
 
     def __init__(self, scene, accel):
         self.scene = scene
@@ -236,10 +252,10 @@ class PathTracer:
         pixels = np.ascontiguousarray(pixels, np.int64)
         P = pixels.size
         n = P * spp
-        L = np.zeros((n, 3))
-        albedo = np.zeros((n, 3))
-        normal = np.zeros((n, 3))
-        alpha = np.zeros(n)
+        L = np.empty((n, 3))          # zeroed by start_lanes (compiled, without the GIL)
+        albedo = np.empty((n, 3))
+        normal = np.empty((n, 3))
+        alpha = np.empty(n)
         # Data passes: a column per requested channel, none (and no allocation) otherwise.
         aux = self.passes.lane_array(n) if self.passes is not None else NO_LANES
         sc = self._scratch(n)
@@ -249,17 +265,81 @@ class PathTracer:
         camera_rays(self.camera, self.camera_motion, *self.filter, W, H, self.settings.seed,
                     self.settings.sampler, pixels, spp, sample0,
                     cur.key[:n], cur.o[:n], cur.d[:n], cur.o32[:n], cur.d32[:n], tmax32[:n], lane_time)
-        cur.slot[:n] = np.arange(n)
-        cur.beta[:n] = 1.0
-        cur.pdf[:n] = 0.0
-        cur.delta[:n] = ki.VIA_DELTA  # camera rays: emission seen directly gets weight 1
-        cur.rtype[:n] = CAMERA
-        cur.recv[:n] = NO_RECEIVER    # light linking does not apply to camera rays (Cycles)
+        # Camera rays: emission seen directly gets weight 1 (VIA_DELTA); light linking does not
+        # apply to them (Cycles).
+        start_lanes(cur.outputs(), n, ki.VIA_DELTA, CAMERA, NO_RECEIVER, sc.walk, (L, albedo, normal, alpha))
+        lc = sc.walk[3]
+        counts = np.zeros(5, np.int64)
+        queries = self.accel.queries
+        if queries.direct is not None and self.accel.recorder is None and not (self.skip_camera or self.skip_indirect):
+            rays = self._run_compiled(sc, pixels, spp, sample0, lane_time, L, albedo, normal, alpha, aux, counts, n)
+        else:
+            rays = self._run_python(sc, pixels, spp, sample0, lane_time, L, albedo, normal, alpha, aux, counts, n)
+        if lc[2]:
+            stats.add("layered_walk_cap_hits", int(lc[2]))
+        # Per-lane samples: the film adds them in sample order (kernels/film.py).
+        out = {"lanes": (L, albedo, normal, alpha), "spp": spp, "rays": rays}
+        if self.passes is not None:
+            out["passes"] = aux
+        return out
+
+    def _run_compiled(self, sc, pixels, spp, sample0, lane_time, L, albedo, normal, alpha, aux, counts, n) -> int:
+        """The item's bounce loop in one compiled call (kernels/item_loop.py); with shadow-ray
+        filters (backend/visibility.py), one call per segment and the shadow rays here."""
+        queries = self.accel.queries
+        if not queries.direct.committed:
+            queries.commit()
+        fn_hit, fn_occ = queries._intersect_fn, queries._occluded_fn
+        embree = (fn_hit, fn_occ, queries.direct.handle, queries.offset1, sc.rayhit)
+        hits = (sc.tmax32, sc.prim, sc.b1, sc.b2, sc.times)
+        sh = (sc.sh_slot, sc.sh_o32, sc.sh_d32, sc.sh_t32, sc.sh_c, sc.sh_mask, sc.sh_time, sc.blocked)
+        film = (L, albedo, normal, alpha, aux)
+        queues = [q.outputs() for q in sc.queues]
+        stop = self.stop_flag if self.stop_flag is not None else self._never
+        one_segment = bool(self.vis.filter_shadows)
+        state = sc.state
+        state[:] = 0
+        state[1] = n
+        killed = deferred = rays = 0
+        while True:
+            if self.interrupt is not None and self.interrupt():
+                raise RenderInterrupted
+            run_item(self.geometry, self.materials, self.textures, self.light_table, self.settings,
+                     self.pass_params, self.stacks, pixels, spp, sample0, lane_time, queues[0], queues[1],
+                     sh, sc.walk, sc.queued_at, sc.queued, film, embree, hits, one_segment, stop, counts, state)
+            killed += int(state[3])
+            deferred += int(state[4])
+            rays += int(state[5])
+            if state[6] == STOPPED:
+                raise RenderInterrupted
+            if state[7]:
+                queues.reverse()                  # the next rays are in the other queue
+            ns = int(state[2])
+            if ns:                                # one_segment: the filtered shadow rays
+                blocked = self.vis.occluded(sc.sh_o32[:ns], sc.sh_d32[:ns], sc.sh_t32[:ns], sc.sh_mask[:ns])
+                rays += ns
+                ki.add_unoccluded(sc.sh_slot[:ns], sc.sh_c[:ns], blocked, L)
+            if not one_segment or state[1] == 0 or state[0] >= self.max_segments:
+                break
+            state[3:] = 0
+        self.accel.rays_traced += rays
+        self._count(killed, deferred)
+        return rays
+
+    def _count(self, killed: int, deferred: int) -> None:
+        if killed:
+            stats.add("paths_nonfinite_killed", killed)
+        if deferred:
+            stats.add("layered_pdfs_deferred", deferred)   # estimated when a ray found a light
+
+    def _run_python(self, sc, pixels, spp, sample0, lane_time, L, albedo, normal, alpha, aux, counts, n) -> int:
+        """The bounce loop in Python, a compiled call per stage: rays that pass through objects
+        hidden from them (backend/visibility.py re-traces them), embree through embreex's own
+        queries, or a benchmark recording the rays."""
+        cur, nxt = sc.queues
+        tmax32 = sc.tmax32
         sh_slot, sh_o32, sh_d32, sh_t32, sh_c = sc.sh_slot, sc.sh_o32, sc.sh_d32, sc.sh_t32, sc.sh_c
         lw, lb, lr, lc = sc.walk
-        for a in sc.walk:
-            a[:] = 0                  # as fresh (the counters are per item)
-        counts = np.zeros(5, np.int64)
         killed = 0
         deferred = 0
         rays = 0
@@ -304,17 +384,8 @@ class PathTracer:
             deferred += int(counts[4])
             active = int(counts[0])
             cur, nxt = nxt, cur
-        if killed:
-            stats.add("paths_nonfinite_killed", killed)
-        if deferred:
-            stats.add("layered_pdfs_deferred", deferred)   # estimated when a ray found a light
-        if lc[2]:
-            stats.add("layered_walk_cap_hits", int(lc[2]))
-        # Per-lane samples: the film adds them in sample order (kernels/film.py).
-        out = {"lanes": (L, albedo, normal, alpha), "spp": spp, "rays": rays}
-        if self.passes is not None:
-            out["passes"] = aux
-        return out
+        self._count(killed, deferred)
+        return rays
 
 
 def build_material_table(materials, packer, stacks=None):

@@ -56,8 +56,26 @@ from .limits import MAX_WORKER_LOSSES, MAX_WORKERS
 from .mathutil import LUMINANCE
 from .work_items import WORKER, Failed, Stopped, failure_text, render_item, setup_local
 
-LANES_PER_ITEM = 1 << 16   # paths per work item: large enough to amortise NumPy call overhead
+#: Paths per work item. An item's fixed cost is ~0.1 ms (its bounce loop is one compiled call,
+#: backend/kernels/item_loop.py) against ~25 ms of tracing at this size, and a render of a
+#: 256² image at 128 spp is 512 items: enough for 64 workers to share evenly
+#: (benchmarks/parallel_scaling.py simulates the schedule).
+LANES_PER_ITEM = 1 << 14
 MIN_ITEMS_PER_ROUND = 4    # so that several workers have something to do on small images
+#: Items in flight per worker: started or waiting for a worker, and finished but not yet merged
+#: (results are merged in item order, so a slow item holds back the merge of the ones after it).
+ITEMS_IN_FLIGHT_PER_WORKER = 3
+
+
+def items_in_flight(workers: int) -> int:
+    """How many items a render keeps submitted ahead of its merge point."""
+    return max(4, ITEMS_IN_FLIGHT_PER_WORKER * workers)
+
+
+#: How the master schedules items (read by benchmarks/parallel_scaling.py, which simulates it):
+#: passes follow each other without waiting, ``items_in_flight(workers)`` items ahead of the
+#: merge point; only an adaptive decision waits for the pass before it.
+SCHEDULE = ("stream", items_in_flight)
 
 
 @dataclass
@@ -131,7 +149,7 @@ def _wait(future, should_stop):
 class _SerialItems:
     """Items rendered one after the other in this thread."""
 
-    def run(self, items, should_stop):
+    def run(self, items, should_stop, window: int = 1):
         for item in items:
             try:
                 result = render_item(item)
@@ -150,10 +168,20 @@ class _ThreadItems:
     def __init__(self, workers: int):
         self.pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="lamina-render")
 
-    def run(self, items, should_stop):
-        futures = [self.pool.submit(render_item, item) for item in items]
+    def run(self, items, should_stop, window: int):
+        """Results in item order; up to ``window`` items submitted ahead of the one merged."""
+        from collections import deque
+        futures: deque = deque()
+        source = iter(items)
         try:
-            for f in futures:
+            while True:
+                for item in source:
+                    futures.append(self.pool.submit(render_item, item))
+                    if len(futures) >= window:
+                        break
+                if not futures:
+                    return
+                f = futures.popleft()
                 try:
                     result = _wait(f, should_stop)
                 except (Stopped, FutureTimeout):
@@ -270,14 +298,31 @@ class _ProcessItems:
     def _new(self) -> _Worker:
         return _Worker(self.ctx, self.source, self.options, self.fork)
 
-    def run(self, items, should_stop):
+    def run(self, items, should_stop, window: int):
+        """Results in item order; items are taken from ``items`` as workers become free, at most
+        ``window`` ahead of the one merged."""
         from collections import deque
         from multiprocessing.connection import wait
-        queue = deque(range(len(items)))
+        source = iter(items)
+        items = {}                      # index -> item, from taken until merged
+        taken = 0
+        exhausted = False
+        queue: deque = deque()
         results: dict = {}
         next_out = 0
-        while next_out < len(items):
+        while True:
+            while not exhausted and taken - next_out < window:
+                try:
+                    items[taken] = next(source)
+                except StopIteration:
+                    exhausted = True
+                    break
+                queue.append(taken)
+                taken += 1
+            if exhausted and next_out == taken:
+                return
             if next_out in results:
+                items.pop(next_out, None)
                 yield results.pop(next_out)
                 next_out += 1
                 continue
@@ -450,8 +495,10 @@ class Renderer:
             start["cluster"] = self.options.cluster
             start.update(runner.stats)
         self.on_progress(start)
+        window = items_in_flight(workers)
         try:
-            for r in range(rounds):
+            r = 0
+            while r < rounds:
                 if self._stop:                     # a stop request between two passes
                     interrupted = True
                     break
@@ -459,48 +506,65 @@ class Renderer:
                     break
                 if r > 0 and s.time_limit and time.perf_counter() - t_start > s.time_limit:
                     break                          # the limit passed during the first pass
-                this_block = min(block, spp - r * block)
-                items = plan_round(active, this_block, r, s.seed, r * block)
-                round_pixels = sum(item[1].size for item in items)
-                round_done = 0
-                for key, result, info in runner.run(items, lambda: self._stop):
-                    band = items[key[1]][1]
+                # Passes that need no adaptive decision between them go out as one stream of
+                # items: all of them without a noise target, else up to the first pass after which
+                # a pixel can have min_spp samples, then one pass at a time (each decision needs
+                # the pass before it merged).
+                last = r + 1
+                if s.noise_target <= 0:
+                    last = rounds
+                else:
+                    while last < rounds and min(last * block, spp) < s.min_spp:
+                        last += 1
+                group_active = active
+                issued: dict = {}
+
+                def stream(first=r, end=last, pixels=group_active, issued=issued):
+                    for p in range(first, end):
+                        for item in plan_round(pixels, min(block, spp - p * block), p, s.seed, p * block):
+                            issued[item[0]] = item
+                            yield item
+
+                pass_pixels = group_active.size
+                pass_done = 0                      # pixels of the current pass merged
+                for key, result, info in runner.run(stream(), lambda: self._stop, window):
+                    _, band, this_block, _, _ = issued.pop(tuple(key))
+                    p = key[0]
+                    # The time limit never cuts the first pass short: every pixel gets its first
+                    # samples (a limit shorter than one pass would leave black bands); after it, an
+                    # item that finishes past the limit is not merged.
+                    if p > 0 and s.time_limit and time.perf_counter() - t_start > s.time_limit:
+                        self._stop = True          # not an interruption: the render is complete
+                        break
                     dropped = film.add(band, result)
                     if dropped:
                         info["samples_nonfinite_dropped"] = info.get("samples_nonfinite_dropped", 0) + dropped
                     stats.merge(totals, info)
                     done_samples += band.size * this_block
-                    round_done += band.size
+                    pass_done += band.size
                     now = time.perf_counter()
                     elapsed = now - t_start
-                    frac = min(done_samples / max(planned_samples, 1), 1.0)
                     rate = done_samples / max(elapsed, 1e-9)
-                    # "samples": samples per pixel so far, counting the part of this round that is
-                    # done (a round may hold many samples per pixel on small images).
-                    self.on_progress({"event": "progress", "done": spp_done, "round": r,
-                                      "samples": round(spp_done + this_block * round_done / max(round_pixels, 1), 2),
-                                      "total": spp, "fraction": round(frac, 4), "elapsed": round(elapsed, 3),
+                    if pass_done == pass_pixels:   # pass p complete
+                        spp_done += this_block
+                        pass_done = 0
+                        samples = spp_done
+                    else:
+                        # samples per pixel so far, counting the part of this pass that is done
+                        samples = round(spp_done + this_block * pass_done / max(pass_pixels, 1), 2)
+                    self.on_progress({"event": "progress", "done": spp_done, "round": p, "samples": samples,
+                                      "total": spp, "fraction": round(min(done_samples / max(planned_samples, 1), 1.0), 4),
+                                      "elapsed": round(elapsed, 3),
                                       "eta": round((planned_samples - done_samples) / max(rate, 1e-9), 2),
                                       "samples_per_second": round(rate, 1)})
                     if self.partial_callback and now - last_partial >= self.partial_interval:
                         self.partial_callback(film, spp_done)
                         last_partial = now
-                    # The time limit never cuts the first pass short: every pixel gets its
-                    # first samples (a limit shorter than one pass would leave black bands).
                     if self._stop:
                         interrupted = True
                         break
-                    if r > 0 and s.time_limit and elapsed > s.time_limit:
-                        self._stop = True          # not an interruption: the render is complete
-                        break
                 else:
-                    spp_done += this_block
-                    elapsed = time.perf_counter() - t_start
-                    self.on_progress({"event": "progress", "done": spp_done, "round": r, "samples": spp_done,
-                                      "total": spp, "fraction": round(min(done_samples / max(planned_samples, 1), 1.0), 4),
-                                      "elapsed": round(elapsed, 3),
-                                      "eta": round((planned_samples - done_samples) / max(done_samples / max(elapsed, 1e-9), 1e-9), 2),
-                                      "samples_per_second": round(done_samples / max(elapsed, 1e-9), 1)})
+                    r = last
                     if s.noise_target > 0:
                         ready = film.count[active] >= s.min_spp
                         if ready.any():

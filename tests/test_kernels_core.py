@@ -162,8 +162,8 @@ warmup.ensure_compiled()
 from render_util import render
 data = json.loads(open(sys.argv[2]).read())
 res = render(data, workers=1)
-from backend.kernels.integrator import shade
-unparsed = getattr(next(iter(shade.overloads.values())).library, "_lamina_bitcode", None) is not None
+from backend.kernels.item_loop import run_item
+unparsed = getattr(next(iter(run_item.overloads.values())).library, "_lamina_bitcode", None) is not None
 print(hashlib.sha256(res.film.sum.tobytes()).hexdigest(), "numba.np.linalg" in sys.modules, unparsed)
 """
 

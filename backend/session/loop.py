@@ -254,6 +254,7 @@ class Session:
         scene = self.state.scene
         scene.width, scene.height = p.width, p.height
         tracer.interrupt = self.commands.restart_pending if interruptible else None
+        tracer.stop_flag = getattr(self.commands, "restart_flag", None) if interruptible else None
         seed = int(scene.settings.seed)
 
         def one(args):
@@ -282,6 +283,7 @@ class Session:
             return None
         finally:
             tracer.interrupt = None
+            tracer.stop_flag = None
         return results
 
     # -- commands

@@ -22,6 +22,8 @@ import sys
 import threading
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import LaminaError
 from ..limits import MAX_SPP
 
@@ -173,6 +175,9 @@ class CommandQueue:
     def __init__(self, stream=None):
         self._queue: queue.Queue = queue.Queue()
         self._restart = threading.Event()
+        #: The same flag as a uint8[1] for the compiled bounce loop, which reads it before every
+        #: bounce (backend/kernels/item_loop.py; ``PathTracer.stop_flag``).
+        self.restart_flag = np.zeros(1, np.uint8)
         self._stream = stream if stream is not None else sys.stdin
         self._thread = threading.Thread(target=self._read, name="lamina-session-stdin", daemon=True)
         self._thread.start()
@@ -188,13 +193,17 @@ class CommandQueue:
                 # (a flag raised for a command already taken only costs one empty look).
                 self._queue.put(item)
                 if isinstance(item, dict) and item["cmd"] in RESTARTING:
-                    self._restart.set()
+                    self._raise_restart()
         except (OSError, ValueError):
             pass
         finally:
             # Whatever ends the reader ends the session: it never outlives its client's input.
             self._queue.put(_EOF)
-            self._restart.set()
+            self._raise_restart()
+
+    def _raise_restart(self) -> None:
+        self._restart.set()
+        self.restart_flag[0] = 1
 
     def restart_pending(self) -> bool:
         """Whether a command that makes the current image obsolete is waiting (cheap: the
@@ -209,6 +218,7 @@ class CommandQueue:
         except queue.Empty:
             return items
         self._restart.clear()
+        self.restart_flag[0] = 0
         while True:
             try:
                 items.append(self._queue.get_nowait())

@@ -1,0 +1,130 @@
+"""A work item's bounce loop, compiled: trace → shade → trace shadow rays → add what they let
+through, segment after segment, without returning to Python (backend/integrator.py sets it up).
+
+Why compiled: with the loop in Python, a render thread took the GIL back between every compiled
+call (about 2.5 % of a render's CPU on the Cornell box and the demo, benchmarks/parallel_scaling.py),
+which is what bounds a render with many threads: at 2.5 % held, 40 threads at most could run
+at once however many cores there are. Here one call renders the item and holds the GIL only to
+enter and leave.
+
+The queues travel as tuples in the order of ``integrator._Queue.outputs`` (slot, key, o, d, o32,
+d32, beta, pdf, delta, rtype, recv, dfr); the shadow rays as (slot, o32, d32, t32, c, mask,
+time32, blocked); the film columns as (L, albedo, normal, alpha, aux); embree as (intersect
+function, occluded function, scene handle, geometry-1 offset, RTCRayHit scratch), the hits as
+(tmax32, prim, b1, b2, time32).
+
+``one_segment``: shade a single segment and leave its shadow rays to the caller (scenes whose
+shadow rays need filters made in Python: backend/visibility.py). ``stop[0]`` non-zero (another
+thread may set it: the viewport session's restart) ends the item before the next bounce.
+
+``state`` (int64[8]) in: [segment, active lanes]; out: [segment reached, active lanes,
+pending shadow rays, non-finite paths killed (sum), deferred pdfs (sum), rays traced (sum),
+STOPPED or DONE, which queue holds the next rays (0: the first)].
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .integrator import add_unoccluded, shade
+from .jit import kernel
+from .trace import intersect_rays, occluded_rays
+
+@kernel(nogil=True)
+def start_lanes(q, n, delta, rtype, recv, walk, film):
+    """The first n lanes of queue ``q`` start their paths (camera_rays wrote their rays): slot i,
+    throughput 1, no previous pdf, the given ``delta``, ray type and receiver set; the layered
+    walks' scratch as fresh (its counters are per item); the film columns (L, albedo, normal,
+    alpha: allocated empty, zeroed here without the GIL) at 0."""
+    slot, beta, pdf, dl, rt, rv = q[0], q[6], q[7], q[8], q[9], q[10]
+    for i in range(n):
+        slot[i] = i
+        beta[i, 0] = 1.0
+        beta[i, 1] = 1.0
+        beta[i, 2] = 1.0
+        pdf[i] = 0.0
+        dl[i] = delta
+        rt[i] = rtype
+        rv[i] = recv
+    walk[0].fill(0.0)
+    walk[1].fill(0.0)
+    walk[2].fill(0)
+    walk[3].fill(0)
+    film[0].fill(0.0)
+    film[1].fill(0.0)
+    film[2].fill(0.0)
+    film[3].fill(0.0)
+
+
+DONE = 0
+STOPPED = 1
+FAR = np.float32(3e38)
+
+
+@kernel(nogil=True)
+def run_item(G, MT, TX, LT, S, PS, ST, pixels, spp, sample0, lane_time, q0, q1, sh, walk, PD, PC, film, embree,
+             hits, one_segment, stop, counts, state):
+    segment = state[0]
+    active = state[1]
+    motion = lane_time.shape[0] > 0
+    tmax, prim, b1, b2, tt = hits
+    fn_hit, fn_occ, scene, offset1, rayhit = embree
+    L, albedo, normal, alpha, aux = film
+    sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, sh_time, blocked = sh
+    LW, LB, LR, LC = walk
+    killed = 0
+    deferred = 0
+    rays = 0
+    flip = 0
+    status = DONE
+    ns = 0
+    while segment < S.max_segments and active > 0:
+        if stop[0] != 0:
+            status = STOPPED
+            break
+        cur = q1 if flip else q0
+        nxt = q0 if flip else q1
+        if segment > 0:                     # the camera rays' limits only hold for segment 0
+            for i in range(active):
+                tmax[i] = FAR
+        times = tt[:active] if motion else tt[:0]
+        if motion:
+            for i in range(active):
+                times[i] = lane_time[cur[0][i]]
+        t_in = tmax[:active]
+        intersect_rays(fn_hit, scene, offset1, rayhit, cur[4][:active], cur[5][:active], t_in, times,
+                       prim[:active], b1[:active], b2[:active])
+        rays += active
+        for k in range(counts.shape[0]):
+            counts[k] = 0
+        shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
+              cur[0][:active], cur[1][:active], cur[2][:active], cur[3][:active], cur[6][:active],
+              cur[7][:active], cur[8][:active], cur[9][:active], cur[10][:active], cur[11][:active],
+              t_in, prim[:active], t_in, b1[:active], b2[:active],
+              L, albedo, normal, alpha, aux,
+              nxt[0], nxt[1], nxt[2], nxt[3], nxt[4], nxt[5], nxt[6], nxt[7], nxt[8], nxt[9], nxt[10], nxt[11],
+              sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, ST, LW, LB, LR, LC, PD, PC, counts)
+        ns = counts[1]
+        killed += counts[3]
+        deferred += counts[4]
+        active = counts[0]
+        flip = 1 - flip
+        segment += 1
+        if one_segment:
+            break
+        if ns > 0:
+            st = sh_time[:ns] if motion else sh_time[:0]
+            if motion:
+                for k in range(ns):
+                    st[k] = lane_time[sh_slot[k]]
+            occluded_rays(fn_occ, scene, rayhit, sh_o32[:ns], sh_d32[:ns], sh_t32[:ns], st, blocked[:ns])
+            rays += ns
+            add_unoccluded(sh_slot[:ns], sh_c[:ns], blocked[:ns], L)
+            ns = 0
+    state[0] = segment
+    state[1] = active
+    state[2] = ns
+    state[3] = killed
+    state[4] = deferred
+    state[5] = rays
+    state[6] = status
+    state[7] = flip
