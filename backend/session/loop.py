@@ -13,10 +13,11 @@ After every edit (a new generation) the image is rebuilt progressively:
 3. at the sample target (0 = none) a final frame, an ``idle`` event, and the loop blocks on its
    command queue: no CPU is used until the next command.
 
-Work is cut into items of about ``LANES_PER_ITEM`` paths rendered by ``workers`` threads sharing
-one PathTracer. Between items the loop takes waiting commands; a command that changes the image
-also interrupts the items in flight (``PathTracer.interrupt``, checked before every bounce), so
-an edit waits for at most one bounce of one item.
+Work is cut into items of about ``LANES_PER_ITEM`` paths (at least ``ITEMS_PER_WORKER`` per
+worker in every pass) rendered by ``workers`` threads sharing one PathTracer, ``ITEMS_PER_STEP``
+per worker between two looks at the commands. A command that changes the image also interrupts
+the items in flight (``PathTracer.stop_flag``, read by the compiled bounce loop before every
+bounce), so an edit waits for at most one bounce of one item.
 """
 from __future__ import annotations
 
@@ -37,7 +38,9 @@ from .state import SessionScene
 
 LEVEL_PIXELS = 4096       # pixels of the first (smallest) reduced pass at most
 LEVEL_STEP = 4            # each further reduced pass has LEVEL_STEP × the width and height
-LANES_PER_ITEM = 1 << 15  # paths per work item
+LANES_PER_ITEM = 1 << 14  # paths per work item (its fixed cost is ~0.1 ms: backend/render.py)
+ITEMS_PER_WORKER = 2      # a pass is cut into at least this many items per worker (small ones too)
+ITEMS_PER_STEP = 3        # items per worker rendered between two looks at the commands
 FRAME_INTERVAL = 0.25     # seconds between frames of completed full-resolution passes (at least)
 PARTIAL_INTERVAL = 0.5    # seconds between frames within one long pass
 DEFAULT_SAMPLES = 32
@@ -58,14 +61,17 @@ def level_scales(width: int, height: int) -> list[int]:
 class Pass:
     """One pass: ``spp`` samples (indices sample0 …) in every pixel of a film of the given size."""
 
-    def __init__(self, index: int, scale: int, width: int, height: int, crop, spp: int, sample0: int):
+    def __init__(self, index: int, scale: int, width: int, height: int, crop, spp: int, sample0: int,
+                 workers: int = 1):
         self.index, self.scale, self.width, self.height = index, scale, width, height
         self.spp, self.sample0 = spp, sample0
         x0, y0, x1, y1 = crop
         ys, xs = np.mgrid[y0:y1, x0:x1]
         pixels = (ys * width + xs).ravel().astype(np.int64)
         per_item = max(1, LANES_PER_ITEM // spp)
-        n = max(1, math.ceil(pixels.size / per_item))
+        # Even the first, smallest pass keeps every worker busy: its frame comes sooner with more
+        # cores (the image does not depend on the cut: counter-based random numbers).
+        n = max(1, math.ceil(pixels.size / per_item), min(ITEMS_PER_WORKER * workers, pixels.size))
         self.items = [band for band in np.array_split(pixels, n) if band.size]
         self.cursor = 0
 
@@ -112,7 +118,8 @@ class Progressive:
         if index < len(self.scales):
             k = self.scales[index]
             w, h = math.ceil(self.width / k), math.ceil(self.height / k)
-            p = Pass(index, k, w, h, scaled_crop(self.crop, self.width, self.height, k), 1, 0)
+            p = Pass(index, k, w, h, scaled_crop(self.crop, self.width, self.height, k), 1, 0,
+                     self.session.workers)
             film = FilmAccumulator(w, h)
             film.transparent = self.transparent
             self.current_film = film
@@ -124,7 +131,7 @@ class Progressive:
             crop = scaled_crop(self.crop, self.width, self.height, 1)
             pixels = (crop[2] - crop[0]) * (crop[3] - crop[1])
             block = max(1, min(LANES_PER_ITEM * self.session.workers // max(pixels, 1), left, 64))
-            p = Pass(index, 1, self.width, self.height, crop, block, self.spp_done)
+            p = Pass(index, 1, self.width, self.height, crop, block, self.spp_done, self.session.workers)
             self.current_film = self.film
         self.passes_made += 1
         return p
@@ -132,7 +139,9 @@ class Progressive:
     # -- rendering
 
     def step(self) -> bool:
-        """Render one round of items (one per worker). False once the target is reached."""
+        """Render one round of items (ITEMS_PER_STEP per worker, taken by the workers as they
+        finish: a slow item holds back only the end of the round). False once the target is
+        reached."""
         if self.finished:
             return False
         if self.current is None or self.current.finished:
@@ -142,7 +151,7 @@ class Progressive:
                 return False
         p = self.current
         first = p.index == 0          # the first pass always ends with a frame
-        items = p.items[p.cursor:p.cursor + self.session.workers]
+        items = p.items[p.cursor:p.cursor + ITEMS_PER_STEP * self.session.workers]
         results = self.session.render_items(items, p, interruptible=not first, key=(self.generation, p.index))
         if results is None:                        # interrupted by a command: redo this round
             return True
