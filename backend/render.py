@@ -1,19 +1,24 @@
 """Render orchestration: work items, worker processes, exact merging, progress, adaptivity, cancel.
 
-Work is cut into *items* (a band of pixels × a block of sample indices) whose shape depends only
-on the image, the spp and the merged results so far — never on the worker count. Each item draws
-its random numbers from ``SeedSequence([seed, round, band])`` and is rendered entirely by one
-process, and the master adds item results in item order. Hence the same seed and spp give a
-bit-identical image for any number of workers (tested).
+Work is cut into *items* (a band of pixels × a block of sample indices: ``plan_round``) whose
+shape depends only on the image, the spp and the merged results so far — never on the worker
+count. Every random number is counter-based (keyed by seed, pixel, sample, dimension), each item
+is rendered entirely by one worker, and the master adds item results in item order. Hence the
+same seed and spp give a bit-identical image for any number of workers (tested).
 
-Adaptive sampling (``noise_target`` > 0): after every round the master marks pixels whose relative
-standard error of the mean is below the target (and that have ``min_spp`` samples) as converged;
-later rounds only trace the others.
+Schedule (``SCHEDULE``, simulated by benchmarks/parallel_scaling.py): a *pass* gives every active
+pixel a block of samples; passes follow each other as one stream of items, with
+``items_in_flight(workers)`` items submitted ahead of the one being merged, so workers never wait
+for a pass to end and the merge (compiled, in this thread) runs while they trace. Only adaptive
+sampling (``noise_target`` > 0) waits: once pixels can have ``min_spp`` samples, each pass is
+planned after the one before it is merged, and pixels whose relative standard error of the mean is
+below the target leave the plan.
 
 Parallelism (``RenderOptions.parallel``):
 * ``"threads"`` (default): worker threads of this process share one scene, one embree BVH and
-  one set of compiled kernels. embree's ``run()`` and the compiled kernels (``nogil``) release
-  the GIL, so analytic scenes scale with cores without loading anything twice.
+  one set of compiled kernels. An item's whole bounce loop is one compiled call that releases
+  the GIL (backend/kernels/item_loop.py): a render holds the GIL for about 1 % of its CPU time
+  (benchmarks/parallel_scaling.py), so threads scale without loading anything twice.
 * ``"processes"``: worker processes (an option; since the layered BSDF runs compiled (``nogil``)
   every scene uses threads by default: demo scene at half size, 16 spp, 2 workers, 2.0–2.4 s wall
   with threads against 6.3–8.1 s with processes). On Linux they are forked once this process holds

@@ -9,7 +9,10 @@ For each work item size (paths per item, ``render.LANES_PER_ITEM``) it renders t
 and prints per size: the items, the wall times [s], the fixed cost per render [s] (connecting,
 the file check), the overhead per task [ms] = (1-worker cluster − local − fixed) / items, the
 whole overhead in % of the local time, and the speed-up of 2 workers over 1. Then the smallest item size whose overhead stays under 5 % (smaller items cost more per
-path: the overhead per task is roughly constant). Every cluster image is checked bit-identical to
+path: the overhead per task is roughly constant), and the speed-up predicted for a cluster of
+``--machines`` × ``--threads`` workers (4 × 16) on the scene at full size: the schedule simulated
+by benchmarks/parallel_scaling.py, with the per-task overhead measured at the renderer's item
+size counted as serial work of the scheduler (a pessimistic reading: part of it is the workers'). Every cluster image is checked bit-identical to
 the local one. The clusters are started before timing, and each timed render is a second render
 of the same scene (its files are cached and its scene loaded on the workers), as in a sequence of
 frames; wall times are the best of ``--repeats``.
@@ -78,10 +81,14 @@ def main(argv=None) -> int:
     parser.add_argument("--spp", type=int, default=8)
     parser.add_argument("--sizes", default="4096,16384,65536", help="paths per work item, comma-separated")
     parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--machines", type=int, default=4, help="machines of the predicted cluster")
+    parser.add_argument("--threads", type=int, default=16, help="worker threads per machine")
+    parser.add_argument("--predict-spp", type=int, default=64, help="spp of the predicted full-size render")
     args = parser.parse_args(argv)
     import backend  # noqa: F401 - one BLAS thread per process, before NumPy's first use
     import backend.render as render_module
     from backend.cluster import close_connection, connect
+    default_size = render_module.LANES_PER_ITEM
     resolution = tuple(int(v) for v in args.resolution.lower().split("x"))
     path = Path(args.scene)
     sizes = [int(s) for s in args.sizes.split(",")]
@@ -110,6 +117,7 @@ def main(argv=None) -> int:
                          1000 * max(overhead - fixed, 0.0) / items, 100 * overhead / local,
                          walls[1] / walls[2]))
     finally:
+        render_module.LANES_PER_ITEM = default_size
         for client, cluster in clusters.values():
             close_connection(client, cluster)
     print(f"scene {path.name} at {resolution[0]}x{resolution[1]}, {args.spp} spp; best of {args.repeats}; "
@@ -124,7 +132,26 @@ def main(argv=None) -> int:
     under = [r[0] for r in rows if r[7] < 5.0]
     print("smallest item size with overhead < 5 %: " + (f"{min(under)} paths" if under else
                                                         "none of those measured"))
+    _predict(rows, args, default_size)
     return 0
+
+
+def _predict(rows, args, size: int) -> None:
+    """The speed-up ``--machines`` × ``--threads`` cluster workers would give on the scene at full
+    size (``--predict-spp``), simulated (benchmarks/parallel_scaling.py) with the measured
+    per-task overhead at the renderer's item size counted as serial scheduler work."""
+    import tempfile
+
+    from .parallel_scaling import predict, record
+    measured = {r[0]: r[6] / 1000.0 for r in rows}
+    per_task = measured.get(size, max(measured.values()) if measured else 0.0)
+    rec = record("cluster", Path(tempfile.mkdtemp()), Path(args.scene), args.predict_spp, None)
+    workers = args.machines * args.threads
+    pred = predict(rec, [16, workers], per_task)
+    print(f"predicted on {args.machines} machines × {args.threads} worker threads ({workers} workers), "
+          f"{Path(args.scene).name} at full size, {args.predict_spp} spp, {len(rec.items)} items of {size} "
+          f"paths, {1000 * per_task:.1f} ms serial per task: {pred[workers]:.1f}× one local thread "
+          f"(16 workers: {pred[16]:.1f}×)")
 
 
 if __name__ == "__main__":

@@ -19,7 +19,9 @@ the cores exist (issue 37, "every core, every machine").
    Predicted speed-up = simulated time on 1 worker / on P workers.
 3. **Real renders** (``--real``): whole renders in this process at 1…N threads (N = the machine's
    cores by default, and at least 2), interleaved 1, N, N, 1, …, render-only wall seconds.
-4. **Runnable threads** (``--runnable 16``): a CLI render with that many worker threads, sampling
+4. **Peak memory** (``--memory 1,16,64``): the peak resident memory of whole CLI renders with
+   that many worker threads (each thread keeps its scratch; ``items_in_flight`` results wait).
+5. **Runnable threads** (``--runnable 16``): a CLI render with that many worker threads, sampling
    the state of every thread of the process (``/proc/PID/task/*/stat``) every 10 ms between the
    render's start and end events; prints the mean number in state R (running or runnable).
 
@@ -144,22 +146,24 @@ def scene_path(case: str, work: Path) -> Path:
     return REPO / source
 
 
-def _load(case: str, work: Path, workers: int):
+def _load(case: str, work: Path, workers: int, path: Path | None = None, spp=None, resolution=None):
     from backend.render import RenderOptions
     from backend.scene.loader import load_scene
-    _, spp, resolution = CASES[case]
-    path = scene_path(case, work)
+    if path is None:
+        _, spp, resolution = CASES[case]
+        path = scene_path(case, work)
     scene = load_scene(path)
     options = RenderOptions(spp=spp, resolution=resolution, workers=workers, parallel="threads")
     options.apply(scene)
     return scene, path, options
 
 
-def record(case: str, work: Path) -> Recording:
-    """Render ``case`` on one worker, timing every item and the master (see the docstring)."""
+def record(case: str, work: Path, path: Path | None = None, spp=None, resolution=None) -> Recording:
+    """Render ``case`` (or the scene at ``path``) on one worker, timing every item and the master
+    (see the module docstring)."""
     import backend.render as render
     from backend.render import Renderer
-    scene, path, options = _load(case, work, 1)
+    scene, path, options = _load(case, work, 1, path, spp, resolution)
     rec = Recording(case, schedule=getattr(render, "SCHEDULE", ("rounds", None)))
     timers = _Timers()
     original = render.render_item
@@ -210,13 +214,15 @@ def _window(schedule, workers: int) -> int | None:
     return int(window(workers)) if callable(window) else int(window)
 
 
-def simulate(rec: Recording, workers: int) -> float:
-    """Simulated wall seconds of the recorded render on ``workers`` threads (module docstring)."""
+def simulate(rec: Recording, workers: int, task_overhead: float = 0.0) -> float:
+    """Simulated wall seconds of the recorded render on ``workers`` threads (module docstring).
+    ``task_overhead``: seconds of serial work per item on the master's side (a Dask scheduler's
+    per-task cost: benchmarks/cluster_overhead.py), counted as if it held the GIL."""
     items = rec.items
     n = len(items)
     if n == 0:
         return 0.0
-    per_merge_gil = rec.master_gil / n
+    per_merge_gil = rec.master_gil / n + task_overhead
     per_merge_nogil = rec.master_nogil / n
     window = _window(rec.schedule, workers)
     rounds = [it.key[0] if rec.schedule[0] == "rounds" else 0 for it in items]
@@ -327,9 +333,10 @@ def simulate(rec: Recording, workers: int) -> float:
     return now
 
 
-def predict(rec: Recording, workers_list) -> dict:
+def predict(rec: Recording, workers_list, task_overhead: float = 0.0) -> dict:
+    """Speed-up on P workers over one local worker (no task overhead)."""
     one = simulate(rec, 1)
-    return {p: one / max(simulate(rec, p), 1e-12) for p in workers_list}
+    return {p: one / max(simulate(rec, p, task_overhead), 1e-12) for p in workers_list}
 
 
 # --------------------------------------------------------------------------- real renders
@@ -388,6 +395,21 @@ def runnable_threads(case: str, work: Path, workers: int) -> dict:
             "threads": max(threads) if threads else 0}
 
 
+def peak_memory(case: str, work: Path, workers: int) -> float:
+    """Peak resident memory (MiB) of a whole CLI render with that many worker threads."""
+    _, spp, resolution = CASES[case]
+    cmd = [sys.executable, "-m", "backend", "render", str(scene_path(case, work)), "-o",
+           str(work / "memory.exr"), "--spp", str(spp), "--workers", str(workers), "--progress", "none"]
+    if resolution:
+        cmd += ["--resolution", f"{resolution[0]}x{resolution[1]}"]
+    proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode:
+        raise SystemExit(f"{case}: render with {workers} workers failed ({proc.returncode})")
+    return usage.ru_maxrss / 1024.0
+
+
 # --------------------------------------------------------------------------- main
 
 def main(argv=None) -> int:
@@ -398,6 +420,7 @@ def main(argv=None) -> int:
                     "least 2), off, or a list of thread counts")
     ap.add_argument("--repeat", type=int, default=2, help="interleaved pairs of real renders")
     ap.add_argument("--runnable", type=int, default=0, help="worker threads of the runnable-thread check (0: off)")
+    ap.add_argument("--memory", default="", help="worker-thread counts whose peak memory to measure, e.g. 1,16,64")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures here")
     args = ap.parse_args(argv)
     import backend
@@ -418,8 +441,10 @@ def main(argv=None) -> int:
         print("  predicted speed-up: " + "  ".join(f"{p}: {s:.2f}×" for p, s in pred.items()))
         if case in MEASURED_16 and 16 in pred:
             m = MEASURED_16[case]
-            print(f"  16-thread figure measured on the previous code (issue 37): {m:.2f}×; "
-                  f"predicted/measured {pred[16] / m:.2f}")
+            if rec.schedule[0] == "rounds":       # the code the 16-core figures were measured on
+                print(f"  calibration: measured at 16 threads {m:.2f}×, predicted/measured {pred[16] / m:.2f}")
+            else:
+                print(f"  (the previous code, rounds with a barrier: {m:.2f}× measured at 16 threads)")
         entry = {"items": len(rec.items), "item_cpu": rec.item_cpu, "setup": rec.setup, "master_gil": rec.master_gil,
                  "master_nogil": rec.master_nogil, "gil_held": rec.gil_held,
                  "predicted": {str(p): round(s, 3) for p, s in pred.items()}}
@@ -441,6 +466,10 @@ def main(argv=None) -> int:
             print(f"  --workers {args.runnable}: mean runnable threads {run['mean_runnable']:.1f} of "
                   f"{run['threads']} ({run['samples']} samples every 10 ms)")
             entry["runnable"] = run
+        if args.memory:
+            peaks = {int(w): peak_memory(case, work, int(w)) for w in args.memory.split(",")}
+            print("  peak memory: " + "  ".join(f"{w} threads {m:.0f} MiB" for w, m in peaks.items()))
+            entry["peak_mib"] = peaks
         report[case] = entry
     if args.json:
         args.json.write_text(json.dumps(report, indent=1))

@@ -19,4 +19,5 @@ def test_material_preview_thumbnail(tmp_path):
     red, green, blue = r["centre"]
     assert red > green > blue                 # the sphere shows the material's orange-red colour
     assert r["mean"] > 0.02
-    assert r["seconds"] < 15.0                # measured ≈ 1.2 s here (16 spp, one worker)
+    # No time bound here: the thumbnail may be the first render of a cold kernel cache (CI measured
+    # 25-41 s then, ~1.2 s warm). Speed is the benchmarks' job; this test checks the image.
