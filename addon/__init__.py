@@ -20,6 +20,7 @@ _MODULES = (
     "ops.export",
     "ops.bake",
     "engine.engine",
+    "engine.kernel_warmup",
     "engine.viewport",
     "ui.compat",
     "ui.material",

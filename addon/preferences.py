@@ -14,6 +14,9 @@ def _thumbnails_toggled(self, context):
         thumbnail_jobs.cancel()
 
 
+#: Rows that modules above this one add to the Preferences (they register after it).
+EXTRA_DRAW: list = []
+
 class LaminaPreferences(bpy.types.AddonPreferences):
     bl_idname = ADDON_ID
 
@@ -49,6 +52,8 @@ class LaminaPreferences(bpy.types.AddonPreferences):
         layout.prop(self, "preview_samples")
         layout.prop(self, "viewport_prestart")
         layout.prop(self, "user_preset_thumbnails")
+        for draw in EXTRA_DRAW:                 # higher modules' rows (engine/kernel_warmup.py)
+            draw(layout)
 
 
 def get(context=None):

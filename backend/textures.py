@@ -155,12 +155,32 @@ def image_param(ctx, file: str, path: str, channels: int, channel: int, colorspa
     return ImageParam(texels, channels, scale, file)
 
 
+#: What a texture that cannot be read renders as (Cycles' colour for a missing image).
+MISSING_TEXTURE_RGB = (1.0, 0.0, 1.0)
+
+
+def read_texture(ctx, resolved: Path, path: str) -> tuple[np.ndarray, bool]:
+    """``read_image``, except that an image that cannot be read (missing, unreadable, corrupt)
+    becomes one magenta texel and a warning naming the field and the file, unless the scene's
+    ``render.missing_textures`` is "error" (or the CLI's --strict): a farm frame should fail, an
+    artist's preview should show where the texture is missing, as in Cycles. Too large for the
+    memory stays an error: magenta would hide a scene that cannot render as made."""
+    try:
+        return read_image(resolved, ctx.where, path)
+    except SceneError as exc:
+        if ctx.missing_textures == "error" or " is too large: " in exc.message:
+            raise
+        ctx.warn(path, f"{exc.message}: rendered magenta (an error with render.missing_textures "
+                       f"\"error\" or the CLI's --strict)")
+        return np.array(MISSING_TEXTURE_RGB, np.float32).reshape(1, 1, 3), True
+
+
 def load_texels(ctx, file: str, path: str, channels: int, channel: int, colorspace: str,
                 color: bool) -> np.ndarray:
     resolved = ctx.resolve(file, path)
     key = ("image", str(resolved))
     if key not in ctx.cache:
-        ctx.cache[key] = read_image(resolved, ctx.where, path)
+        ctx.cache[key] = read_texture(ctx, resolved, path)
     pixels, is_float = ctx.cache[key]
     decode_srgb = (colorspace == "sRGB") or (colorspace == "auto" and color and not is_float)
     c = pixels.shape[2]

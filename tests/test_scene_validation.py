@@ -89,8 +89,29 @@ def test_missing_mesh_file(tmp_path):
 
 def test_missing_texture_file(tmp_path):
     data = scene_with(lambda d: d["materials"]["grey"].update(color={"texture": "wood.png"}))
+    # Default: magenta, one warning (as Cycles); render.missing_textures "error": a load error.
+    scene = load_scene_data(data, "scene.json", tmp_path)
+    assert len(scene.warnings) == 1 and "texture file not found" in scene.warnings[0]
+    assert scene.warnings[0].startswith("scene.json: materials.grey.color.texture: ")
+    data["render"] = dict(data.get("render", {}), missing_textures="error")
     message = error_of(data, tmp_path)
     assert message.startswith("scene.json: materials.grey.color.texture: texture file not found")
+    data["render"]["missing_textures"] = "ignore"
+    assert "render.missing_textures: expected one of" in error_of(data, tmp_path)
+
+
+def test_strict_cli_makes_a_missing_texture_an_error(tmp_path):
+    import json
+    import subprocess
+    import sys
+    data = scene_with(lambda d: d["materials"]["grey"].update(color={"texture": "wood.png"}))
+    (tmp_path / "s.json").write_text(json.dumps(data))
+    run = lambda *extra: subprocess.run([sys.executable, "-m", "backend", "validate", str(tmp_path / "s.json"),
+                                         *extra], capture_output=True, text=True)
+    lenient, strict = run(), run("--strict")
+    assert lenient.returncode == 0 and "rendered magenta" in lenient.stderr, lenient.stderr
+    assert strict.returncode == 2 and "texture file not found" in strict.stderr, strict.stderr
+    assert "Traceback" not in strict.stderr
 
 
 def test_degenerate_triangles_dropped_with_warning():

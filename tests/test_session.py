@@ -390,3 +390,27 @@ def test_frame_files_are_replaced_whole(tmp_path):
     assert (info.frame, info.generation, info.width, info.height, info.spp, info.final) == (3, 4, 7, 5, 2, True)
     np.testing.assert_array_equal(pixels, img * 3)
     assert sorted(x.name for x in tmp_path.iterdir()) == ["frame-0.bin", "frame-1.bin"]
+
+
+def test_the_session_accepts_every_scene_render_accepts():
+    # An exported scene with data passes and named views (Blender's Depth pass, a stereo camera)
+    # renders with `render`; the viewport's session rendered nothing: "passes: unknown field".
+    from backend.errors import LaminaError
+    from backend.scene.loader import load_scene_data
+    from backend.session.state import SessionScene
+    data = small_scene(width=16, height=12)
+    data["passes"] = {"depth": True, "normal": True}
+    data["views"] = {"left": copy.deepcopy(data["camera"]), "right": copy.deepcopy(data["camera"])}
+    load_scene_data(copy.deepcopy(data), "scene.json")            # what `render` accepts ...
+    state = SessionScene()
+    state.load(copy.deepcopy(data), "scene.json")                 # ... the session accepts
+    assert state.ready
+    state.update({"passes": {"mist": True}})                      # an edit of the passes alone
+    assert state.ready
+    # ... and what `render` refuses, the session refuses with the same words, keeping its scene.
+    with pytest.raises(LaminaError) as render_error:
+        load_scene_data(dict(copy.deepcopy(data), passes={"depht": True}), "scene.json")
+    with pytest.raises(LaminaError) as session_error:
+        state.update({"passes": {"depht": True}})
+    assert str(session_error.value) == str(render_error.value)
+    assert state.tracer is not None

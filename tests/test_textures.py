@@ -88,11 +88,35 @@ def test_constant_params_keep_constant_shapes(tmp_path):
     assert s.bind(uv).shape == ()
 
 
+def strict_param(tmp_path, value):
+    ctx = LoadContext("scene.json", tmp_path)
+    ctx.missing_textures = "error"
+    return parse_param(value, "materials.m.color", ctx, 3, None, None, False, True)
+
+
 def test_bad_texture_specs(tmp_path):
     with pytest.raises(SceneError, match="materials.m.color.texture: texture file not found"):
-        param(tmp_path, {"texture": "missing.png"})
+        strict_param(tmp_path, {"texture": "missing.png"})
     (tmp_path / "junk.png").write_bytes(b"not an image")
     with pytest.raises(SceneError, match="materials.m.color.texture: cannot read image"):
-        param(tmp_path, {"texture": "junk.png"})
+        strict_param(tmp_path, {"texture": "junk.png"})
     with pytest.raises(SceneError, match="materials.m.color.colorspace: expected one of"):
         param(tmp_path, {"texture": "junk.png", "colorspace": "acescg"})
+
+
+@pytest.mark.parametrize("name, content", [("missing.png", None), ("junk.png", b"not an image"),
+                                           ("empty.exr", b"")])
+def test_an_unreadable_texture_is_magenta_with_a_warning(tmp_path, name, content):
+    # Cycles renders a missing image magenta and says so; a farm asks for an error instead.
+    if content is not None:
+        (tmp_path / name).write_bytes(content)
+    p, ctx = param(tmp_path, {"texture": name})
+    uv = np.array([[0.1, 0.2], [0.7, 0.9]])
+    assert np.array_equal(p.bind(uv), [[1.0, 0.0, 1.0], [1.0, 0.0, 1.0]])
+    assert len(ctx.warnings) == 1
+    warning = ctx.warnings[0]
+    assert warning.startswith("scene.json: materials.m.color.texture: ") and name in warning
+    assert "rendered magenta" in warning and "--strict" in warning
+    # A scalar parameter (roughness) reads the magenta's luminance, as any colour image's.
+    s, _ = param(tmp_path, {"texture": name}, channels=1, lo=0.0, hi=1.0)
+    assert np.allclose(s.bind(uv), 0.2126 + 0.0722)

@@ -2,7 +2,14 @@
 """Build the Lamina Blender extension zip and validate it with Blender's own extension tool.
 
     python tools/build_extension.py [--platform linux-x64 ...] [--python 3.11 ...]
-                                    [--split-platforms] [--no-wheels] [--output-dir build/dist]
+                                    [--universal] [--no-wheels] [--output-dir build/dist]
+
+One zip per platform and Blender generation (the default): ``lamina-VERSION-PLATFORM-cpXY.zip``
+with only that platform's wheels for that Python, and a manifest whose Blender version range
+picks it — cp311 for Blender 4.2–5.0 (``blender_version_max = "5.1.0"``, exclusive), cp313 for
+5.1 and later — so an artist downloads one file of 60–80 MB instead of one 370 MB zip that
+carries every platform and both Pythons. ``--universal``: that one zip (development, offline
+use). The build lists what it made, with sizes, and what it removed from the output folder.
 
 Steps: download the wheels of the compiled dependencies — embreex (ray casting), numba and
 llvmlite (the compiled render kernels), at the versions pinned in requirements.txt; never numpy:
@@ -41,6 +48,8 @@ WHEEL_PATTERNS = {
     "macos-arm64": "*macosx_*_arm64.whl",
 }
 PYTHONS = ("3.11", "3.13")     # Blender 4.2–5.0 bundle 3.11, Blender 5.1 bundles 3.13
+#: The Blender versions whose bundled Python each zip is for: (min, max exclusive or None).
+BLENDER_RANGE = {"3.11": ("4.2.0", "5.1.0"), "3.13": ("5.1.0", None)}
 
 
 def find_blender_ext() -> Path:
@@ -107,7 +116,7 @@ def download_wheels(platforms, pythons, folder: Path, allow_missing: bool) -> li
     return wheels
 
 
-def stage(blender_ext, stage_dir: Path, wheels: list[Path], platforms) -> None:
+def stage(blender_ext, stage_dir: Path, wheels: list[Path], platforms, pythons=None) -> None:
     import tomllib
     manifest_text = (ROOT / "blender_manifest.toml").read_text(encoding="utf-8")
     manifest = tomllib.loads(manifest_text)
@@ -136,7 +145,20 @@ def stage(blender_ext, stage_dir: Path, wheels: list[Path], platforms) -> None:
                   manifest_text, flags=re.M)
     if wheels:
         text = text.replace("\n[permissions]", f"\nwheels = [{lines}]\n\n[permissions]", 1)
+    if pythons is not None and len(pythons) == 1:
+        low, high = BLENDER_RANGE[pythons[0]]
+        text = re.sub(r'^blender_version_min\s*=.*$', f'blender_version_min = "{low}"', text, flags=re.M)
+        if high is not None:
+            text = text.replace(f'blender_version_min = "{low}"',
+                                f'blender_version_min = "{low}"\nblender_version_max = "{high}"', 1)
     (stage_dir / "blender_manifest.toml").write_text(text, encoding="utf-8")
+
+
+def _wheel_platform(wheel: Path) -> str | None:
+    for platform, pattern in WHEEL_PATTERNS.items():
+        if Path(wheel.name).match(pattern):
+            return platform
+    return None
 
 
 def _parents(rel: str) -> list[str]:
@@ -160,7 +182,10 @@ def main(argv=None) -> int:
                         help="target platform (repeatable; default: all three)")
     parser.add_argument("--python", action="append", choices=PYTHONS,
                         help="Python version of the target Blender (repeatable; default: 3.11 and 3.13)")
-    parser.add_argument("--split-platforms", action="store_true", help="one zip per platform")
+    parser.add_argument("--universal", action="store_true",
+                        help="one zip for every platform and Python asked for (default: one zip per "
+                             "platform and Python, each for the Blender versions that bundle that Python)")
+    parser.add_argument("--split-platforms", action="store_true", help=argparse.SUPPRESS)  # the default now
     parser.add_argument("--no-wheels", action="store_true",
                         help="do not bundle the embreex, numba and llvmlite wheels")
     parser.add_argument("--allow-missing-wheels", action="store_true",
@@ -176,23 +201,30 @@ def main(argv=None) -> int:
     blender_ext = load_blender_ext(ext_path)
     wheels = [] if args.no_wheels else download_wheels(platforms, pythons, Path(args.wheel_dir),
                                                        args.allow_missing_wheels)
-    stage_dir = Path(args.build_dir) / "stage" / "lamina"
-    stage(blender_ext, stage_dir, wheels, platforms)
     out = Path(args.output_dir)
     out.mkdir(parents=True, exist_ok=True)
-    for old in out.glob("lamina-*.zip"):
+    for old in sorted(out.glob("lamina-*.zip")):
+        print(f"[build] removed the previous {old.name}", flush=True)
         old.unlink()
+    version = re.search(r'^version\s*=\s*"([^"]+)"', (ROOT / "blender_manifest.toml").read_text(), re.M).group(1)
+    if args.universal:
+        targets = [(platforms, pythons, out / f"lamina-{version}.zip")]
+    else:
+        targets = [([p], [py], out / f"lamina-{version}-{p.replace('-', '_')}-cp{py.replace('.', '')}.zip")
+                   for p in platforms for py in pythons]
     print(f"[build] building with {ext_path}", flush=True)
-    build_args = ["build", "--source-dir", str(stage_dir), "--output-dir", str(out)]
-    if args.split_platforms:
-        build_args.append("--split-platforms")
-    run_ext(ext_path, *build_args)
-    zips = sorted(out.glob("lamina-*.zip"))
-    if not zips:
-        raise SystemExit("error: the build produced no zip")
-    for z in zips:
-        run_ext(ext_path, "validate", str(z))
-        print(f"[build] {z} ({z.stat().st_size / 1e6:.1f} MB) validated", flush=True)
+    made = []
+    for target_platforms, target_pythons, zip_path in targets:
+        chosen = [w for w in wheels if any(f"-cp{py.replace('.', '')}-" in w.name for py in target_pythons)
+                  and any(_wheel_platform(w) == p for p in target_platforms)]
+        stage_dir = Path(args.build_dir) / "stage" / "lamina"
+        stage(blender_ext, stage_dir, chosen, target_platforms, target_pythons)
+        run_ext(ext_path, "build", "--source-dir", str(stage_dir), "--output-filepath", str(zip_path))
+        run_ext(ext_path, "validate", str(zip_path))
+        made.append(zip_path)
+    print("[build] made (each validated by Blender's extension tool):", flush=True)
+    for z in made:
+        print(f"[build]   {z} ({z.stat().st_size / 1e6:.1f} MB)", flush=True)
     return 0
 
 

@@ -6,7 +6,7 @@
                              and, alongside it, the Blender tests under Python 3.13 with the newest
                              bpy (Blender 5.1+, NumPy 2.x) in .venv-313; --only-311 / --only-313
     python3.11 tools/dev.py bench    run the benchmark report (benchmarks/)
-    python3.11 tools/dev.py build    build the Blender extension zip into build/
+    python3.11 tools/dev.py build    build the Blender extension zips (one per platform and Python) into build/dist/
     python3.11 tools/dev.py showcase render the showcase scene to out/showcase.exr and out/showcase.png
                              (--blend: render showcase/showcase.blend in bpy to out/showcase_blend.png)
     python3.11 tools/dev.py thumbnails  render the preset thumbnails and the gallery (docs/presets.md)
@@ -46,7 +46,7 @@ def requirements_for(kind: str) -> Path:
 
 def wanted_stamp(kind: str) -> str:
     digest = hashlib.sha256()
-    for name in ("requirements.txt", "requirements-dev.txt"):
+    for name in ("requirements.txt", "requirements-dev.txt", "requirements-denoise.txt"):
         digest.update((ROOT / name).read_bytes())
     return f"{kind}:{digest.hexdigest()}"
 

@@ -22,6 +22,7 @@ from ..export.passes import requested as requested_passes
 from ..export.scene import ExportError
 from .job import BackendJob, child_environment, render_command
 from ..launch import keep_files, python_executable, user_environment
+from .denoise import NOISY_PASS, DenoiseError, denoise_image
 from .pixels import ALBEDO_PASS, NORMAL_PASS, fill_passes, load_npy, pass_npy_path
 from . import viewport
 
@@ -46,6 +47,26 @@ def _format_seconds(seconds: float) -> str:
         return f"{m}:{s:02d}"
     h, m = divmod(m, 60)
     return f"{h}:{m:02d}:{s:02d}"
+
+
+#: Blender prints a report on the console cut at about 1000 characters ("... truncated").
+REPORT_PRINT_LIMIT = 900
+
+
+def _console(text: str) -> str:
+    """Print a warning or error the engine is about to report, where Blender will not print it
+    whole, and return the text to report. Under `blender -b` (and the bpy module) Blender prints
+    every report itself ("Warning: ...", "Error: ..."): printing it here too showed each message
+    twice. A report longer than Blender prints whole is printed here in full (a farm's log keeps
+    it) and reported as a pointer to that line, so the console holds it once and complete."""
+    if not bpy.app.background:
+        print(text, file=sys.stderr)
+        return text
+    if len(text) <= REPORT_PRINT_LIMIT:
+        return text
+    print(text, file=sys.stderr, flush=True)
+    head = text.split(":", 1)[0] if ":" in text[:80] else "Lamina"
+    return f"{head} (the full message, {len(text)} characters, is on the console line above)"
 
 
 class LaminaRenderEngine(bpy.types.RenderEngine):
@@ -93,6 +114,8 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
         self.register_pass(scene, renderlayer, ALBEDO_PASS, 3, "RGB", "COLOR")
         self.register_pass(scene, renderlayer, NORMAL_PASS, 3, "XYZ", "VECTOR")
+        if scene.lamina.use_denoising:
+            self.register_pass(scene, renderlayer, NOISY_PASS, 4, "RGBA", "COLOR")
         for _, label, chans, kind in requested_passes(renderlayer):
             self.register_pass(scene, renderlayer, label, len(chans), chans, kind)
 
@@ -132,14 +155,14 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         text = exported.warning_text(extra=self._renderer_warnings)
         self._exported = None                    # once per render
         if text:
-            print(text, file=sys.stderr)
-            self.report({"WARNING"}, text)
+            self.report({"WARNING"}, _console(text))
 
     def _fail(self, message: str) -> None:
         message = f"Lamina: {message}"
-        print(message, file=sys.stderr)
         if self.is_preview:
+            print(message, file=sys.stderr)
             return                               # thumbnails fail quietly (console only)
+        message = _console(message)
         # report() alone: it makes bpy.ops.render.render raise with the message (background
         # mode) and shows it in the status bar; error_set() as well would show it twice (and on
         # its own crashed bpy 5.0.1 in background mode).
@@ -170,6 +193,8 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         if not preview:
             self.add_pass(ALBEDO_PASS, 3, "RGB")
             self.add_pass(NORMAL_PASS, 3, "XYZ")
+            if settings.use_denoising:
+                self.add_pass(NOISY_PASS, 4, "RGBA")
         # One backend run per view (stereo eyes, multi-view cameras: the scene's "views"), each
         # into its view of the result; a single run without multi-view.
         for index, view in enumerate(view_names):
@@ -177,6 +202,25 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
                 return
             if self._render_view(depsgraph, exported, workdir, index, view, rect, width, height) == "cancelled":
                 return
+
+    def _denoised(self, combined, aovs, data_passes: dict, settings, depsgraph, folder: Path):
+        """Render › Denoise (on by default, as Cycles'): the denoised image, the render itself
+        kept as the Noisy Image pass. If denoising cannot run, the render is shown as it is,
+        with a warning saying why."""
+        self.update_stats("", "Lamina | Denoising")
+        t0 = time.perf_counter()
+        try:
+            if aovs is None:
+                raise DenoiseError("the renderer wrote no albedo and normal")
+            folder.mkdir(parents=True, exist_ok=True)
+            denoised = denoise_image(combined, aovs, settings.samples, folder, depsgraph.scene,
+                                     depsgraph.view_layer, bpy.context.preferences)
+        except DenoiseError as exc:
+            self._renderer_warnings.append(f"Denoise: {exc} (the image is not denoised)")
+            return combined
+        data_passes[NOISY_PASS] = combined
+        print(f"Lamina: denoised in {time.perf_counter() - t0:.2f} s", flush=True)
+        return denoised
 
     def _views(self, depsgraph, camera_object, rect):
         """([view name, ...], {view name: camera}) of a multi-view render, each view's camera
@@ -244,6 +288,8 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
             image = load_npy(pass_npy_path(partial, label))
             if image is not None and image.shape[:2] == (height, width):
                 data_passes[label] = image
+        if not preview and settings.use_denoising:
+            combined = self._denoised(combined, aovs, data_passes, settings, depsgraph, workdir / f"denoise-{index}")
         fill_passes(result, combined, aovs, rect, height, data_passes)
         self.end_result(result)
         return "done"
@@ -271,8 +317,15 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
                 elif kind == "error":
                     error = describe(str(event.get("message", "render failed")))
                 elif kind == "compiling":
-                    # First render after installing or updating: the kernels compile once.
+                    # First render after installing or updating: the kernels compile once. Said on
+                    # the console too: under `blender -b` (a farm node) the status bar is not seen.
+                    print("Lamina: compiling render kernels (first run only, about a minute) ...",
+                          flush=True)
                     self.update_stats("", "Lamina | Compiling render kernels (first run only)")
+                elif kind == "compiled":
+                    seconds = float(event.get("seconds", 0.0))
+                    print(f"Lamina: compiled render kernels in {seconds:.1f} s", flush=True)
+                    self.update_stats("", f"Lamina | Compiled render kernels in {seconds:.1f} s")
                 elif kind == "start":
                     self.update_stats("", f"Lamina | Rendering {event.get('width')}×{event.get('height')}, "
                                           f"{event.get('spp')} samples, {event.get('workers')} workers")

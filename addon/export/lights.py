@@ -60,12 +60,14 @@ def ies_source(light, notes: list[str]):
     strength = float(strength_socket.default_value) if strength_socket is not None else 1.0
     if strength_socket is not None and strength_socket.is_linked:
         notes.append(f"light '{light.name}': {node.name}.Strength input (value used)")
+    # "_node": the backend ignores it; the add-on's messages name the node (export/names.py).
     if node.mode == "INTERNAL":
         if node.ies is None:
             return None
-        return {"data": node.ies.as_string()}, strength
+        return {"data": node.ies.as_string(), "_node": node.name}, strength
     if node.filepath:
-        return {"file": str(Path(bpy.path.abspath(node.filepath, library=light.library)))}, strength
+        return {"file": str(Path(bpy.path.abspath(node.filepath, library=light.library))),
+                "_node": node.name}, strength
     return None
 
 

@@ -41,7 +41,15 @@ class FieldNames:
         for i, obj in enumerate(doc.get("objects") or []):
             self.labels[_join("objects", i)] = f"object '{obj.get('_name', i)}'"
         for i, light in enumerate(doc.get("lights") or []):
-            self.labels[_join("lights", i)] = f"light '{light.get('_name', i)}'"
+            name = f"light '{light.get('_name', i)}'"
+            self.labels[_join("lights", i)] = name
+            ies = light.get("ies")
+            if isinstance(ies, dict):
+                # The profile's source as the user set it: a Cycles IES Texture node, or the
+                # file or text chosen in Lamina's light panel.
+                node = ies.get("_node")
+                self.labels[_join(_join("lights", i), "ies")] = (
+                    f"{name}, node '{node}'" if node else f"{name}, IES profile set in Lamina's light panel")
         world = doc.get("world")
         if isinstance(world, dict):
             label = f"world '{world_name}'" if world_name else "the world"
@@ -79,7 +87,8 @@ class FieldNames:
             label, rest_path = self.label_for(m.group("field").strip())
             if label is not None:
                 where = label + (f" ({rest_path})" if rest_path and ", node" not in label
-                                 and ", image" not in label and ", interface" not in label else "")
+                                 and ", image" not in label and ", interface" not in label
+                                 and ", IES" not in label else "")
                 return f"{where}: {m.group('rest')}"
             return f"{m.group('field')}: {m.group('rest')}"
         m = _FILE_ONLY.match(text)

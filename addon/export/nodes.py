@@ -169,6 +169,11 @@ class NodeTranslator:
     def _baked(self, node, name: str, src, what: str, squared: bool = False):
         """The baked image standing for the procedural ``src`` → ``node.name``, or None (and a
         note naming the input, with ``what`` Lamina uses instead)."""
+        if src.bl_idname == "ShaderNodeShaderToRGB":
+            # EEVEE-only: Cycles renders it black, so baking (through Cycles) cannot help.
+            self.note(f"{label(src)} → {node.name}.{name} (EEVEE only, rendered by neither Cycles nor "
+                      f"Lamina: {what})")
+            return None
         self.bakeable.append((node, name))
         image, why = baked.lookup(self._material, node, name)
         if image is None:

@@ -89,7 +89,8 @@ def render_json(scene, *, samples: int | None = None, seed_offset: int = 0) -> d
            "min_spp": int(s.min_samples),
            "time_limit": float(s.time_limit),
            "sampler": s.sampler.lower(),
-           "glossy_light_samples": int(s.glossy_light_samples)}
+           "glossy_light_samples": int(s.glossy_light_samples),
+           "missing_textures": "error" if s.fail_on_missing_textures else "magenta"}
     layered = {}
     if s.estimator != "AUTOMATIC":
         layered["estimator"] = {"BIDIRECTIONAL": "bi", "UNIDIRECTIONAL": "uni"}[s.estimator]

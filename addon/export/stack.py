@@ -192,11 +192,14 @@ def stack_json(material, images, visiting: tuple = (), *, linked=None) -> dict:
         doc = linked(material)
         if doc is not None:
             return doc
-    visiting = (*visiting, material.name)
     settings = material.lamina
     layers = list(settings.layers)
     if not layers:
-        raise StackError(f"material '{material.name}' has an empty layer stack")
+        # Callers prefix the material being exported; only a nested one needs its own name.
+        if visiting:
+            raise StackError(f"nested material '{material.name}' has an empty layer stack")
+        raise StackError("the layer stack is empty (add a layer or apply a preset)")
+    visiting = (*visiting, material.name)
     interfaces = [interface_json(layer, images, visiting, linked) for layer in layers]
     cut = _first_opaque(interfaces)
     if cut is not None and cut < len(layers) - 1:

@@ -24,6 +24,12 @@ def world_json(world, images, notes: list[str]) -> dict:
     out = tree.get_output_node("CYCLES") or tree.get_output_node("ALL")
     if out is None:
         return {"type": "none"}
+    volume = out.inputs.get("Volume")
+    fog = _follow(volume)[0] if volume is not None else None
+    if fog is not None:
+        # Mist and god rays from a world volume (Volume Scatter, Principled Volume): Lamina
+        # renders no participating medium outside layer stacks, so the scene renders clear air.
+        notes.append(f"{where}: {label(fog)} → Volume output (world volumes are not rendered: ignored)")
     node, _ = _follow(out.inputs["Surface"])
     if node is None:
         return {"type": "none"}

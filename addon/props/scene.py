@@ -61,6 +61,15 @@ class LaminaRenderSettings(PropertyGroup):
                             description="How layered materials are evaluated")
     pdf_mode: EnumProperty(name="Layered PDF", items=PDF_MODES, default="LOBES",
                            description="Which pdf of layered materials is used for MIS weights")
+    use_denoising: BoolProperty(
+        name="Denoise", default=True,
+        description="Denoise the final render with the Open Image Denoise that Blender ships (fed with "
+                    "the render's albedo and normal); the image before denoising is kept as the Noisy "
+                    "Image pass")
+    fail_on_missing_textures: BoolProperty(
+        name="Fail on Missing Textures", default=False,
+        description="An image texture that cannot be read fails the render (for farms). Off: it "
+                    "renders magenta with a warning naming the material, node and file, as in Cycles")
     update_interval: FloatProperty(name="Display Update", default=2.0, min=0.2, max=60.0,
                                    unit='TIME_ABSOLUTE',
                                    description="Seconds between progressive updates of the image")

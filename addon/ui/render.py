@@ -25,6 +25,7 @@ def draw_sampling(layout, settings) -> None:
     row = col.row(align=True)
     row.prop(settings, "seed")
     row.prop(settings, "use_animated_seed", text="", icon="TIME")
+    col.prop(settings, "use_denoising")
 
 
 def draw_light_paths(layout, settings) -> None:
@@ -48,6 +49,7 @@ def draw_performance(layout, settings) -> None:
     sub.active = not settings.cluster.strip()     # a cluster's workers bring their own threads
     sub.prop(settings, "workers")
     col.prop(settings, "update_interval")
+    col.prop(settings, "fail_on_missing_textures")
 
 
 def draw_advanced(layout, settings) -> None:

@@ -19,6 +19,7 @@ COMMAND_MODULES = (
     "backend.cli.bsdf",        # bsdf albedo / eval / plot
     "backend.ies.cli",         # ies info / plot
     "backend.cli.presets",     # presets list / show
+    "backend.cli.warmup",      # warmup (compile the kernels now)
     "backend.session.cli",     # session (interactive renderer, docs/session.md)
 )
 

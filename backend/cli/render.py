@@ -42,6 +42,13 @@ def register(sub) -> None:
     p.add_argument("--partial", help="write partial results to this .npy path (add-on protocol)")
     p.add_argument("--partial-interval", type=_number(0.0), default=2.0, help="seconds between partial results")
     p.add_argument("--half", action="store_true", help="write half-float EXR")
+    p.add_argument("--denoise", action="store_true",
+                   help="denoise the finished image with Intel Open Image Denoise (pyoidn, optional: "
+                        "requirements-denoise.txt), fed with the albedo and normal; the EXR's layer "
+                        "'noisy' keeps the image as rendered")
+    p.add_argument("--strict", action="store_true",
+                   help="an image texture that cannot be read is an error (default: rendered magenta "
+                        "with a warning, as in Cycles); for farms")
     p.add_argument("--view", metavar="NAME",
                    help="render the camera of this view of the scene's 'views' (a stereo eye, a "
                         "multi-view camera) instead of 'camera'")
@@ -50,6 +57,7 @@ def register(sub) -> None:
     v = sub.add_parser("validate", help="load and check a scene, print warnings and a summary")
     v.add_argument("scene")
     v.add_argument("--json", action="store_true")
+    v.add_argument("--strict", action="store_true", help="an image texture that cannot be read is an error")
     v.set_defaults(func=cmd_validate)
 
 
@@ -113,6 +121,12 @@ def _resolution(text: str) -> tuple[int, int]:
 def cmd_render(args) -> int:
     mode = args.progress or ("bar" if sys.stderr.isatty() else "none")
     printer = ProgressPrinter(mode)
+    if args.denoise:
+        from ..denoise import available
+        problem = available()
+        if problem is not None:           # one line, before the render; the image stays noisy
+            printer.emit({"event": "warning", "message": f"{problem}: the image is written without denoising"})
+            args.denoise = False
     if len(args.scene) > 1:
         from .frames import render_frames
         return render_frames(args, printer)
@@ -130,7 +144,12 @@ def cmd_render(args) -> int:
 
 def cmd_validate(args) -> int:
     from ..scene.loader import load_scene
-    scene = load_scene(args.scene)
+    from ..scene.reader import MISSING_TEXTURES
+    strict = MISSING_TEXTURES.set("error" if args.strict else None)
+    try:
+        scene = load_scene(args.scene)
+    finally:
+        MISSING_TEXTURES.reset(strict)
     info = {"scene": str(args.scene), "width": scene.width, "height": scene.height,
             "triangles": scene.soup.count, "materials": scene.material_names,
             "lights": [type(l).__name__ for l in scene.lights], "spp": scene.settings.spp,

@@ -88,11 +88,14 @@ def render_scene(args, scene_path: Path, output: Path, png: str | None, printer,
     emit = emit or printer.emit
     check_outputs(output, png, args.partial)
     from ..scene.loader import HEAVY_SCENE_NOTICE
+    from ..scene.reader import MISSING_TEXTURES
     token = HEAVY_SCENE_NOTICE.set(lambda message: emit({"event": "warning", "message": message}))
+    strict = MISSING_TEXTURES.set("error" if getattr(args, "strict", False) else None)
     try:
         scene = load_scene(scene_path)
     finally:
         HEAVY_SCENE_NOTICE.reset(token)
+        MISSING_TEXTURES.reset(strict)
     options = options or options_from_args(args)
     options.apply(scene)
     if args.resolution is not None:
@@ -121,7 +124,13 @@ def render_scene(args, scene_path: Path, output: Path, png: str | None, printer,
                         args.partial_interval)
     (on_renderer or install_signal_handlers)(renderer)
     result = renderer.run()
-    changed = write_outputs_or_rescue(result, output, png, args.half)
+    denoised = None
+    if getattr(args, "denoise", False) and result.film.counts().any():
+        from ..denoise import denoise
+        film = result.film
+        with np.errstate(all="ignore"):
+            denoised = denoise(film.combined(), film.albedo_image(), film.normal_image())
+    changed = write_outputs_or_rescue(result, output, png, args.half, denoised)
     if args.partial:
         _write_partial(Path(args.partial), result.film, aovs=True)
     if changed:
@@ -141,9 +150,11 @@ def render_scene(args, scene_path: Path, output: Path, png: str | None, printer,
     return 130 if result.interrupted else 0
 
 
-def write_outputs(result, output: Path, png: str | None, half: bool = False) -> int:
+def write_outputs(result, output: Path, png: str | None, half: bool = False, denoised=None) -> int:
     """The EXR (and preview); returns how many values were not finite or out of the EXR's range
-    (imageio.write_exr writes them as 0 or clamped)."""
+    (imageio.write_exr writes them as 0 or clamped). With ``denoised`` (render --denoise) the
+    main RGBA and the preview are the denoised image and the layer ``noisy`` keeps the render's
+    own (as Cycles' Noisy Image pass)."""
     from ..imageio import write_exr, write_preview
     film = result.film
     # Sums that overflowed (absurd but legal scene values) give Inf/NaN here: no warnings from
@@ -151,25 +162,28 @@ def write_outputs(result, output: Path, png: str | None, half: bool = False) -> 
     with np.errstate(all="ignore"):
         rgb = film.combined()
         alpha = _alpha(film)
-        layers = {"": np.concatenate([rgb, alpha], axis=2), "albedo": film.albedo_image(),
+        shown = rgb if denoised is None else denoised
+        layers = {"": np.concatenate([shown, alpha], axis=2), "albedo": film.albedo_image(),
                   "normal": film.normal_image(), "variance": film.variance_of_mean(),
                   "samples": film.counts()[:, :, None].astype(np.float32)}
+        if denoised is not None:
+            layers["noisy"] = np.concatenate([rgb, alpha], axis=2)
         layers.update(film.pass_images())        # the requested data passes (docs/cli.md)
         changed = write_exr(output, layers, half=half)
         if png:
-            write_preview(png, rgb)
+            write_preview(png, shown)
     return changed
 
 
-def write_outputs_or_rescue(result, output: Path, png: str | None, half: bool = False) -> None:
+def write_outputs_or_rescue(result, output: Path, png: str | None, half: bool = False, denoised=None) -> None:
     """write_outputs; if that fails after all (disk full, folder removed during the render), the
     image is written to the temporary folder instead and the error names where it went."""
     try:
-        return write_outputs(result, output, png, half)
+        return write_outputs(result, output, png, half, denoised)
     except (LaminaError, OSError) as exc:
         rescue = Path(tempfile.gettempdir()) / f"lamina-rescued-{output.stem[:100]}-{os.getpid()}.exr"
         try:
-            write_outputs(result, rescue, None, half)
+            write_outputs(result, rescue, None, half, denoised)
         except (LaminaError, OSError) as exc2:
             raise LaminaError(f"{exc}; writing the render to {rescue} failed too: {exc2}") from exc
         raise LaminaError(f"{exc}; the render was saved to {rescue} instead") from exc

@@ -28,7 +28,7 @@ from ..kernels.lights import common as _kc
 from ..kernels.lights import environment as _ke
 from ..mathutil import LUMINANCE
 from ..sampling.discrete import PiecewiseConstant2D
-from ..textures import read_image, srgb_to_linear
+from ..textures import read_texture, srgb_to_linear
 from . import register_world
 from .base import Light
 from .common import power_luminance
@@ -132,7 +132,7 @@ def parse_environment(node) -> EnvironmentMap:
         node.ignore("to_world")
     ctx = node.ctx
     field = node.sub("file")
-    pixels, is_float = read_image(ctx.resolve(file, field), ctx.where, field)
+    pixels, is_float = read_texture(ctx, ctx.resolve(file, field), field)   # missing: magenta
     rgb = pixels[:, :, :3] if pixels.shape[2] >= 3 else np.repeat(pixels[:, :, :1], 3, axis=2)
     if colorspace == "sRGB" or (colorspace == "auto" and not is_float):
         rgb = srgb_to_linear(rgb)

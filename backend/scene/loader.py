@@ -18,7 +18,7 @@ from ..geometry.mesh import Mesh, parse_mesh
 from ..limits import MAX_BOUNCES, MAX_GLOSSY_LIGHT_SAMPLES, MAX_COORDINATE, MAX_FILM_SIDE, MAX_SEED, MAX_SPP, film_memory_problem, short
 from .inputs import record_inputs
 from .links import CAMERA, LIGHT_FLAGS, OBJECT_FLAGS, SHADOW, build_links, parse_linking, parse_visibility
-from .reader import LoadContext, Node, dispatch, path_problem, read_json
+from .reader import MISSING_TEXTURES, LoadContext, Node, dispatch, path_problem, read_json
 
 FORMAT = "lamina-scene"
 VERSION = 1
@@ -37,6 +37,9 @@ class RenderSettings:
     light_selection: str = "local"
     sampler: str = "sobol"
     glossy_light_samples: int = 2   # next-event samples per light at a rough conductor (docs/scene-format.md)
+    # An image texture that cannot be read: "magenta" renders it magenta with a warning (as
+    # Cycles does), "error" fails the load (farms: `render --strict`). backend/textures.py.
+    missing_textures: str = "magenta"
 
 
 @dataclass
@@ -295,6 +298,7 @@ def parse_settings(node: Node | None, ctx: LoadContext) -> RenderSettings:
     s = RenderSettings()
     if node is None:
         ctx.cache["layered_defaults"] = {}
+        ctx.missing_textures = MISSING_TEXTURES.get() or s.missing_textures
         return s
     s.spp = node.integer("spp", s.spp, lo=1, hi=MAX_SPP)
     s.max_bounces = node.integer("max_bounces", s.max_bounces, lo=0, hi=MAX_BOUNCES)
@@ -308,6 +312,9 @@ def parse_settings(node: Node | None, ctx: LoadContext) -> RenderSettings:
     s.sampler = node.string("sampler", s.sampler, choices=("sobol", "independent"))
     s.glossy_light_samples = node.integer("glossy_light_samples", s.glossy_light_samples, lo=1,
                                           hi=MAX_GLOSSY_LIGHT_SAMPLES)
+    s.missing_textures = node.string("missing_textures", s.missing_textures, choices=("magenta", "error"))
+    s.missing_textures = MISSING_TEXTURES.get() or s.missing_textures
+    ctx.missing_textures = s.missing_textures
     layered = node.optional_child("layered")
     ctx.cache["layered_defaults"] = dict(layered.require_object().value) if layered is not None else {}
     if layered is not None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+from contextvars import ContextVar
 from pathlib import Path
 from typing import Any, Callable
 
@@ -142,6 +143,11 @@ def _range_text(lo, hi, lo_open, hi_open) -> str:
     return ""
 
 
+#: "error" while the CLI's ``--strict`` is on: overrides the scene's ``render.missing_textures``
+#: (set around a load); None: the scene decides (backend/textures.py read_texture).
+MISSING_TEXTURES: ContextVar = ContextVar("missing_textures", default=None)
+
+
 class LoadContext:
     """Shared state while loading one document: its file, base folder, warnings, caches."""
 
@@ -150,6 +156,7 @@ class LoadContext:
         self.base_dir = base_dir if base_dir is not None else Path.cwd()
         self.warnings: list[str] = []
         self.cache: dict = {}
+        self.missing_textures = MISSING_TEXTURES.get() or "magenta"   # render.missing_textures
 
     def warn(self, path: str, message: str) -> None:
         self.warnings.append(f"{self.where}: {path}: {message}" if path else f"{self.where}: {message}")

@@ -28,7 +28,9 @@ from ..errors import LaminaError
 from ..limits import MAX_SPP
 
 PROTOCOL = 1
-SECTIONS = ("film", "camera", "render", "materials", "meshes", "objects", "lights", "world")
+#: The scene file's sections the session reads. ``passes`` and ``views`` are checked as `render`
+#: checks them and otherwise unused: the viewport shows the combined image of the scene's camera.
+SECTIONS = ("film", "camera", "render", "materials", "meshes", "objects", "lights", "world", "passes", "views")
 MERGED_SECTIONS = ("materials", "meshes")
 COMMANDS = ("scene", "update", "samples", "ping", "stop")
 #: Commands after which the current image is out of date (the render loop abandons its work).

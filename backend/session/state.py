@@ -185,7 +185,7 @@ class SessionScene:
             t = now
 
         doc = self.doc if self.offset is None else loader.rebase_sections(self.doc, self.offset)
-        if self.tracer is not None and dirty <= {"camera", "film"}:
+        if self.tracer is not None and dirty <= {"camera", "film", "passes", "views"}:
             return self._view_only(doc, dirty, timings, done)
 
         settings, film, camera = self.settings, self.film, self.camera
@@ -202,6 +202,7 @@ class SessionScene:
             from ..camera import parse_camera
             camera = parse_camera(self._section(doc, "camera", required=True))
             done("camera")
+        self._check_unrendered(doc, dirty)
 
         materials = self.materials
         if "materials" in dirty or force_materials:
@@ -262,8 +263,18 @@ class SessionScene:
         self._dirty = set()
         return timings
 
+    def _check_unrendered(self, doc: dict, dirty: set) -> None:
+        """Data passes and named views: the viewport renders neither, but a scene `render`
+        accepts is accepted here too, and one it refuses is refused with the same message."""
+        if "passes" in dirty:
+            from ..passes import parse_passes
+            parse_passes(self._section(doc, "passes"))
+        if "views" in dirty:
+            loader.parse_views(self._section(doc, "views"), None)
+
     def _view_only(self, doc: dict, dirty: set, timings: dict, done) -> dict:
-        """Camera and film edits: no table is rebuilt."""
+        """Camera and film edits (and the unrendered passes and views): no table is rebuilt."""
+        self._check_unrendered(doc, dirty)
         film, camera = self.film, self.camera
         if "film" in dirty:
             film = loader.parse_film(self._section(doc, "film", required=True))

@@ -1,7 +1,7 @@
 """A stand-in for ``python -m backend render`` speaking the JSON progress protocol (docs/cli.md).
 
 Used as the add-on's "Backend Python" preference to test the engine's plumbing independently
-of the renderer: FAKE_MODE = pixels | error | crash | crash_after_partial | hang. ``pixels`` writes a known image
+of the renderer: FAKE_MODE = pixels | compiling | error | crash | crash_after_partial | hang. ``pixels`` writes a known image
 (red = x + 1000·y from the top-left, so orientation errors are visible; green = the scene's seed,
 or 0.5 for seed 0) and AOVs.
 ``hang`` starts two worker processes, ignores SIGTERM and reports progress forever: only a
@@ -47,6 +47,10 @@ def main(argv):
         with open(os.environ["FAKE_ARGV"], "w") as f:
             json.dump(argv, f)
     pids = [os.getpid()]
+    if mode == "compiling":                          # a cold kernel cache, then pixels
+        emit(event="compiling", message="compiling render kernels (first run only) ...")
+        emit(event="compiled", seconds=12.3, message="compiled render kernels in 12.3 s (cached in /x)")
+        mode = "pixels"
     emit(event="start", width=w, height=h, spp=4, workers=1)
     if mode == "error":
         emit(event="error", message="scene.json: textures/broken.png: cannot read image (fake)")

@@ -118,6 +118,15 @@ def test_border_render_places_the_region(fake):
     assert np.all(combined[~inside] == 0)
 
 
+def test_a_cold_kernel_cache_speaks_on_the_console(tmp_path):
+    # Under `blender -b` the status bar is not seen: the compile's start and end are printed.
+    r = run_cases("engine_cases", ["fake_compiling"], tmp=tmp_path)
+    assert result_of(r, "fake_compiling")["render_error"] is None
+    lines = (r["_stdout"] + r["_stderr"]).splitlines()
+    assert sum(l.startswith("Lamina: compiling render kernels (first run only") for l in lines) == 1, lines
+    assert sum(l == "Lamina: compiled render kernels in 12.3 s" for l in lines) == 1, lines
+
+
 def test_backend_error_makes_render_raise(fake):
     r = result_of(fake, "fake_failure")
     assert r["error"] is not None and "cannot read image (fake)" in r["error"]
@@ -170,7 +179,7 @@ needs_renderer = pytest.mark.skipif(not backend_renders(("diffuse",), ("point",)
 
 
 @needs_renderer
-def test_corrupt_texture_fails_with_backend_message(tmp_path):
+def test_corrupt_texture_fails_with_backend_message_when_asked_to(tmp_path):
     r = result_of(run_cases("engine_cases", ["corrupt_texture"], tmp=tmp_path), "corrupt_texture")
     assert r["error"] is not None and "broken.png" in r["error"]
 

@@ -43,13 +43,24 @@ def test_zip_validated_and_contents(built):
     names = zipfile.ZipFile(path).namelist()
     tops = {n.split("/")[0] for n in names}
     assert {"__init__.py", "blender_manifest.toml", "addon", "backend"} <= tops
-    assert not tops & {"tests", "tools", ".venv", "build", "benchmarks", ".git", "pytest.ini", "showcase"}
+    assert not tops & {"tests", "tools", ".venv", "build", "benchmarks", ".git", "pytest.ini", "showcase", ".ci"}
     assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
     wheels = [n for n in names if n.endswith(".whl")]
     assert not [w for w in wheels if "numpy" in w]
     manifest = zipfile.ZipFile(path).read("blender_manifest.toml").decode()
     for w in wheels:
         assert f'"./{w}"' in manifest
+    # One zip per platform and Python: this Python's wheels only, for the Blender versions that
+    # bundle it (3.11: 4.2 to 5.0; 3.13: 5.1 on), named so.
+    tag = f"cp{sys.version_info[0]}{sys.version_info[1]}"
+    assert path.name.endswith(f"-{tag}.zip"), path.name
+    assert all(f"-{tag}-" in w for w in wheels), wheels
+    low, high = {"cp311": ("4.2.0", "5.1.0"), "cp313": ("5.1.0", None)}[tag]
+    assert f'blender_version_min = "{low}"' in manifest
+    assert (f'blender_version_max = "{high}"' in manifest) if high else ("blender_version_max" not in manifest)
+    if this_platform():
+        assert f'platforms = ["{this_platform()}"]' in manifest
+        assert path.stat().st_size <= 90e6, path.stat().st_size            # issue 38: each zip ≤ 90 MB
     if this_platform() and "warning: no embreex wheel" not in log:
         assert any(w.startswith("wheels/embreex-") for w in wheels)
 

@@ -78,7 +78,7 @@ def test_light_and_render_panels(results):
     assert {"angle"} <= props_drawn(r["SUN"])
     assert {"shape", "size", "beam_mode", "beam_width", "cutoff_angle"} <= props_drawn(r["AREA"])
     assert r["beam_clamped"] == pytest.approx(0.3)
-    assert r["ies_node"] == {"data": "IESNA:LM-63-2002\nTILT=NONE\n"}
+    assert r["ies_node"] == {"data": "IESNA:LM-63-2002\nTILT=NONE\n", "_node": "IES Texture"}  # (named in messages)
     assert r["unknown_icons"] == []          # every icon drawn so far (stack, lights, render) exists
     assert {"samples", "time_limit", "max_bounces", "seed", "workers", "noise_threshold",
             "estimator", "pdf_mode"} <= props_drawn(r["render"])

@@ -77,7 +77,7 @@ def test_a_crashed_session_is_one_line_in_the_header_and_the_console(results):
 
 def test_an_export_error_is_shown_not_raised(results):
     r = result_of(results, "export_error")
-    assert r["status"] == "Lamina | Error: material 'Ball': material 'Ball' has an empty layer stack"
+    assert r["status"] == "Lamina | Error: material 'Ball': the layer stack is empty (add a layer or apply a preset)"
     assert "Traceback" not in r["console"] and r["console"].count("\n") == 1
     assert r["after"] == "Lamina | Sample 2/2 | Done" and not r["new_generation"]
     # present when entering Rendered mode: shown, nothing sent; fixed: the scene renders

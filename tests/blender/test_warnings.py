@@ -24,6 +24,7 @@ NAMED = {
     "procedural texture": "Noise Texture",
     "bump": "material 'Bumped'",
     "volume output": "Volume output",
+    "world volume": "Volume Scatter → Volume output (world volumes are not rendered",
 }
 
 
@@ -41,6 +42,8 @@ def test_one_warning_names_every_unrendered_feature(results):
     assert not missing, f"not named: {missing}\n{warning}"
     assert "Noise Texture → Normal Map.Color (procedural, not baked: the surface normal used" in warning
     assert "Wave Texture → Bump.Height (procedural, not baked: the bump is left out" in warning
+    toon = warning.split("Shader to RGB → Principled BSDF.Base Color (", 1)[1].split(")", 1)[0]
+    assert toon.startswith("EEVEE only") and "Bake" not in toon, toon
     assert "shadow catcher" not in warning            # nothing is named that the scene does not use
     # Rendered now (the feature scene switches them on): never named.
     for rendered in ("stereo", "multi-view", "Depth", "Mist", "Position", "UV", "Object Index",
@@ -70,8 +73,10 @@ def test_the_warning_does_not_name_what_is_rendered(results):
 def test_a_render_reports_one_warning_with_the_renderers(tmp_path):
     r = run_cases("warning_cases", ["render_warning"], tmp=tmp_path)
     assert result_of(r, "render_warning")["message"] is None
-    lines = [l for l in r["_stderr"].splitlines() if l.startswith("Lamina ignored or approximated:")]
-    assert len(lines) == 1, r["_stderr"][-3000:]
+    # Once on the console (Blender prints the report itself under bpy/`blender -b`), not twice.
+    output = r["_stdout"] + r["_stderr"]
+    lines = [l for l in output.splitlines() if "Lamina ignored or approximated:" in l]
+    assert len(lines) == 1, output[-3000:]
     assert "fake warning from the renderer" in lines[0] and "not motion-blurred" in lines[0]
 
 
@@ -83,6 +88,19 @@ def test_renderer_errors_name_material_and_node_once(tmp_path):
     assert "material 'Grey', node 'Wood Grain'" in error, error
     assert "scene.json" not in error and "lamina-" not in error, error
     assert error.count("cannot read image") == 1 and error.count("Error:") == 1, error
+
+
+@pytest.mark.skipif(not backend_renders(("diffuse",), ("point",), ("constant",)), reason="needs the renderer")
+def test_a_missing_texture_renders_magenta_with_one_warning(tmp_path):
+    r = run_cases("warning_cases", ["missing_texture"], tmp=tmp_path)
+    case = result_of(r, "missing_texture")
+    assert case["message"] is None                 # the frame is not lost (a farm's --strict is)
+    red, green, blue = case["centre"]
+    assert red > 0.02 and blue > 0.02 and green < 0.02 * red, case["centre"]   # magenta × the light
+    output = r["_stdout"] + r["_stderr"]
+    lines = [l for l in output.splitlines() if "gone_wood.png" in l and not l.startswith("LAMINA-CASE-RESULT")]
+    assert len(lines) == 1, output[-3000:]         # once, in the one warning
+    assert "material 'Grey', node 'Wood Grain'" in lines[0] and "magenta" in lines[0], lines[0]
 
 
 def test_layer_under_an_opaque_one_is_left_out_with_a_warning(results):

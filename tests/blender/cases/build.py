@@ -12,6 +12,9 @@ def scene():
     sc = bpy.context.scene
     sc.render.engine = "LAMINA"
     sc.render.resolution_x, sc.render.resolution_y, sc.render.resolution_percentage = 64, 48, 100
+    # The tests compare rendered images with statistical references: the render as rendered, not
+    # denoised (on by default for artists; tests/blender/test_denoise.py turns it on).
+    sc.lamina.use_denoising = False
     return sc
 
 

@@ -77,6 +77,15 @@ def fake_pixels(tmp, border=False, layers=1, cluster=""):
     return {"error": error, "path": str(out), "exists": out.is_file(), "seconds": seconds, "argv": argv}
 
 
+def fake_compiling(tmp):
+    """A render that finds a cold kernel cache: the compile's lines reach the console."""
+    sc = _simple_scene()
+    _fake_backend(tmp, "compiling")
+    error, seconds = _render_to(sc, Path(tmp) / "compiling.exr")
+    _reset_backend()
+    return {"render_error": error}
+
+
 def fake_failure(tmp, mode="error"):
     sc = _simple_scene()
     _fake_backend(tmp, mode)
@@ -168,6 +177,7 @@ def corrupt_texture(tmp):
     tex.image = bpy.data.images.load(str(bad), check_existing=False)
     bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfDiffuse")
     tree.links.new(tex.outputs["Color"], bsdf.inputs["Color"])
+    sc.lamina.fail_on_missing_textures = True      # a farm's setting (off: magenta and a warning)
     error, seconds = _render_to(sc, Path(tmp) / "corrupt.exr")
     return {"error": error, "seconds": seconds}
 

@@ -23,6 +23,7 @@ def showcase(tmp, blend, width, height, spp):
             "links": {m.name: link.state(m) for m in bpy.data.materials}}
     sc.render.resolution_x, sc.render.resolution_y, sc.render.resolution_percentage = width, height, 100
     sc.lamina.samples, sc.lamina.workers = spp, 1
+    sc.lamina.use_denoising = False        # compared with the scene file's render, as rendered
     out = Path(tmp) / "blend_render.exr"
     sc.render.image_settings.file_format = "OPEN_EXR"
     sc.render.filepath = str(out)

@@ -6,6 +6,7 @@ import math
 from pathlib import Path
 
 import bpy
+import numpy as np
 
 from . import build
 from .ui_cases import Recorder, _calls
@@ -83,8 +84,18 @@ def _feature_scene():
     # a procedural height (only image textures are translated)
     wave = bump_mat.node_tree.nodes.new("ShaderNodeTexWave")
     bump_mat.node_tree.links.new(wave.outputs["Fac"], bump.inputs["Height"])
-    for i, mat in enumerate((mix, add, bumpy, foggy, bump_mat)):
+    # EEVEE's Shader to RGB (Cycles renders it black: baking cannot help).
+    toon = bpy.data.materials.new("Toon")
+    to_rgb = toon.node_tree.nodes.new("ShaderNodeShaderToRGB")
+    toon.node_tree.links.new(to_rgb.outputs["Color"], toon.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+    for i, mat in enumerate((mix, add, bumpy, foggy, bump_mat, toon)):
         build.uv_sphere(f"Ball{i}", radius=0.3, segments=8, rings=4, material=mat, location=(i - 2, 0, 0.5))
+    # A world volume (mist): not rendered.
+    world = build.world_colour((0.1, 0.1, 0.1))
+    tree = world.node_tree
+    output = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld")
+    scatter = tree.nodes.new("ShaderNodeVolumeScatter")
+    tree.links.new(scatter.outputs[0], output.inputs["Volume"])
     return sc
 
 
@@ -121,8 +132,42 @@ def named_error(tmp):
     bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfDiffuse")
     tree.links.new(tex.outputs["Color"], bsdf.inputs["Color"])
     sc.lamina.samples = 1
+    sc.lamina.fail_on_missing_textures = True      # (off: the texture renders magenta)
     error, _ = _render_to(sc, Path(tmp) / "err.exr")
     return {"message": error, "done": True}
+
+
+def missing_texture(tmp):
+    """An image texture whose file is gone: by default the render finishes, the texture magenta
+    (as Cycles) and one warning naming the material, the node and the file."""
+    import OpenImageIO as oiio
+    from .engine_cases import _render_to, _simple_scene
+    sc = _simple_scene()
+    gone = Path(tmp) / "gone_wood.png"
+    out = oiio.ImageOutput.create(str(gone))
+    out.open(str(gone), oiio.ImageSpec(2, 2, 3, oiio.UINT8))
+    out.write_image(np.full((2, 2, 3), 128, np.uint8))
+    out.close()
+    mat = bpy.data.materials["Grey"]
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.name = "Wood Grain"
+    tex.image = bpy.data.images.load(str(gone), check_existing=False)
+    gone.unlink()                                  # moved away after the .blend was made
+    bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfDiffuse")
+    tree.links.new(tex.outputs["Color"], bsdf.inputs["Color"])
+    sc.lamina.samples = 4
+    error, _ = _render_to(sc, Path(tmp) / "magenta.exr")
+    inp = oiio.ImageInput.open(str(Path(tmp) / "magenta.exr"))       # scene-linear, as rendered
+    spec = inp.spec()
+    names = list(spec.channelnames)
+    data = np.asarray(inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)).reshape(spec.height, spec.width, -1)
+    inp.close()
+    pixels = data[:, :, [next(i for i, n in enumerate(names) if n.endswith(f"Combined.{c}")) for c in "RGB"]]
+    h, w = pixels.shape[:2]
+    # The floor fills rows 8-9 of 12 (top row first) between the horizon and the camera.
+    centre = pixels[8:10, w // 4:3 * w // 4].reshape(-1, 3).mean(axis=0)
+    return {"message": error, "centre": [float(c) for c in centre], "file": str(gone)}
 
 
 def opaque_stack(tmp):
