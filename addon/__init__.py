@@ -19,6 +19,7 @@ _MODULES = (
     "ops.presets",
     "ops.export",
     "ops.bake",
+    "ops.viewport_colour",
     "engine.engine",
     "engine.kernel_warmup",
     "engine.viewport",

@@ -27,7 +27,7 @@ the cores exist (issue 37, "every core, every machine").
 
 Calibration against the 16-core figures measured in issue 37 (the code before the change): copy
 this file into a checkout of that code (``git worktree add /tmp/old 60590b4``) and run it there
-(docs/performance.md, "Scaling").
+(docs/benchmarks.md, "Parallel scaling").
 """
 from __future__ import annotations
 

@@ -117,6 +117,12 @@ def test_cluster_render_is_bit_identical_and_sends_files_once(cluster, reference
     write_scene(cluster[2] / "scene", files=False)         # back to the reference's document for later tests
 
 
+def test_a_local_cluster_of_three_workers_gives_the_same_image(reference):
+    # `--cluster local:3`: a cluster this render starts and ends itself, 3 worker processes.
+    path, local = reference
+    assert same_image(render(path, cluster="local:3"), local)
+
+
 def test_shared_files_send_only_the_document(cluster, tmp_path):
     """--cluster-files shared: the workers read the master's paths (one machine here)."""
     path = write_scene(tmp_path / "shared", spp=4)

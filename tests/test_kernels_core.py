@@ -73,8 +73,10 @@ def test_same_image_whatever_the_worker_count_parallel_mode_or_batch_size(monkey
     data = _mixed_scene()
     base = render(data, workers=1)
     assert base.film.combined().mean() > 0
-    assert _same(base, render(data, workers=2, parallel="threads"))
-    assert _same(base, render(data, workers=2, parallel="processes"))
+    for workers in (2, 3, 16):              # 16: more threads than this machine's cores and items in flight
+        assert _same(base, render(data, workers=workers, parallel="threads")), workers
+    for workers in (2, 3):
+        assert _same(base, render(data, workers=workers, parallel="processes")), workers
     # Tiny work items: 12 rounds of one sample each instead of one round of 12.
     import backend.render as r
     monkeypatch.setattr(r, "LANES_PER_ITEM", 64)

@@ -133,6 +133,11 @@ def build(output: Path) -> dict:
             assert not dropped, dropped
             mat.diffuse_color = (*value["color"], 1.0)
         materials[key] = mat
+    # What Cycles, EEVEE and Material Preview show for each stack (addon/ops/viewport_colour.py).
+    import lamina.addon.ops.viewport_colour as viewport_colour
+    for key, mat in materials.items():
+        if not viewport_colour.update_now(mat):
+            raise SystemExit(f"gen_showcase_blend: the viewport colour of '{key}' was not measured")
 
     meshes = {name: blender_mesh(name, backend_mesh(entry)) for name, entry in doc["meshes"].items()}
     for entry in doc["objects"]:

@@ -162,6 +162,8 @@ class LAMINA_OT_preset_apply(bpy.types.Operator):
         except PresetError as exc:
             self.report({"ERROR"}, f"Lamina: {exc}")
             return {"CANCELLED"}
+        from .viewport_colour import request
+        request(context.material, force=True)        # Cycles/EEVEE show its colour (ops/viewport_colour.py)
         if dropped:
             self.report({"WARNING"}, f"Lamina: preset '{label}' applied; {len(dropped)} field(s) cannot be "
                                      f"edited in the stack and render from the preset until you edit it: "

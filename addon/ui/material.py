@@ -318,6 +318,25 @@ class LAMINA_PT_material_emission(LaminaPanel, bpy.types.Panel):
         draw_emission(self.layout, context.material)
 
 
+class LAMINA_PT_material_viewport(LaminaPanel, bpy.types.Panel):
+    """What other engines show for the stack (ops/viewport_colour.py)."""
+    bl_label = "Viewport Colour"
+    bl_context = "material"
+    bl_parent_id = "LAMINA_PT_material_surface"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        mat = getattr(context, "material", None)
+        return super().poll(context) and mat is not None and mat.lamina.use_stack
+
+    def draw(self, context):
+        col = self.layout.column()
+        col.label(text="Cycles, EEVEE and Solid mode show an approximation:", icon="INFO")
+        col.prop(context.material, "diffuse_color", text="Measured Colour")
+        col.operator("lamina.viewport_colour", icon="FILE_REFRESH")
+
+
 class LAMINA_PT_material_presets(LaminaPanel, bpy.types.Panel):
     bl_label = "Preset Library"
     bl_context = "material"
@@ -336,7 +355,7 @@ class LAMINA_PT_material_presets(LaminaPanel, bpy.types.Panel):
 
 
 CLASSES = (LAMINA_UL_layers, LAMINA_PT_material_surface, LAMINA_PT_material_emission,
-           LAMINA_PT_material_presets)
+           LAMINA_PT_material_viewport, LAMINA_PT_material_presets)
 
 
 register, unregister = bpy.utils.register_classes_factory(CLASSES)
