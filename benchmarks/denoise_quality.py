@@ -1,6 +1,6 @@
 """How much closer to the converged image denoising brings a preview render (issue 38).
 
-    .venv/bin/python -m benchmarks.denoise_quality [--scene demo/demo.json] [--resolution 480x270]
+    .venv/bin/python -m benchmarks.denoise_quality [--scene demo/demo.json] [--resolution 240x135]
         [--spp 32] [--reference-spp 4096]
 
 Renders the scene at ``--spp`` with ``render --denoise`` (the CLI's route: pyoidn, fed with the
@@ -56,7 +56,7 @@ def _layer(pixels: np.ndarray, names: list[str], layer: str, letters: str = "RGB
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default="demo/demo.json")
-    ap.add_argument("--resolution", default="480x270")
+    ap.add_argument("--resolution", default="240x135")
     ap.add_argument("--spp", type=int, default=32)
     ap.add_argument("--reference-spp", type=int, default=4096)
     args = ap.parse_args(argv)
