@@ -51,7 +51,7 @@ def test_the_fuzz_checker_catches_tracebacks_non_finite_images_and_extra_lines(t
     with monkeypatch.context() as m:
         import OpenImageIO as oiio
 
-        def raw_inf(result, output, png, half=False):
+        def raw_inf(result, output, png, half=False, denoised=None):
             out = oiio.ImageOutput.create(str(output))
             out.open(str(output), oiio.ImageSpec(2, 2, 3, oiio.FLOAT))
             out.write_image(np.full((2, 2, 3), np.inf, np.float32))
