@@ -75,8 +75,15 @@ def test_light_field_errors(light, message):
 
 
 def test_world_errors(tmp_path):
+    # A missing environment map renders magenta with a warning (as Cycles), or fails the load
+    # with render.missing_textures "error" (the CLI's --strict).
+    scene = load(world={"type": "environment", "file": "missing.exr"})
+    assert any("world.file" in w and "not found" in w and "magenta" in w for w in scene.warnings), scene.warnings
+    data = copy.deepcopy(BASE)
+    data["world"] = {"type": "environment", "file": "missing.exr"}
+    data["render"] = dict(data.get("render", {}), missing_textures="error")
     with pytest.raises(SceneError) as info:
-        load(world={"type": "environment", "file": "missing.exr"})
+        load_scene_data(data, "scene.json")
     assert "world.file" in str(info.value) and "not found" in str(info.value)
     with pytest.raises(SceneError) as info:
         load(world={"type": "constant", "strength": -1})

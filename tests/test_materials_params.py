@@ -156,8 +156,13 @@ def test_every_material_accepts_emission(kind):
     ({"type": "diffuse", "color": {"texture": "missing.png"}}, "materials.m.color.texture", "not found"),
 ])
 def test_parse_errors_name_the_field(value, path, text, tmp_path):
-    with pytest.raises(SceneError) as err:
-        parse(value, tmp_path)
+    from backend.scene.reader import MISSING_TEXTURES
+    strict = MISSING_TEXTURES.set("error")      # a missing texture is an error here (else magenta)
+    try:
+        with pytest.raises(SceneError) as err:
+            parse(value, tmp_path)
+    finally:
+        MISSING_TEXTURES.reset(strict)
     msg = str(err.value)
     assert msg.startswith(f"scene.json: {path}: "), msg
     assert text in msg, msg

@@ -9,7 +9,7 @@ import numpy as np
 from . import build
 
 
-def preview(tmp, timeout=60.0):
+def preview(tmp, timeout=240.0):       # (a first preview in a new checkout may compile kernels)
     sc = build.scene()
     mat = build.diffuse_material("Preview", (0.8, 0.2, 0.1))
     mat.preview_render_type = "SPHERE"
