@@ -303,8 +303,8 @@ class LAMINA_PT_material_surface(LaminaPanel, bpy.types.Panel):
             draw_nodes(self.layout, material)
 
 
-class LAMINA_PT_material_emission(LaminaPanel, bpy.types.Panel):
-    bl_label = "Stack Emission"
+class _StackSubPanel(LaminaPanel):
+    """A closed sub-panel of Surface, shown while the material uses its layer stack."""
     bl_context = "material"
     bl_parent_id = "LAMINA_PT_material_surface"
     bl_options = {"DEFAULT_CLOSED"}
@@ -313,22 +313,18 @@ class LAMINA_PT_material_emission(LaminaPanel, bpy.types.Panel):
     def poll(cls, context):
         mat = getattr(context, "material", None)
         return super().poll(context) and mat is not None and mat.lamina.use_stack
+
+
+class LAMINA_PT_material_emission(_StackSubPanel, bpy.types.Panel):
+    bl_label = "Stack Emission"
 
     def draw(self, context):
         draw_emission(self.layout, context.material)
 
 
-class LAMINA_PT_material_viewport(LaminaPanel, bpy.types.Panel):
+class LAMINA_PT_material_viewport(_StackSubPanel, bpy.types.Panel):
     """What other engines show for the stack (ops/viewport_colour.py)."""
     bl_label = "Viewport Colour"
-    bl_context = "material"
-    bl_parent_id = "LAMINA_PT_material_surface"
-    bl_options = {"DEFAULT_CLOSED"}
-
-    @classmethod
-    def poll(cls, context):
-        mat = getattr(context, "material", None)
-        return super().poll(context) and mat is not None and mat.lamina.use_stack
 
     def draw(self, context):
         col = self.layout.column()
