@@ -24,6 +24,12 @@ def keep_files() -> bool:
     return bool(prefs and prefs.keep_files)
 
 
+def keep_renderer_warm() -> bool:
+    """Preferences › Keep Renderer Warm (on by default; on when not registered, as in tests)."""
+    prefs = preferences.get()
+    return bool(prefs.keep_renderer_warm) if prefs is not None else True
+
+
 def user_environment() -> dict:
     """Where the backend finds user presets and caches its compiled kernels: the extension's user
     folder (never the install folder, which an update replaces and may be read-only), unless

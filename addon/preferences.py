@@ -40,6 +40,13 @@ class LaminaPreferences(bpy.types.AddonPreferences):
                     "its libraries and compiled kernels in advance, and uses no CPU while it waits), so "
                     "Rendered shading shows its first image within about a second")
 
+    keep_renderer_warm: BoolProperty(
+        name="Keep Renderer Warm", default=True,
+        description="Render F12, animation frames and material previews in renderer processes that "
+                    "stay loaded between renders (one for final renders, one for previews; idle they "
+                    "use no CPU and about 200 MB of memory each), so a render does not start Python and "
+                    "load the compiled kernels each time. Off: a new process for every render")
+
     user_preset_thumbnails: BoolProperty(
         name="Thumbnails for Saved Presets", default=True, update=_thumbnails_toggled,
         description="Render a thumbnail for each preset you save, in the background (one renderer "
@@ -51,6 +58,7 @@ class LaminaPreferences(bpy.types.AddonPreferences):
         layout.prop(self, "keep_files")
         layout.prop(self, "preview_samples")
         layout.prop(self, "viewport_prestart")
+        layout.prop(self, "keep_renderer_warm")
         layout.prop(self, "user_preset_thumbnails")
         for draw in EXTRA_DRAW:                 # higher modules' rows (engine/kernel_warmup.py)
             draw(layout)

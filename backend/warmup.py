@@ -121,6 +121,25 @@ def warm_up() -> None:
             FilmAccumulator(4, 4).add(pixels, result)
 
 
+def load_kernels() -> float:
+    """Load every compiled kernel into this process now (from a warm cache: no compiling), by
+    rendering the warm-up scene once at 4 × 4 pixels; returns the seconds it took. A process
+    started ahead of time (the session's and the render server's ``--warm``) calls it so that
+    its first real render does not pay the loading."""
+    from . import stats
+    from .film import FilmAccumulator
+    from .geometry.accel import Accelerator
+    from .integrator import PathTracer
+    from .scene.loader import load_scene_data
+    t0 = time.perf_counter()
+    scene = load_scene_data(scene_dict(), "<kernel warm-up>")
+    tracer = PathTracer(scene, Accelerator(scene.soup))
+    pixels = np.arange(16, dtype=np.int64)
+    FilmAccumulator(4, 4).add(pixels, tracer.render(pixels, 2, np.random.default_rng(0), 0))
+    stats.take()
+    return time.perf_counter() - t0
+
+
 def _print_event(event: dict) -> None:
     print(event["message"], file=sys.stderr, flush=True)
 

@@ -6,6 +6,7 @@ previews. Everything that goes wrong ends in ``report({'ERROR'})`` + ``error_set
 """
 from __future__ import annotations
 
+import atexit
 import shutil
 import sys
 import tempfile
@@ -21,10 +22,11 @@ from ..export.camera import CameraError, border_rect, eye_camera_json, film_size
 from ..export.passes import requested as requested_passes
 from ..export.scene import ExportError
 from .job import BackendJob, child_environment, render_command
-from ..launch import keep_files, python_executable, user_environment
+from ..launch import keep_files, keep_renderer_warm, python_executable, user_environment
 from .denoise import NOISY_PASS, DenoiseError, denoise_image
 from .pixels import ALBEDO_PASS, NORMAL_PASS, fill_passes, load_npy, pass_npy_path
 from . import viewport
+from .render_server import POOL
 
 PREVIEW_WORKERS = 1          # worker processes cost ~1 s to start; thumbnails are small
 
@@ -269,7 +271,8 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         result = self.begin_result(0, 0, rect[2], rect[3], layer=depsgraph.view_layer.name,
                                    view=view or "")
         try:
-            status = self._run(cmd, result, partial, rect, height, exported)
+            status = self._run(cmd, result, partial, rect, height, exported,
+                           warm_purpose=None if cluster else ("preview" if preview else "final"))
         except BaseException:
             self.end_result(result, cancel=True)
             raise
@@ -294,9 +297,14 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         self.end_result(result)
         return "done"
 
-    def _run(self, cmd, result, partial: Path, rect, height: int, exported=None) -> str:
+    def _run(self, cmd, result, partial: Path, rect, height: int, exported=None, warm_purpose=None) -> str:
         env = child_environment(user_environment())
-        self.job = job = BackendJob(cmd, env=env)
+        job = None
+        if warm_purpose is not None and keep_renderer_warm():
+            # A warm render server (render_server.py) renders it: no interpreter start, no
+            # kernel load. cmd is [python, -m, backend, render, arguments...].
+            job = POOL.job_for(warm_purpose, cmd[0], env, cmd[4:])
+        self.job = job = job or BackendJob(cmd, env=env)
         error = None
         describe = exported.describe if exported is not None else (lambda text: text)
         warnings = self._renderer_warnings
@@ -370,5 +378,15 @@ def progress_text(event: dict) -> str:
 
 CLASSES = (LaminaRenderEngine,)
 
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(CLASSES)
 
-register, unregister = bpy.utils.register_classes_factory(CLASSES)
+
+def register():
+    _register_classes()
+    atexit.register(POOL.stop_all)
+
+
+def unregister():
+    POOL.stop_all()                    # the warm renderer processes end with the add-on
+    atexit.unregister(POOL.stop_all)
+    _unregister_classes()

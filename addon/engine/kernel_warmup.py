@@ -19,7 +19,7 @@ import time
 import bpy
 
 from .. import preferences
-from ..launch import python_executable, user_environment
+from ..launch import keep_renderer_warm, python_executable, user_environment
 from .job import BackendJob, child_environment
 
 POLL_SECONDS = 0.5
@@ -84,7 +84,21 @@ def pump() -> bool:
     if code != 0 and _state["status"] not in ("compiled", "warm"):
         _state.update(status="failed", message=job.failure_message())
         print(f"Lamina: compiling the render kernels failed: {_state['message']}", file=sys.stderr)
+    elif _state.pop("prestart", False):
+        _prestart_preview_server()
     return False
+
+
+def _prestart_preview_server() -> None:
+    """After the automatic compile: load the material-preview renderer (render_server.py), so
+    the first thumbnail does not wait for a process to start (Keep Renderer Warm)."""
+    from .render_server import POOL
+    if not keep_renderer_warm():
+        return
+    try:
+        POOL.prestart("preview", python_executable(), child_environment(user_environment()))
+    except OSError as exc:
+        print(f"Lamina: cannot start the preview renderer: {exc}", file=sys.stderr)
 
 
 def cancel() -> None:
@@ -111,7 +125,8 @@ def _redraw_preferences() -> None:
 
 
 def _auto_start():
-    start()
+    if start():
+        _state["prestart"] = True
     return None
 
 

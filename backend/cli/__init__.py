@@ -21,6 +21,7 @@ COMMAND_MODULES = (
     "backend.cli.presets",     # presets list / show
     "backend.cli.warmup",      # warmup (compile the kernels now)
     "backend.session.cli",     # session (interactive renderer, docs/session.md)
+    "backend.cli.serve",       # serve (render server: many render jobs in one warm process)
 )
 
 

@@ -120,7 +120,13 @@ def _resolution(text: str) -> tuple[int, int]:
 
 def cmd_render(args) -> int:
     mode = args.progress or ("bar" if sys.stderr.isatty() else "none")
-    printer = ProgressPrinter(mode)
+    return render_job(args, ProgressPrinter(mode))
+
+
+def render_job(args, printer, on_renderer=None) -> int:
+    """``render`` with its parsed arguments, events to ``printer``; ``on_renderer`` as in
+    render_one.render_scene (the render server, serve.py, passes its cancel hook there)."""
+    mode = printer.mode
     if args.denoise:
         from ..denoise import available
         problem = available()
@@ -135,7 +141,7 @@ def cmd_render(args) -> int:
         if args.cluster:
             from ..cluster import require_distributed
             require_distributed()          # before loading the scene: one clear line if missing
-        return render_scene(args, Path(args.scene[0]), output, args.png, printer)
+        return render_scene(args, Path(args.scene[0]), output, args.png, printer, on_renderer=on_renderer)
     except LaminaError as exc:
         if mode == "json":
             printer.emit({"event": "error", "message": str(exc)})

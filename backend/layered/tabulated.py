@@ -492,14 +492,16 @@ def build(material) -> np.ndarray | None:
     if ident is None:
         return None
     key, B, FT, kinds, settings = ident
-    block = _CACHE.get(key)
+    block = _CACHE.pop(key, None)
     if block is None:
         block = _load(key)
         if block is None:
             block = _block(B, FT, kinds, settings)
             _SOLVED[0] += 1
             _store(key, block)
-        _CACHE[key] = block
+    _CACHE[key] = block                      # the newest last: the oldest go first
+    while len(_CACHE) > CACHE_ENTRIES:
+        del _CACHE[next(iter(_CACHE))]
     return block
 
 
@@ -529,6 +531,10 @@ def prepare(materials, emit) -> None:
 
 
 _CACHE: dict = {}        # content hash of the bound stack → its block, for this process
+#: Blocks kept in memory at most (a few MiB each). A scene's materials hold their own blocks; this
+#: cache only saves reading the disk cache again, and must not grow without end in a long-lived
+#: process (the render server, backend/cli/serve.py, renders scene after edited scene).
+CACHE_ENTRIES = 32
 _SOLVED = [0]            # tables solved (not loaded) by this process
 # The solver's own source is part of a table's key (the kernel cache folder's key covers
 # backend/kernels/, not this file).

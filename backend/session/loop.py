@@ -406,17 +406,8 @@ class Session:
         loaded, so the first frame does not pay for it); skipped if a command is waiting."""
         if self.commands.restart_pending():
             return
-        t0 = time.perf_counter()
-        from ..warmup import scene_dict
-        from ..geometry.accel import Accelerator
-        from ..integrator import PathTracer
-        from ..scene.loader import load_scene_data
-        scene = load_scene_data(scene_dict(), "<kernel warm-up>")
-        tracer = PathTracer(scene, Accelerator(scene.soup))
-        pixels = np.arange(16, dtype=np.int64)
-        FilmAccumulator(4, 4).add(pixels, tracer.render(pixels, 2, np.random.default_rng(0), 0))
-        stats.take()
-        self.events("warm", seconds=round(time.perf_counter() - t0, 3))
+        from ..warmup import load_kernels
+        self.events("warm", seconds=round(load_kernels(), 3))
 
 
 def run_session(frame_dir, workers: int = 0, samples: int = DEFAULT_SAMPLES, warm: bool = False) -> int:

@@ -20,12 +20,16 @@ def _fake_backend(tmp, mode: str) -> str:
     script = Path(tmp) / f"fake-python-{mode}"
     script.write_text(f"#!/bin/sh\nFAKE_MODE={mode} exec {sys.executable} {HERE / 'fake_backend.py'} \"$@\"\n")
     script.chmod(script.stat().st_mode | stat.S_IEXEC)
-    bpy.context.preferences.addons["lamina"].preferences.python_executable = str(script)
+    prefs = bpy.context.preferences.addons["lamina"].preferences
+    prefs.python_executable = str(script)
+    prefs.keep_renderer_warm = False      # the fake speaks render's protocol, not the server's
     return str(script)
 
 
 def _reset_backend():
-    bpy.context.preferences.addons["lamina"].preferences.python_executable = ""
+    prefs = bpy.context.preferences.addons["lamina"].preferences
+    prefs.python_executable = ""
+    prefs.keep_renderer_warm = True
 
 
 def _simple_scene(w=16, h=12):
