@@ -7,7 +7,6 @@ benchmark's converter (benchmarks/peers), same metric as everyday.py.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import tempfile
 from pathlib import Path
@@ -44,11 +43,9 @@ def main(argv=None) -> int:
                 img, c, _ = cy.render(args.spp, 1000 + s)
                 imgs.append(img[..., :3] @ ev.LUM)
                 cpu += c
-            st = np.stack(imgs)
-            mean = st.mean(axis=0)
-            mask = mean > 1e-3 * mean.max()
-            rel = math.sqrt(float(st.var(axis=0, ddof=1)[mask].mean())) / float(mean[mask].mean())
-            print(f"{name:22s} Cycles noise {100 * rel:6.2f} %   mean {float(mean[mask].mean()):.5f}   "
+            r = ev.noise_figures(np.stack(imgs))
+            print(f"{name:22s} Cycles noise {100 * r['relative_noise']:6.2f} %   typical pixel "
+                  f"{100 * r['typical_pixel_noise']:6.2f} %   mean {r['mean']:.5f}   "
                   f"cpu/render {cpu / args.seeds:.2f} s", flush=True)
     return 0
 

@@ -24,7 +24,7 @@ Top interface, two modes:
   reflection lobe is added exactly.
 
 Sampling: the top's reflection with probability w_s = Rs/(Rs + A) (Rs its directional albedo, A
-the table part's, both interpolated in θi between the sampling nodes; at least 25 % for a sharp
+the table part's, both interpolated in θi between the sampling nodes; at least 20 % for a sharp
 top, as kernels/bsdf/coated_diffuse.specular_share explains), else a direction from the
 table part's own piecewise-constant distribution: per sampling node (uniform in θi), cells
 uniform in θo × Δ bins over [0, π] (either sign), probabilities ∝ the table part integrated
