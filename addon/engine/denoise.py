@@ -56,6 +56,10 @@ def denoise_image(combined: np.ndarray, aovs: np.ndarray, samples: int, folder: 
     if combined.ndim != 3 or aovs is None or aovs.shape[:2] != combined.shape[:2]:
         raise DenoiseError("the renderer wrote no albedo and normal")
     folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DenoiseError(f"cannot create {folder}: {exc.strerror or exc}") from None
     source, target = folder / "denoise-in.exr", folder / "denoise-out.exr"
     names, pixels = _channels(combined, aovs)
     h, w = combined.shape[:2]

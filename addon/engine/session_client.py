@@ -40,10 +40,14 @@ class Frame:
     scale: int
     final: bool
     pixels: np.ndarray = field(repr=False)       # (height, width, 4) float32, row 0 at the top
+    #: A final frame's denoising features (height, width, 6: albedo, normal), when the session
+    #: wrote them (docs/session.md, feature files); None otherwise.
+    features: np.ndarray | None = field(default=None, repr=False)
 
 
-def read_frame_file(path) -> Frame | None:
-    """The frame in ``path``, or None if it is missing, incomplete or not a frame file."""
+def read_frame_file(path, channels: int = 4) -> Frame | None:
+    """The frame in ``path``, or None if it is missing, incomplete or not a frame file (of
+    ``channels`` channels: 4 for a frame, 6 for a feature file)."""
     try:
         data = Path(path).read_bytes()
     except OSError:
@@ -51,7 +55,7 @@ def read_frame_file(path) -> Frame | None:
     if len(data) < FRAME_HEADER.size:
         return None
     magic, version, size, frame, generation, w, h, c, spp, scale, flags = FRAME_HEADER.unpack_from(data)
-    if magic != FRAME_MAGIC or version != 1 or size != FRAME_HEADER.size or c != 4:
+    if magic != FRAME_MAGIC or version != 1 or size != FRAME_HEADER.size or c != channels:
         return None
     n = w * h * c
     if len(data) < size + 4 * n:
@@ -207,6 +211,12 @@ class SessionClient:
             return None
         self._frame_number = frame.frame
         self._frame_event = None
+        if frame.final and event.get("features"):
+            features = read_frame_file(event["features"], channels=6)
+            # Only the features of this very frame (a slot may already hold a newer one).
+            if features is not None and features.frame == frame.frame and \
+                    features.pixels.shape[:2] == frame.pixels.shape[:2]:
+                frame.features = features.pixels
         return frame
 
     # ------------------------------------------------------------------ ending

@@ -66,6 +66,10 @@ class LaminaRenderSettings(PropertyGroup):
         description="Denoise the final render with the Open Image Denoise that Blender ships (fed with "
                     "the render's albedo and normal); the image before denoising is kept as the Noisy "
                     "Image pass")
+    use_viewport_denoising: BoolProperty(
+        name="Denoise Viewport", default=False,
+        description="Denoise Rendered shading once it reaches its samples (Viewport Samples), with the "
+                    "same denoiser as the final render; the image shows noisy while it samples")
     fail_on_missing_textures: BoolProperty(
         name="Fail on Missing Textures", default=False,
         description="An image texture that cannot be read fails the render (for farms). Off: it "

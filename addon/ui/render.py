@@ -26,6 +26,7 @@ def draw_sampling(layout, settings) -> None:
     row.prop(settings, "seed")
     row.prop(settings, "use_animated_seed", text="", icon="TIME")
     col.prop(settings, "use_denoising")
+    col.prop(settings, "use_viewport_denoising")
 
 
 def draw_light_paths(layout, settings) -> None:

@@ -18,7 +18,9 @@ crop region)::
 
 The writer fills a temporary file and renames it over the slot (``frame-0.bin``, ``frame-1.bin``,
 alternating), so a reader never sees a half-written frame; the header says which frame it got
-(a slot may already hold a newer frame than the event that named it).
+(a slot may already hold a newer frame than the event that named it). A final frame comes with a
+*feature file* (``features-0.bin`` / ``-1.bin``): the same header (the frame's number) over 6
+channels, albedo RGB and normal XYZ, for a denoiser.
 """
 from __future__ import annotations
 
@@ -60,14 +62,25 @@ class FrameWriter:
         """Write a (height, width, 4) image; returns (path, frame number)."""
         self.count += 1
         frame = self.count
-        h, w, c = rgba.shape
+        return self._write("frame", frame, rgba, generation, spp, scale, final), frame
+
+    def write_features(self, features: np.ndarray, frame: int, generation: int, spp: int) -> Path:
+        """Write the denoising features of frame number ``frame`` (a final one): (height, width, 6)
+        albedo RGB and normal XYZ, in a *feature file* (``features-0.bin`` / ``-1.bin``: the frame
+        file's layout with 6 channels and the frame's number, so the client can tell that they
+        belong together)."""
+        return self._write("features", frame, features, generation, spp, 1, True)
+
+    def _write(self, kind: str, frame: int, pixels: np.ndarray, generation: int, spp: int, scale: int,
+               final: bool) -> Path:
+        h, w, c = pixels.shape
         header = HEADER.pack(MAGIC, VERSION, HEADER.size, frame, generation, w, h, c, spp, scale,
                              FLAG_FINAL if final else 0)
-        path = self.folder / f"frame-{frame % SLOTS}.bin"
-        tmp = self.folder / f".frame-{frame % SLOTS}.tmp"
+        path = self.folder / f"{kind}-{frame % SLOTS}.bin"
+        tmp = self.folder / f".{kind}-{frame % SLOTS}.tmp"
         with open(tmp, "wb") as f:
             f.write(header)
-            f.write(np.ascontiguousarray(rgba, dtype="<f4").tobytes())
+            f.write(np.ascontiguousarray(pixels, dtype="<f4").tobytes())
         for attempt in range(50):
             try:
                 os.replace(tmp, path)
@@ -76,7 +89,7 @@ class FrameWriter:
                 time.sleep(0.005)
         else:
             os.replace(tmp, path)
-        return path, frame
+        return path
 
 
 def read_header(data: bytes) -> FrameInfo:

@@ -216,12 +216,19 @@ class Progressive:
             return
         session = self.session
         path, number = session.frames.write(self.image(scale), self.generation, spp, scale, final)
+        extra = {}
+        if final and scale == 1:
+            # The denoising features of the final image (the viewport's Denoise, docs/session.md).
+            with np.errstate(all="ignore"):
+                features = np.concatenate([self.film.albedo_image(), self.film.normal_image()], axis=2)
+            extra["features"] = str(session.frames.write_features(
+                np.nan_to_num(features.astype(np.float32)), number, self.generation, spp))
         self.frames += 1
         self.last_frame = time.perf_counter()
         h, w = (self.level_film.height, self.level_film.width) if scale > 1 else (self.height, self.width)
         session.events("frame", generation=self.generation, frame=number, path=str(path), width=w, height=h,
                        spp=spp, scale=scale, final=final,
-                       seconds=round(self.last_frame - self.started, 3))
+                       seconds=round(self.last_frame - self.started, 3), **extra)
 
 
 def _rgba(film: FilmAccumulator, transparent: bool, fallback) -> np.ndarray:

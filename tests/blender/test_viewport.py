@@ -16,7 +16,7 @@ pytestmark = [pytest.mark.blender, requires_bpy,
               pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc for process state")]
 
 CASES = ["progressive", "edits", "lifecycle", "crash", "export_error", "coalesce", "samples_change", "views",
-         "borders"]
+         "borders", "denoise"]
 
 
 @pytest.fixture(scope="module")
@@ -137,3 +137,18 @@ def test_render_borders_crop_and_pixel_size(results):
     assert region["crop"] == [16, 0, 32, 12]
     assert region["alpha_rows"] == [16] * 12 + [0] * 12
     assert r["pixel_size_2"] == [16, 12, 32, 24]         # half resolution, drawn over the region
+
+
+def test_denoise_viewport_draws_the_final_frame_denoised(results):
+    r = result_of(results, "denoise")
+    assert r["features"] and r["finite"] and r["same_frame"]
+    assert r["noisy_first_equal"]                  # drawn as rendered first, then denoised
+    assert r["status_on"] == "Lamina | Sample 4/4 | Done, denoised"
+    assert r["status_off"] == "Lamina | Sample 4/4 | Done"
+    assert not any(r["earlier_final"])             # only the final frame is denoised
+    # OIDN takes the 4-spp image closer to the converged one (1024 spp, the same session).
+    print(f"\nviewport 96×72, 4 spp: albedo {r['albedo_mean']}, normal z {r['normal_z_mean']:.3f}; RMSE against 1024 spp noisy {r['noisy_rmse']:.4f}, denoised "
+          f"{r['denoised_rmse']:.4f}; neighbour differences {r['noisy_roughness']:.4f} -> {r['denoised_roughness']:.4f}")
+    assert r["denoised_rmse"] < 0.8 * r["noisy_rmse"], r
+    assert r["denoised_roughness"] < r["noisy_roughness"], r
+    assert abs(r["denoised_mean"] / r["noisy_mean"] - 1.0) < 0.1, r

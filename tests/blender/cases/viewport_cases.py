@@ -652,3 +652,59 @@ def demo_latency(tmp, width=960, height=540, samples=4, repeats=3, standby=True)
         d.engine.viewport.free()
         mat.lamina.layers[0].ior = 1.5
     return runs
+
+
+def _roughness(pixels):
+    """Mean absolute difference between horizontal neighbours (luminance): noise shows here."""
+    lum = pixels[..., :3].mean(axis=2)
+    return float(np.abs(np.diff(lum, axis=1)).mean())
+
+
+def denoise(tmp):
+    """Render › Denoise Viewport: the final frame (Viewport Samples reached) is drawn denoised,
+    the frames before it as rendered; switched off, the same final frame is drawn as rendered."""
+    sc = _scene(samples=4)
+    sc.lamina.use_viewport_denoising = True
+    d = Driver(sc, width=96, height=72)
+    d.update()
+    uploads = []
+    original = RecordingDrawer.upload
+
+    def upload(self, frame):
+        uploads.append(frame)
+        original(self, frame)
+
+    RecordingDrawer.upload = upload
+    try:
+        d.run(lambda d: d.client.idle and uploads and uploads[-1].final and d.engine.viewport.denoised)
+        noisy_first = uploads[-2]
+        status_on = d.engine.stats[-1] if d.engine.stats else None
+        shown = uploads[-1]
+        earlier = [bool(f.final) for f in uploads[:-2]]
+        sc.lamina.use_viewport_denoising = False
+        d.update()
+        d.draw()
+        after_off = uploads[-1]
+        status_off = d.engine.stats[-1] if d.engine.stats else None
+        # The converged image: more Viewport Samples continue the same accumulation.
+        sc.lamina.viewport_samples = 1024
+        d.update()
+        d.run(lambda d: d.client.idle and uploads[-1].final and uploads[-1].spp == 1024)
+        converged = uploads[-1].pixels[..., :3]
+    finally:
+        RecordingDrawer.upload = original
+    from lamina.addon.engine.session_client import read_frame_file  # noqa: F401 (import check)
+    out = {"status_on": status_on, "status_off": status_off,
+           "denoised_roughness": _roughness(shown.pixels), "noisy_roughness": _roughness(after_off.pixels),
+           "denoised_rmse": float(np.sqrt(np.mean((shown.pixels[..., :3] - converged) ** 2))),
+           "noisy_rmse": float(np.sqrt(np.mean((after_off.pixels[..., :3] - converged) ** 2))),
+           "same_frame": shown.frame == after_off.frame == noisy_first.frame,
+           "noisy_first_equal": bool(np.array_equal(noisy_first.pixels, after_off.pixels)),
+           "features": shown.features is not None,
+           "denoised_mean": float(shown.pixels[..., :3].mean()), "noisy_mean": float(after_off.pixels[..., :3].mean()),
+           "finite": bool(np.isfinite(shown.pixels).all()),
+           "albedo_mean": [float(v) for v in shown.features[..., :3].reshape(-1, 3).mean(axis=0)],
+           "normal_z_mean": float(shown.features[..., 5].mean()),
+           "earlier_final": earlier}
+    d.engine.viewport.free()
+    return out
