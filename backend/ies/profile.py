@@ -20,7 +20,7 @@ from .lm63 import LM63File, describe_symmetry, parse_lm63, read_lm63, to_cycles_
 #: Luminous efficacy [lm/W] Cycles assumes to turn candela into W/sr (D65 white; util/ies.cpp).
 LUMINOUS_EFFICACY = 177.83
 
-TWO_PI = 2.0 * np.pi
+from ..kernels.consts import TWO_PI
 _ANGLE_EPS = 1e-7  # rad; Cycles' test for "the table reaches the pole / covers 360°"
 
 

@@ -37,11 +37,16 @@ from .layered.table import H_BUMP
 from .lights import dispatch as ld
 from .lights import mesh as _mesh
 from .lights.common import C_POWER
+from .mis import power_heuristic
 from .rng import DIM_NEXT_LIGHT, SLOT_BSDF, SLOT_LIGHT, SLOT_LIGHT_PICK, SLOT_MIX, SLOT_RR, bounce_dim, uniform
 from .sampler import get2, pixel_seed
 from .soup import ROW_EMIT, ROW_MAT, ROW_N, ROW_NG, ROW_TAN, ROW_UV, ROW_V
 from .textures import lookup_gradient
 from .vec import cross as _cross
+from .vec import dot as _dot
+from .vec import shading_frame as _frame
+from .vec import to_local as _local
+from .vec import to_world as _world
 
 SHADOW_EPS = 1e-4   # shadow rays stop this fraction short of the light (not its own surface)
 # Ray offsets (geometry/accel.py): along the geometric normal by a multiple of the float32
@@ -88,14 +93,6 @@ _NO_DUV = (0.0,) * 6         # a layered lane's dP/du, dP/dv where its stack has
 MAX_MIX_DEPTH = 4            # materials/mix.MAX_DEPTH: nested Mix / Add Shaders
 ONE_MINUS_EPS = 1.0 - 2.0 ** -53
 TABLE_NEE = 2                # light samples at a tabulated stack: this many times glossy_nee
-
-
-@kernel
-def power_heuristic(a, b):
-    """a²/(a² + b²), 0/0 → 0."""
-    a2 = a * a
-    den = a2 + b * b
-    return a2 / den if den > 0.0 else 0.0
 
 
 @kernel
@@ -220,11 +217,6 @@ def _interp3(rows, prim, c, b1, b2):
     return (a0 + b1 * (np.float64(rows[prim, c + 3]) - a0) + b2 * (np.float64(rows[prim, c + 6]) - a0),
             a1 + b1 * (np.float64(rows[prim, c + 4]) - a1) + b2 * (np.float64(rows[prim, c + 7]) - a1),
             a2 + b1 * (np.float64(rows[prim, c + 5]) - a2) + b2 * (np.float64(rows[prim, c + 8]) - a2))
-
-
-@kernel
-def _dot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 @kernel
@@ -383,35 +375,6 @@ def _local_uv_derivatives(R, pr, fs, ft, ns):
     a = _local(fs, ft, ns, dpdu)
     b = _local(fs, ft, ns, dpdv)
     return (a[0], a[1], a[2], b[0], b[1], b[2])
-
-
-@kernel
-def _frame(n, tangent):
-    """(s, t, n): Gram-Schmidt the UV tangent against n; Duff et al.'s frame where it is
-    undefined (no UVs: zero tangent)."""
-    d = _dot(tangent, n)
-    s = (tangent[0] - d * n[0], tangent[1] - d * n[1], tangent[2] - d * n[2])
-    ls = math.sqrt(_dot(s, s))
-    if ls > 1e-8:
-        s = (s[0] / ls, s[1] / ls, s[2] / ls)
-    else:
-        sign = 1.0 if n[2] >= 0.0 else -1.0
-        a = -1.0 / (sign + n[2])
-        s = (1.0 + sign * n[0] * n[0] * a, sign * (n[0] * n[1] * a), -sign * n[0])
-    t = (n[1] * s[2] - n[2] * s[1], n[2] * s[0] - n[0] * s[2], n[0] * s[1] - n[1] * s[0])
-    return s, t
-
-
-@kernel
-def _local(s, t, n, v):
-    return (_dot(v, s), _dot(v, t), _dot(v, n))
-
-
-@kernel
-def _world(s, t, n, v):
-    return (v[0] * s[0] + v[1] * t[0] + v[2] * n[0],
-            v[0] * s[1] + v[1] * t[1] + v[2] * n[1],
-            v[0] * s[2] + v[1] * t[2] + v[2] * n[2])
 
 
 @kernel

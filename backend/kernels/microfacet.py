@@ -30,7 +30,7 @@ from .microfacet_codes import (ALPHA_MIN, BECKMANN, DISTRIBUTION_CODES, GGX,  # 
                                HEIGHT_CORRELATED, MASKING_CODES, SEPARABLE)
 
 _TINY = 1e-300
-INV_PI = 1.0 / math.pi
+from .consts import INV_PI
 
 
 @kernel

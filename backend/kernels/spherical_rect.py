@@ -25,7 +25,7 @@ from .jit import kernel
 from .turns import cos_sin_turns
 
 INF = math.inf
-INV_2PI = 0.5 / math.pi
+from .consts import INV_2PI
 
 
 @kernel

@@ -99,17 +99,21 @@ def coordinate_system(n):
 
 
 @kernel
-def frame_from_normal_tangent(n, tangent):
-    """(s, t, n): Gram-Schmidt the tangent against unit n; Duff's tangent where it degenerates
-    (meshes without UVs have a zero tangent)."""
+def shading_frame(n, tangent):
+    """(s, t) completing unit n to the shading frame: the tangent Gram-Schmidt'ed against n;
+    Duff et al.'s frame (coordinate_system's s) where the tangent is undefined (a mesh without
+    UVs has a zero tangent). Divides by |s| rather than multiplying by its inverse: the bounce
+    loop's images are defined by this rounding (kernels/integrator.py)."""
     d = dot(tangent, n)
     s = (tangent[0] - d * n[0], tangent[1] - d * n[1], tangent[2] - d * n[2])
-    ls = length(s)
+    ls = math.sqrt(dot(s, s))
     if ls > 1e-8:
-        s = mul(s, 1.0 / ls)
+        s = (s[0] / ls, s[1] / ls, s[2] / ls)
     else:
-        s, _ = coordinate_system(n)
-    return s, cross(n, s), n
+        sign = 1.0 if n[2] >= 0.0 else -1.0
+        a = -1.0 / (sign + n[2])
+        s = (1.0 + sign * n[0] * n[0] * a, sign * (n[0] * n[1] * a), -sign * n[0])
+    return s, cross(n, s)
 
 
 @kernel

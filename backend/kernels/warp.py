@@ -10,9 +10,7 @@ import math
 from .jit import kernel
 from .turns import cos_sin_turns
 
-PI = math.pi
-INV_PI = 1.0 / math.pi
-INV_4PI = 0.25 / math.pi
+from .consts import PI
 
 
 @kernel

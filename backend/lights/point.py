@@ -25,7 +25,7 @@ from . import register
 from .base import Light
 from .common import column, parse_common, power_luminance
 
-INV_4PI = 0.25 / np.pi
+from ..kernels.consts import INV_4PI
 
 
 class PointLight(Light):

@@ -10,8 +10,7 @@ import numpy as np
 
 from ..kernels import sampling_batch as _b
 
-INV_PI = 1.0 / np.pi
-INV_4PI = 0.25 / np.pi
+from ..kernels.consts import INV_4PI, INV_PI
 
 
 def _u(u):

@@ -59,7 +59,7 @@ from ..fresnel import dielectric as fresnel
 from ..jit import kernel
 from ..turns import cos_sin_turns
 
-INV_PI = 1.0 / math.pi
+from ..consts import INV_PI
 ZERO3 = (0.0, 0.0, 0.0)
 NMU = 65                      # μ nodes per table (linear interpolation; tests state the error)
 NU = 64                       # intervals in μ² of the exit distribution

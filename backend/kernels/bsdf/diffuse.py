@@ -3,12 +3,9 @@ surface is handled by mirroring both directions (the integrator already turns th
 the viewer; this keeps the BSDF usable from either side inside layered stacks)."""
 from __future__ import annotations
 
-import math
-
+from ..consts import INV_PI
 from ..jit import kernel
 from ..warp import cosine_hemisphere
-
-INV_PI = 1.0 / math.pi
 
 
 @kernel

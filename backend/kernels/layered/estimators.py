@@ -52,6 +52,7 @@ from . import lobes as lb
 from . import phase as ph
 from . import walk as wk
 from ..jit import inlined, kernel
+from ..mis import power_heuristic as power
 from .table import (ABSORBING, APPROX, BI, EMPTY, LOBES, STOCHASTIC, H_ETA_BOTTOM, H_ETA_SLAB, H_ETA_TOP, H_EST,
                     H_MAXV, H_MIS, H_N, H_NESTED, H_PDF, H_PDFC, H_TRANS, HEAD, M_DIR, M_GREY, M_KIND, M_PH,
                     M_TAU, MED0, MSTRIDE, SCATTERING)
@@ -102,13 +103,6 @@ def _exit_side(B, N, wo, R):
     u1 = ph.rnd(R)
     u2 = ph.rnd(R)
     return exit_top, E, slab_E, face, _ifo(E), u0, u1, u2
-
-
-@kernel(error_model="numpy")
-def power(a, b):
-    a2 = a * a
-    den = a2 + b * b
-    return a2 / den if den > 0.0 else 0.0
 
 
 @kernel(error_model="numpy")

@@ -39,7 +39,7 @@ NULL = 5
 IF_KIND, IF_DIST, IF_MASK, IF_P, IF_FRAMED, IF_N, IF_S, IF_T, IF_DELTA, IF_TRANS = \
     0, 1, 2, 3, 15, 16, 19, 22, 25, 26
 STRIDE = 28
-INV_PI = 1.0 / math.pi
+from ..consts import INV_PI
 NAN = math.nan
 
 

@@ -49,7 +49,7 @@ from . import iface as ki
 from .table import H_ETA_BOTTOM, H_ETA_SLAB, H_ETA_TOP, H_N, HEAD
 from .walk import GRAZING, transmittance
 
-INV_PI = 1.0 / math.pi
+from ..consts import INV_PI
 NAN = math.nan
 
 

@@ -28,12 +28,13 @@ import math
 
 import numpy as np
 
+from ..consts import INV_2PI, INV_4PI
 from ..jit import kernel
 from ..rng import uniform
 from ..turns import cos_sin_turns
 from .phase_layout import (  # noqa: F401 (the layout, re-exported for the kernels' callers)
     COLS, FB_AXIS, FB_CI, FB_E1, FB_E2, FB_INV_S, FB_LNNORM, FB_QSCALE, FB_ROW, FB_S, FB_W, FIBER,
-    FIRST_MEDIUM_ROW, G_MAX, H_S, HG, HG_G, INV_2PI, INV_4PI, ISOTROPIC, KINDS, LN_ROW, LN_S0,
+    FIRST_MEDIUM_ROW, G_MAX, H_S, HG, HG_G, ISOTROPIC, KINDS, LN_ROW, LN_S0,
     MAX_CANDIDATES, PK, ROWS, S_MAX, S_MIN, SG_B, SG_DET, SGGX, SGGX_ROUGHNESS_MIN, SIZE,
     UNIFORM_ABOVE, VMF, VMF_K, VMF_NORM)
 

@@ -15,8 +15,6 @@ FB_S, FB_INV_S, FB_QSCALE, FB_LNNORM, FB_AXIS, FB_E1, FB_E2, FB_ROW, FB_CI, FB_W
 SG_B, SG_DET = 1, 7
 SIZE = 20
 
-INV_4PI = 0.25 / math.pi
-INV_2PI = 0.5 / math.pi
 G_MAX = 0.999             # |g| clamp (pbrt-v4 issue #333: NaNs at g = ±1)
 
 # Fiber table grid (backend/layered/phase/fiber.py reads these)

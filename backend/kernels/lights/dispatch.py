@@ -33,7 +33,7 @@ profiles.py, sun.py, environment.py, mesh.py).
 from __future__ import annotations
 
 from ..jit import inlined
-from ..warp import INV_4PI
+from ..consts import INV_4PI
 from . import area as _area
 from . import environment as _env
 from . import mesh as _mesh

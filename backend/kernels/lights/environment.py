@@ -27,7 +27,8 @@ import math
 from .. import discrete as _d
 from ..jit import kernel
 from ..turns import cos_sin_turns
-from ..warp import INV_4PI, uniform_sphere
+from ..consts import INV_4PI
+from ..warp import uniform_sphere
 from .common import FIRST, I_FIRST, INF, get3, mat3, unit_or_zero
 
 W_RADIANCE = FIRST       # constant world: 3, [W m⁻² sr⁻¹]

@@ -29,7 +29,7 @@ from ..jit import kernel
 WRAP_H = 1        # the table covers 0..360°
 WRAP_VLOW = 2     # it starts at the pole v = 0
 WRAP_VHIGH = 4    # it ends at the pole v = 180°
-TWO_PI = 2.0 * math.pi
+from ..consts import TWO_PI
 
 
 @kernel

@@ -32,7 +32,8 @@ import math
 
 from ..jit import kernel
 from ..vec import coordinate_system, cross, dot
-from ..warp import INV_4PI, cone_pdf, disk_concentric, uniform_sphere
+from ..consts import INV_4PI
+from ..warp import cone_pdf, disk_concentric, uniform_sphere
 from . import ies as _ies
 from .common import (FIRST, I_FIRST, INF, ZERO3, get3, mat3, ray_sphere, sample_cone,
                      sin2_to_one_minus_cos, unit_or_zero)

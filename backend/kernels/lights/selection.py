@@ -31,7 +31,7 @@ from .common import (C_POWER, C_SEL_AREA, C_SEL_INTENSITY, C_SEL_NORMAL, C_SEL_P
                      I_SEL, SEL_ONE_SIDED, SEL_ONE_SIDED_PROFILE, SEL_PROFILE, SEL_UNIFORM)
 from .point import directional_factor
 
-INV_PI = 1.0 / math.pi
+from ..consts import INV_PI
 
 
 @inlined

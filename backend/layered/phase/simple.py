@@ -16,7 +16,6 @@ import numpy as np
 from ...kernels.layered import phase_layout as kp
 from .base import Phase, lane_count, lanes, scalar_lanes
 
-INV_4PI = 0.25 / np.pi
 G_MAX = kp.G_MAX  # |g| clamp: pbrt-v4 issue #333 shows NaNs at g = ±1
 
 
