@@ -4,68 +4,59 @@ from __future__ import annotations
 
 from . import microfacet as mf
 from .jit import kernel
-
-
-@kernel
-def _a(a, i):
-    return a[i if a.shape[0] > 1 else 0]
-
-
-@kernel
-def _v(a, i):
-    return (a[i, 0], a[i, 1], a[i, 2])
+from .lanes import at, row3
 
 
 @kernel
 def D(dist, au, av, m, out):
     for i in range(out.shape[0]):
-        out[i] = mf.D(dist, _a(au, i), _a(av, i), _v(m, i))
+        out[i] = mf.D(dist, at(au, i), at(av, i), row3(m, i))
 
 
 @kernel
 def smith_lambda(dist, au, av, w, out):
     for i in range(out.shape[0]):
-        out[i] = mf.smith_lambda(dist, _a(au, i), _a(av, i), _v(w, i))
+        out[i] = mf.smith_lambda(dist, at(au, i), at(av, i), row3(w, i))
 
 
 @kernel
 def G1(dist, au, av, w, m, out):
     for i in range(out.shape[0]):
-        out[i] = mf.G1(dist, _a(au, i), _a(av, i), _v(w, i), _v(m, i))
+        out[i] = mf.G1(dist, at(au, i), at(av, i), row3(w, i), row3(m, i))
 
 
 @kernel
 def G(dist, masking, au, av, wi, wo, m, out):
     for i in range(out.shape[0]):
-        out[i] = mf.G(dist, masking, _a(au, i), _a(av, i), _v(wi, i), _v(wo, i), _v(m, i))
+        out[i] = mf.G(dist, masking, at(au, i), at(av, i), row3(wi, i), row3(wo, i), row3(m, i))
 
 
 @kernel
 def sample_ndf(dist, au, av, u, out):
     for i in range(out.shape[0]):
-        out[i, 0], out[i, 1], out[i, 2] = mf.sample_ndf(dist, _a(au, i), _a(av, i), u[i, 0], u[i, 1])
+        out[i, 0], out[i, 1], out[i, 2] = mf.sample_ndf(dist, at(au, i), at(av, i), u[i, 0], u[i, 1])
 
 
 @kernel
 def pdf_ndf(dist, au, av, m, out):
     for i in range(out.shape[0]):
-        out[i] = mf.pdf_ndf(dist, _a(au, i), _a(av, i), _v(m, i))
+        out[i] = mf.pdf_ndf(dist, at(au, i), at(av, i), row3(m, i))
 
 
 @kernel
 def sample_visible(dist, au, av, wi, u, out):
     for i in range(out.shape[0]):
-        out[i, 0], out[i, 1], out[i, 2] = mf.sample_visible(dist, _a(au, i), _a(av, i), _v(wi, i),
+        out[i, 0], out[i, 1], out[i, 2] = mf.sample_visible(dist, at(au, i), at(av, i), row3(wi, i),
                                                             u[i, 0], u[i, 1])
 
 
 @kernel
 def pdf_visible(dist, au, av, wi, m, out):
     for i in range(out.shape[0]):
-        out[i] = mf.pdf_visible(dist, _a(au, i), _a(av, i), _v(wi, i), _v(m, i))
+        out[i] = mf.pdf_visible(dist, at(au, i), at(av, i), row3(wi, i), row3(m, i))
 
 
 @kernel
 def G1_separable(dist, au, av, w, m, out):
     for i in range(out.shape[0]):
-        out[i] = mf.G1_separable(dist, _a(au, i), _a(av, i), _v(w, i), _v(m, i))
+        out[i] = mf.G1_separable(dist, at(au, i), at(av, i), row3(w, i), row3(m, i))

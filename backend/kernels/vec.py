@@ -129,19 +129,6 @@ def to_world(s, t, n, v):
 
 
 @kernel
-def row3(a, i):
-    """Row i of an (n, 3) array as a tuple."""
-    return (a[i, 0], a[i, 1], a[i, 2])
-
-
-@kernel
-def set_row3(a, i, v):
-    a[i, 0] = v[0]
-    a[i, 1] = v[1]
-    a[i, 2] = v[2]
-
-
-@kernel
 def safe_div(a, b):
     """a/b, 0 where b == 0."""
     return a / b if b != 0.0 else 0.0

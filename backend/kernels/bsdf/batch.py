@@ -9,28 +9,13 @@ from __future__ import annotations
 from . import conductor, dielectric, diffuse
 from .. import materials as km
 from ..jit import kernel
-
-
-@kernel
-def _rgb(a, i):
-    j = i if a.shape[0] > 1 else 0
-    return (a[j, 0], a[j, 1], a[j, 2])
-
-
-@kernel
-def _s(a, i):
-    return a[i if a.shape[0] > 1 else 0]
-
-
-@kernel
-def _dir(a, i):
-    return (a[i, 0], a[i, 1], a[i, 2])
+from ..lanes import at, rgb_at, row3
 
 
 @kernel
 def diffuse_eval_pdf(color, wi, wo, f, pdf):
     for i in range(wi.shape[0]):
-        v, p = diffuse.eval_pdf(_rgb(color, i), _dir(wi, i), _dir(wo, i))
+        v, p = diffuse.eval_pdf(rgb_at(color, i), row3(wi, i), row3(wo, i))
         f[i, 0], f[i, 1], f[i, 2] = v
         pdf[i] = p
 
@@ -38,7 +23,7 @@ def diffuse_eval_pdf(color, wi, wo, f, pdf):
 @kernel
 def diffuse_sample(color, wi, u, wo, weight, pdf, delta):
     for i in range(wi.shape[0]):
-        w, v, p, d = diffuse.sample(_rgb(color, i), _dir(wi, i), u[i, 0], u[i, 1])
+        w, v, p, d = diffuse.sample(rgb_at(color, i), row3(wi, i), u[i, 0], u[i, 1])
         wo[i, 0], wo[i, 1], wo[i, 2] = w
         weight[i, 0], weight[i, 1], weight[i, 2] = v
         pdf[i] = p
@@ -48,8 +33,8 @@ def diffuse_sample(color, wi, u, wo, weight, pdf, delta):
 @kernel
 def conductor_eval_pdf(eta, k, tint, au, av, smooth, dist, masking, wi, wo, f, pdf):
     for i in range(wi.shape[0]):
-        v, p = conductor.eval_pdf(_rgb(eta, i), _rgb(k, i), _rgb(tint, i), _s(au, i), _s(av, i),
-                                  _s(smooth, i), dist, masking, _dir(wi, i), _dir(wo, i))
+        v, p = conductor.eval_pdf(rgb_at(eta, i), rgb_at(k, i), rgb_at(tint, i), at(au, i), at(av, i),
+                                  at(smooth, i), dist, masking, row3(wi, i), row3(wo, i))
         f[i, 0], f[i, 1], f[i, 2] = v
         pdf[i] = p
 
@@ -57,8 +42,8 @@ def conductor_eval_pdf(eta, k, tint, au, av, smooth, dist, masking, wi, wo, f, p
 @kernel
 def conductor_sample(eta, k, tint, au, av, smooth, dist, masking, wi, u, wo, weight, pdf, delta):
     for i in range(wi.shape[0]):
-        w, v, p, d = conductor.sample(_rgb(eta, i), _rgb(k, i), _rgb(tint, i), _s(au, i), _s(av, i),
-                                      _s(smooth, i), dist, masking, _dir(wi, i), u[i, 0], u[i, 1])
+        w, v, p, d = conductor.sample(rgb_at(eta, i), rgb_at(k, i), rgb_at(tint, i), at(au, i), at(av, i),
+                                      at(smooth, i), dist, masking, row3(wi, i), u[i, 0], u[i, 1])
         wo[i, 0], wo[i, 1], wo[i, 2] = w
         weight[i, 0], weight[i, 1], weight[i, 2] = v
         pdf[i] = p
@@ -68,14 +53,14 @@ def conductor_sample(eta, k, tint, au, av, smooth, dist, masking, wi, u, wo, wei
 @kernel
 def conductor_albedo(eta, k, tint, out):
     for i in range(out.shape[0]):
-        out[i, 0], out[i, 1], out[i, 2] = conductor.albedo(_rgb(eta, i), _rgb(k, i), _rgb(tint, i))
+        out[i, 0], out[i, 1], out[i, 2] = conductor.albedo(rgb_at(eta, i), rgb_at(k, i), rgb_at(tint, i))
 
 
 @kernel
 def dielectric_eval_pdf(eta, tint, au, av, smooth, dist, masking, mode, wi, wo, f, pdf):
     for i in range(wi.shape[0]):
-        v, p = dielectric.eval_pdf(_s(eta, i), _rgb(tint, i), _s(au, i), _s(av, i), _s(smooth, i),
-                                   dist, masking, mode, _dir(wi, i), _dir(wo, i))
+        v, p = dielectric.eval_pdf(at(eta, i), rgb_at(tint, i), at(au, i), at(av, i), at(smooth, i),
+                                   dist, masking, mode, row3(wi, i), row3(wo, i))
         f[i, 0], f[i, 1], f[i, 2] = v
         pdf[i] = p
 
@@ -83,8 +68,8 @@ def dielectric_eval_pdf(eta, tint, au, av, smooth, dist, masking, mode, wi, wo, 
 @kernel
 def dielectric_sample(eta, tint, au, av, smooth, dist, masking, mode, wi, u, wo, weight, pdf, delta):
     for i in range(wi.shape[0]):
-        w, v, p, d = dielectric.sample(_s(eta, i), _rgb(tint, i), _s(au, i), _s(av, i), _s(smooth, i),
-                                       dist, masking, mode, _dir(wi, i), u[i, 0], u[i, 1], u[i, 2])
+        w, v, p, d = dielectric.sample(at(eta, i), rgb_at(tint, i), at(au, i), at(av, i), at(smooth, i),
+                                       dist, masking, mode, row3(wi, i), u[i, 0], u[i, 1], u[i, 2])
         wo[i, 0], wo[i, 1], wo[i, 2] = w
         weight[i, 0], weight[i, 1], weight[i, 2] = v
         pdf[i] = p
@@ -105,7 +90,7 @@ def row_eval_pdf(MT, TX, m, uv, mode, wi, wo, f, pdf):
     for i in range(wi.shape[0]):
         u, v = _uv(uv, i)
         p = km.bind(MT, TX, m, u, v)
-        val, q = km.eval_pdf(MT.tables, MT.kind[m], MT.dist[m], MT.masking[m], p, mode, _dir(wi, i), _dir(wo, i))
+        val, q = km.eval_pdf(MT.tables, MT.kind[m], MT.dist[m], MT.masking[m], p, mode, row3(wi, i), row3(wo, i))
         f[i, 0], f[i, 1], f[i, 2] = val
         pdf[i] = q
 
@@ -115,7 +100,7 @@ def row_sample(MT, TX, m, uv, mode, wi, u, wo, weight, pdf, delta):
     for i in range(wi.shape[0]):
         a, b = _uv(uv, i)
         p = km.bind(MT, TX, m, a, b)
-        w, v, q, d = km.sample(MT.tables, MT.kind[m], MT.dist[m], MT.masking[m], p, mode, _dir(wi, i),
+        w, v, q, d = km.sample(MT.tables, MT.kind[m], MT.dist[m], MT.masking[m], p, mode, row3(wi, i),
                                u[i, 0], u[i, 1], u[i, 2])
         wo[i, 0], wo[i, 1], wo[i, 2] = w
         weight[i, 0], weight[i, 1], weight[i, 2] = v
@@ -128,4 +113,4 @@ def row_albedo(MT, TX, m, uv, wi, out):
     for i in range(wi.shape[0]):
         u, v = _uv(uv, i)
         p = km.bind(MT, TX, m, u, v)
-        out[i, 0], out[i, 1], out[i, 2] = km.albedo(MT.tables, MT.kind[m], p, _dir(wi, i))
+        out[i, 0], out[i, 1], out[i, 2] = km.albedo(MT.tables, MT.kind[m], p, row3(wi, i))

@@ -17,33 +17,18 @@ from . import ies as _ies
 from . import point as _point
 from . import profiles as _prof
 from . import selection as _sel
-from ..jit import inlined, kernel
+from ..jit import kernel
+from ..lanes import at, row3, set_row3
 from .spot import attenuation
-
-@inlined
-def _l(li, i):
-    return li[i if li.shape[0] > 1 else 0]
-
-
-@inlined
-def _v(a, i):
-    return (a[i, 0], a[i, 1], a[i, 2])
-
-
-@inlined
-def _put(a, i, v):
-    a[i, 0] = v[0]
-    a[i, 1] = v[1]
-    a[i, 2] = v[2]
 
 
 @kernel(nogil=True)
 def sample(lt, tx, li, p, u, wi, dist, value, pdf, delta):
     for i in range(p.shape[0]):
-        w, t, val, pd, dl = _dispatch.sample(lt, tx, _l(li, i), _v(p, i), u[i, 0], u[i, 1])
-        _put(wi, i, w)
+        w, t, val, pd, dl = _dispatch.sample(lt, tx, at(li, i), row3(p, i), u[i, 0], u[i, 1])
+        set_row3(wi, i, w)
         dist[i] = t
-        _put(value, i, val)
+        set_row3(value, i, val)
         pdf[i] = pd
         delta[i] = dl
 
@@ -51,68 +36,68 @@ def sample(lt, tx, li, p, u, wi, dist, value, pdf, delta):
 @kernel(nogil=True)
 def intersect(lt, li, o, d, tmax, out):
     for i in range(o.shape[0]):
-        out[i] = _dispatch.intersect(lt, _l(li, i), _v(o, i), _v(d, i), tmax[i])
+        out[i] = _dispatch.intersect(lt, at(li, i), row3(o, i), row3(d, i), tmax[i])
 
 
 @kernel(nogil=True)
 def eval_hit(lt, li, o, d, t, out):
     for i in range(o.shape[0]):
-        _put(out, i, _dispatch.eval_hit(lt, _l(li, i), _v(o, i), _v(d, i), t[i]))
+        set_row3(out, i, _dispatch.eval_hit(lt, at(li, i), row3(o, i), row3(d, i), t[i]))
 
 
 @kernel(nogil=True)
 def pdf_hit(lt, li, o, d, t, out):
     for i in range(o.shape[0]):
-        out[i] = _dispatch.pdf_hit(lt, _l(li, i), _v(o, i), _v(d, i), t[i])
+        out[i] = _dispatch.pdf_hit(lt, at(li, i), row3(o, i), row3(d, i), t[i])
 
 
 @kernel(nogil=True)
 def eval_escaped(lt, li, d, out):
     for i in range(d.shape[0]):
-        _put(out, i, _dispatch.eval_escaped(lt, _l(li, i), _v(d, i)))
+        set_row3(out, i, _dispatch.eval_escaped(lt, at(li, i), row3(d, i)))
 
 
 @kernel(nogil=True)
 def pdf_escaped(lt, li, d, out):
     for i in range(d.shape[0]):
-        out[i] = _dispatch.pdf_escaped(lt, _l(li, i), _v(d, i))
+        out[i] = _dispatch.pdf_escaped(lt, at(li, i), row3(d, i))
 
 
 @kernel(nogil=True)
 def mesh_pdf_hit(lt, li, o, d, t, tri, out):
     for i in range(o.shape[0]):
-        out[i] = _dispatch.mesh_pdf_hit(lt, _l(li, i), _v(o, i), _v(d, i), t[i], tri[i])
+        out[i] = _dispatch.mesh_pdf_hit(lt, at(li, i), row3(o, i), row3(d, i), t[i], tri[i])
 
 
 @kernel(nogil=True)
 def mesh_eval(lt, li, d, tri, out):
     for i in range(d.shape[0]):
-        _put(out, i, _dispatch.mesh_eval(lt, _l(li, i), _v(d, i), tri[i]))
+        set_row3(out, i, _dispatch.mesh_eval(lt, at(li, i), row3(d, i), tri[i]))
 
 
 @kernel(nogil=True)
 def select(lt, p, u, li, prob):
     for i in range(p.shape[0]):
-        li[i], prob[i] = _dispatch.select(lt, _v(p, i), u[i])
+        li[i], prob[i] = _dispatch.select(lt, row3(p, i), u[i])
 
 
 @kernel(nogil=True)
 def select_prob(lt, p, li, out):
     for i in range(p.shape[0]):
-        out[i] = _dispatch.select_prob(lt, _v(p, i), _l(li, i))
+        out[i] = _dispatch.select_prob(lt, row3(p, i), at(li, i))
 
 
 @kernel(nogil=True)
 def received_power(lt, j, p, out):
     for i in range(p.shape[0]):
-        out[i] = _sel.received_power(lt, j, _v(p, i))
+        out[i] = _sel.received_power(lt, j, row3(p, i))
 
 
 @kernel(nogil=True)
 def directional_factor(lt, li, w, out):
     """Spot/IES factor of a point light on emission along world directions w."""
     for i in range(w.shape[0]):
-        out[i] = _point.directional_factor(lt.params, lt.iparams, li, lt.aux, _v(w, i))
+        out[i] = _point.directional_factor(lt.params, lt.iparams, li, lt.aux, row3(w, i))
 
 
 @kernel(nogil=True)
@@ -130,13 +115,13 @@ def ies_intensity_angles(block, nh, nv, flags, h, v, out):
 @kernel(nogil=True)
 def ies_intensity(block, nh, nv, flags, d, out):
     for i in range(d.shape[0]):
-        out[i] = _ies.intensity(block, 0, nh, nv, flags, _v(d, i))
+        out[i] = _ies.intensity(block, 0, nh, nv, flags, row3(d, i))
 
 
 @kernel(nogil=True)
 def ies_directions_to_angles(d, h, v):
     for i in range(d.shape[0]):
-        h[i], v[i] = _ies.directions_to_angles(_v(d, i))
+        h[i], v[i] = _ies.directions_to_angles(row3(d, i))
 
 
 @kernel(nogil=True)
