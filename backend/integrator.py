@@ -193,13 +193,15 @@ class PathTracer:
         defer_pdf = estimated_pdf and self.queue_per_lane <= DEFER_MAX_LIGHTS and not any(
             l.fills_sphere and pw > 0 for l, pw in zip(self.lights, powers))
         self.settings = ki.Settings(
-            np.uint64(s.seed), self.max_segments, s.rr_depth, float(s.clamp), bool(scene.transparent),
-            has_lights, mesh_light,
-            np.array([i for i, l in enumerate(self.lights) if l.is_hittable], np.int64),
-            np.array([i for i, l in enumerate(self.lights) if l.is_infinite], np.int64),
-            np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights] or [False]),
-            SAMPLERS[s.sampler], STRATIFIED_BOUNCES, nee_all, int(s.glossy_light_samples),
-            *self.vis.kernel_fields(), defer_pdf)
+            seed=np.uint64(s.seed), max_segments=self.max_segments, rr_depth=s.rr_depth,
+            clamp=float(s.clamp), transparent=bool(scene.transparent), has_lights=has_lights,
+            mesh_light=mesh_light,
+            hittable=np.array([i for i, l in enumerate(self.lights) if l.is_hittable], np.int64),
+            infinite=np.array([i for i, l in enumerate(self.lights) if l.is_infinite], np.int64),
+            visible_camera=np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights]
+                                    or [False]),
+            sampler=SAMPLERS[s.sampler], stratified_bounces=STRATIFIED_BOUNCES, nee_all=nee_all,
+            glossy_nee=int(s.glossy_light_samples), defer_pdf=defer_pdf, **self.vis.kernel_fields())
         self.camera = camera_vector(scene.camera)
         self.camera_motion = np.ascontiguousarray(scene.camera.motion_delta, np.float64)
         if self.motion and (self.vis.filter_shadows or self.vis.skip_hits):

@@ -85,9 +85,11 @@ class Visibility:
             shadow_linking or bool(((self.tri_vis & SHADOW) == 0).any()))
         self.mat_refl = np.array([DIFFUSE if _has_diffuse(m) else GLOSSY for m in scene.materials] or [GLOSSY],
                                  np.uint8)
-        self._fields = (self.track, self.gated, self.light_linking, self.shadow_linked, self.tri_recv,
-                        light_vis, light_recv, light_shadow, emit_vis.astype(np.uint8),
-                        np.asarray(emit_recv, np.int64), self.mat_refl)
+        self._fields = dict(track=self.track, gated=self.gated, links=self.light_linking,
+                            shadow_linked=self.shadow_linked, tri_recv=self.tri_recv,
+                            light_vis=light_vis, light_recv=light_recv, light_shadow=light_shadow,
+                            emit_vis=emit_vis.astype(np.uint8), emit_recv=np.asarray(emit_recv, np.int64),
+                            mat_refl=self.mat_refl)
         self.soup = soup
         # Shadow rays: one embree scene per blocker mask a shadow ray can carry (every light
         # without shadow linking: −1), built here so that render threads only read them.
@@ -97,8 +99,9 @@ class Visibility:
                 keep = ((self.tri_vis & SHADOW) != 0) & (((np.int64(mask) >> self.tri_block) & 1) != 0)
                 self._occluders[mask] = Occluder(soup.vertices[keep[:soup.count]])
 
-    def kernel_fields(self) -> tuple:
-        return self._fields
+    def kernel_fields(self) -> dict:
+        """The visibility and linking fields of kernels/integrator.py's ``Settings``, by name."""
+        return dict(self._fields)
 
     # ------------------------------------------------------------------ closest hits
     def skip_hidden(self, accel, o32, d32, t_in, rtype, prim, t, b1, b2):
