@@ -1,6 +1,6 @@
 """The Blender side of Lamina: properties, UI, operators, scene export and the render engine.
 
-Import ranks (lower never imports higher): ``util``/``stack_check``/``metals`` (no bpy) <
+Import ranks (lower never imports higher): ``util``/``stack_check``/``constants`` (no bpy) <
 ``props`` < ``presets.library`` < ``export`` < ``ops``/``presets.convert`` < ``engine`` < ``ui``. Modules register in that order and
 unregister in reverse. No module touches ``gpu``, keymaps or the network at register time, so
 ``blender -b`` works.

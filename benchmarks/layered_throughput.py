@@ -15,7 +15,7 @@ rounds interleaved (round r runs every stack and query once), median and spread 
 BSDF runs as compiled per-lane code (backend/kernels/layered); the kernels are loaded before
 timing.
 
-Reference (guo2018-digest §12): the authors' C++ code on one core needs ≈ 45 µs per eval for one
+Reference (the timings Guo et al. 2018 report): the authors' C++ code on one core needs ≈ 45 µs per eval for one
 slab and ≈ 110 µs for two microflake slabs, sample 10–23 µs, approximate pdf ≈ 8 µs. The goal of
 issue 16 is ≥ 10× that per core: ≤ 4.5 µs / ≤ 11 µs per eval (bidirectional), sample ≤ 2.0 µs /
 ≤ 4.5 µs, the stochastic pdf ≤ 3× the approximate one.

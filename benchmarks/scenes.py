@@ -4,7 +4,7 @@ Scenes are plain data: each builder returns a scene dict, and ``BENCH_SCENES`` l
 report renders (name, builder, sizes, sample counts). A scene that needs a material or light type
 which has not landed yet simply fails to load; the report says so and carries on.
 
-Layered stacks follow the paper's validation scenes (digest §11, Fig. 2 and the supplement): slab
+Layered stacks follow the paper's validation scenes (Guo et al. 2018, Fig. 2 and the supplement): slab
 thickness 1 so ``sigma_t`` is the optical depth at normal incidence; Beckmann microfacets with the
 separable (Smith G1·G1) masking of the reference implementation; conductor Cu.
 """
@@ -63,7 +63,7 @@ def _scene(width, height, camera, materials, meshes, objects, lights=(), world=N
 
 
 def sphere_light_power(radiance: float, radius: float) -> float:
-    """Cycles' point light of radius r has radiance P/(4π² r²) (DESIGN §3): P for a given L."""
+    """Cycles' point light of radius r has radiance P/(4π² r²) (docs/lights.md, Point lights): P for a given L."""
     return radiance * 4.0 * math.pi ** 2 * radius ** 2
 
 
@@ -77,7 +77,7 @@ def _rough(kind: str, alpha, alpha_v=None, **extra) -> dict:
 
 
 def validation_stack(which: int) -> dict:
-    """The paper's validation stacks (digest §11): 1 = Fig. 2 top, 2 and 3 = supplement,
+    """The paper's validation stacks (Guo et al. 2018): 1 = Fig. 2 top, 2 and 3 = supplement,
     4 = Fig. 2 bottom (three interfaces, two microflake media)."""
     if which in (1, 2, 3):
         sigma_t, g, cu_alpha = {1: (1.0, 0.5, 0.05), 2: (2.0, 0.9, 0.01), 3: (5.0, 0.95, 0.01)}[which]
@@ -138,7 +138,7 @@ def cornell_box(width=256, height=256, spp=16, max_bounces=6, area_light=True) -
 
 
 def validation_plane(which: int, size: int = 64, max_bounces: int = 2) -> dict:
-    """Fig. 2 of the paper (digest §11): a 400×400 plane at z = 0 seen from (0, −400, 400) with a
+    """Fig. 2 of the paper (Guo et al. 2018): a 400×400 plane at z = 0 seen from (0, −400, 400) with a
     15° field of view, lit by a sphere light of radius 10 and radiance 50 at (0, 100, 100) (on
     the mirror side). Nothing else: a path that leaves the plane escapes, so two bounces suffice."""
     camera = perspective((0, -400, 400), (0, 0, 0), 15.0, size, size)

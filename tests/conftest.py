@@ -5,7 +5,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
-DATA = ROOT / "tests" / "data"  # copies of ../shared/data (IES files, slab references)
+DATA = ROOT / "tests" / "data"  # IES files and slab references (provenance: tests/data/ies/README.md)
 os.environ.setdefault("LAMINA_ROOT", str(ROOT))
 import backend as _first  # before NumPy: one BLAS thread per process (backend/__init__.py)
 del _first

@@ -1,6 +1,6 @@
 """An independent, deliberately plain reference for IES tests (scalar loops, no shared code).
 
-Written from Cycles' description (DESIGN.md §3 and Cycles' kernel_ies_interp), differently from
+Written from Cycles' description (docs/lights.md, IES lights, and Cycles' kernel_ies_interp), differently from
 backend/ies: the full-circle table is built by *folding* each target angle back into the file's
 data (inverse mapping) rather than by mirroring arrays; directions are turned into angles with
 atan2(−x, −y); the kernel is a scalar loop per query. It only takes the raw file numbers

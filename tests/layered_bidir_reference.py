@@ -49,7 +49,7 @@ def _inv(x):
 
 class ConnView:
     """The records in lane-major order, with the MIS recurrences folded into a few coefficients
-    per vertex (connect.py): for vertex X_i with dens = dens_fwd, pf = pdf_fwd, pr = pdf_rev,
+    per vertex (backend/kernels/layered/walk.py, estimators.py): for vertex X_i with dens = dens_fwd, pf = pdf_fwd, pr = pdf_rev,
 
         inv_dens = 1/dens (0 for the first vertex: no earlier strategies move through it)
         a   = (¬δ_prev + P) / pdf_fwd_prev

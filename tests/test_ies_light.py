@@ -18,7 +18,7 @@ from backend.scene.reader import LoadContext, Node, dispatch
 from ies_reference import ReferenceProfile, rotation_matrix
 
 IES_DIR = Path(__file__).parent / "data" / "ies"
-EFFICACY = 177.83  # lm/W, DESIGN.md §3
+EFFICACY = 177.83  # lm/W, docs/lights.md, IES lights
 
 
 def _to_world(R, t, scale=(1.0, 1.0, 1.0)):

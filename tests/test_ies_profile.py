@@ -45,7 +45,7 @@ def test_angle_convention_round_trip():
     d = _random_directions(rng, 1000)
     h, v = directions_to_angles(d)
     np.testing.assert_allclose(angles_to_directions(h, v), d, atol=1e-12)
-    # DESIGN.md §3: v = 0 along local −Z; h = 0 → −Y, 90° → −X, 180° → +Y, 270° → +X
+    # docs/lights.md, IES lights: v = 0 along local −Z; h = 0 → −Y, 90° → −X, 180° → +Y, 270° → +X
     axes = np.array([[0, -1, 0], [-1, 0, 0], [0, 1, 0], [1, 0, 0], [0, 0, -1]], float)
     h, v = directions_to_angles(axes)
     np.testing.assert_allclose(np.degrees(h[:4]), [0, 90, 180, 270], atol=1e-12)

@@ -34,7 +34,7 @@ def grid_pairs(transmissive: bool):
 
 
 def test_nested_unidirectional_agrees_with_explicit_bidirectional():
-    """The paper evaluates multi-layer stacks unidirectionally through nesting (digest §6.1);
+    """The paper evaluates multi-layer stacks unidirectionally through nesting (Guo et al. 2018 §4.2.1);
     the nested reference stack (uni) and the explicit one (bi) are the same BSDF."""
     nested = load(REFERENCE_NESTED_UNI)
     explicit = load(REFERENCE)

@@ -1,7 +1,7 @@
 """Material preset library: validity, loading by name, rendering, energy, thumbnails, user presets.
 
 Independent references used here: the issue's reference stack and the Guo et al. 2018 tables
-(guo2018-digest §11) typed in below; energy conservation (R + T ≤ 1) from the sample weights of
+(Guo et al. 2018, Fig. 2 and Fig. 8; benchmarks/scenes.py validation_stack) typed in below; energy conservation (R + T ≤ 1) from the sample weights of
 each BSDF, whose mean is the directional albedo (standard error estimated from the same samples);
 the committed thumbnails for the thumbnail layout (block means compared within Monte Carlo error).
 """
@@ -107,7 +107,7 @@ def _stack(name):
 
 
 def test_guo_stacks_match_the_paper_tables():
-    # guo2018-digest §11 (Fig. 2 top, Fig. 2 bottom, Fig. 8): Beckmann everywhere, unit thickness.
+    # Guo et al. 2018 (Fig. 2 top, Fig. 2 bottom, Fig. 8): Beckmann everywhere, unit thickness.
     ifs, med = _stack("guo-coated-copper")
     assert [i.get("roughness") for i in ifs] == [0.05, 0.05] and ifs[0]["ior"] == 1.5
     assert ifs[1]["metal"] == "Cu" and med[0]["sigma_t"] * med[0]["thickness"] == 1.0

@@ -4,7 +4,7 @@ kernels/bsdf/tabulated.py) against independent references:
 1. the random walk of the very same stack (``"estimator": "bi"``): eval at direction pairs over a
    grid of stacks (smooth, nearly smooth and rough tops; conductor and diffuse bases; empty,
    absorbing and scattering slabs; three interfaces) and directions down to 87° from the normal,
-   within k standard errors of the walk's estimate plus the table's stated error (``REL``: the
+   within k standard errors of the walk's estimate plus the table's stated error (the second entry of each ``STACKS`` row: the
    error measured here, documented in docs/materials.md); the directional albedo against the
    walk's sample weights;
 2. Prahl's adding-doubling values for HG slabs (tests/data/slab, the rows with index 1: a slab

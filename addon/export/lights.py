@@ -72,7 +72,7 @@ def ies_source(light, notes: list[str]):
 
 
 # Cycles' candela → W/sr conversion (lm/W), the same number as backend/ies/profile.py's
-# LUMINOUS_EFFICACY (a test checks): I [W/sr] = power [W] × cd / 177.83 (DESIGN.md §3).
+# LUMINOUS_EFFICACY (a test checks): I [W/sr] = power [W] × cd / 177.83 (docs/lights.md, IES lights).
 LUMINOUS_EFFICACY = 177.83
 _PEAK_CACHE: dict = {}
 

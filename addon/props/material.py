@@ -28,7 +28,7 @@ class LaminaMaterialSettings(PropertyGroup):
                                        "the back is black and lights nothing", 1)),
         description="Which faces of an emissive surface emit light: the stack's emission and the "
                     "emission of its shader nodes (Emission shader, Principled Emission)")
-    # The preset this stack came from (addon/presets/link.py). While the stack is unchanged
+    # The preset this stack came from (addon/export/preset_link.py). While the stack is unchanged
     # since then (same fingerprint), export writes the preset's material JSON exactly, so
     # fields the stack editor cannot show are kept; an edit detaches it.
     preset_name: StringProperty(name="Preset", default="", options={'HIDDEN'},

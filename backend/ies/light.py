@@ -1,6 +1,6 @@
 """IES profiles on point and spot lights: the scene-file field and the directional factor.
 
-Units and frame as Cycles ≥ 4.0 (DESIGN.md §3): radiant intensity
+Units and frame as Cycles ≥ 4.0 (docs/lights.md, IES lights): radiant intensity
 
     I(ω) [W/sr] = power [W] × candela(ω_local) / 177.83 × colour  (× spot cone for spot lights)
 

@@ -6,7 +6,7 @@ Two steps, kept apart so each can be checked on its own:
   what the file says (header, keywords, tilt block, counts, angles, candela table as written).
   Anything malformed raises :class:`LM63Error` naming the file, the line and what was expected.
 * :func:`to_cycles_frame` turns that into one table on a (horizontal, vertical) angle grid in the
-  frame Cycles uses (DESIGN.md §3), with the photometric type converted, horizontal symmetry
+  frame Cycles uses (docs/lights.md, IES lights), with the photometric type converted, horizontal symmetry
   expanded and the candela multiplier × ballast factor × ballast-lamp factor applied.
 
 Conventions (they follow Cycles' ``util/ies.cpp`` of Blender 4.x/5.0 so a .blend renders alike):

@@ -8,7 +8,7 @@ Microfacet normals m lie in the upper hemisphere (m.z > 0). Directions w may lie
 Masking-shadowing (Heitz 2014, "Understanding the Masking-Shadowing Function"):
 * ``HEIGHT_CORRELATED``: G2 = 1/(1 + Λ(wi) + Λ(wo)), as Cycles, for reflection and transmission.
 * ``SEPARABLE``: G2 = G1(wi) G1(wo), Mitsuba 0.6 and Guo et al.'s reference; as there the
-  Beckmann G1 is Walter et al. 2007's rational approximation (guo2018-digest §17). Visible-normal
+  Beckmann G1 is Walter et al. 2007's rational approximation. Visible-normal
   densities always use the exact G1: it is the density the samplers draw.
 
 Sampling: ``sample_ndf`` draws m ∝ D(m) cos θm (slope-space inversion scaled by αu, αv);

@@ -81,7 +81,7 @@ def _fill_frames(v, uv, has_uv, geo_normal, tangent, area):
         geo_normal[t, 0], geo_normal[t, 1], geo_normal[t, 2] = nx * s, ny * s, nz * s
         tx = ty = tz = 0.0
         if has_uv:
-            # dP/du from the UV differences (anisotropy follows the UV map, DESIGN.md §3).
+            # dP/du from the UV differences (anisotropy follows the UV map, docs/architecture.md).
             u0, w0 = np.float64(uv[t, 0, 0]), np.float64(uv[t, 0, 1])
             du1, dv1 = np.float64(uv[t, 1, 0]) - u0, np.float64(uv[t, 1, 1]) - w0
             du2, dv2 = np.float64(uv[t, 2, 0]) - u0, np.float64(uv[t, 2, 1]) - w0

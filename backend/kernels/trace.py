@@ -1,6 +1,6 @@
 """Ray casting from compiled code: embree's ``rtcIntersect1`` / ``rtcOccluded1`` called per ray.
 
-The functions' addresses come from the embree library embreex loaded (geometry/embree_fill.py)
+The functions' addresses come from the embree library embreex loaded (backend/geometry/embree_lib.py)
 and are passed to the kernels as integers, called through ``_call_embree`` (an LLVM indirect
 call): the kernels stay cacheable (no address is compiled in) and release the GIL. This is the
 loop embreex's ``EmbreeScene.run`` runs, without its per-call result arrays, and with each ray's

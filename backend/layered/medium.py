@@ -3,7 +3,7 @@
 Conventions (shared with the layered walk)
 ------------------------------------------
 * **Depth** is normalised per slab: 0 = the slab's top (the interface above it), 1 = its bottom.
-  Geometric thickness enters only through the optical depth τ0 = sigma_t × thickness (DESIGN §3).
+  Geometric thickness enters only through the optical depth τ0 = sigma_t × thickness (docs/materials.md, Media).
 * **Directions** are propagation directions in the layer frame, (n, 3) unit float64, z = stack
   normal pointing up. A direction with d_z < 0 goes *down*, i.e. towards larger depth.
 * **Extinction along a direction**: optical thickness per unit normalised depth is
@@ -17,7 +17,7 @@ Conventions (shared with the layered walk)
 
 Parameter shapes follow ``materials.base.lanes``: constants (), (1, 3); per lane (n,), (n, 3).
 
-Free-flight sampling with chromatic σt uses the "balance" strategy of Mitsuba (digest §4): pick an
+Free-flight sampling with chromatic σt uses the "balance" strategy of Mitsuba (the chromatic extinction part of backend/kernels/layered/walk.py's docstring): pick an
 RGB channel uniformly, sample an exponential depth with that channel's rate, and weight with the
 channel-averaged densities — scatter: albedo_k σ_k e^{−σ_k Δ}/mean_j(σ_j e^{−σ_j Δ});
 pass: e^{−σ_k Δmax}/mean_j e^{−σ_j Δmax} (rates per unit depth along d). For grey media the

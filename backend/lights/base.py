@@ -1,6 +1,6 @@
 """The light interface. All queries are vectorised over n shading points, world space, float64.
 
-Units follow Cycles ≥ 4.0 (DESIGN.md §3): the scene file stores Blender's own fields (power in W,
+Units follow Cycles ≥ 4.0 (docs/lights.md): the scene file stores Blender's own fields (power in W,
 colour, strength, angles in degrees) and each light converts them to radiance/intensity here, in
 one place.
 

@@ -1,6 +1,6 @@
 """Shared pieces of the light modules: scene-field parsing and load-time helpers.
 
-Conventions (DESIGN.md §3): world space is Blender's; a light object shines down its local −Z;
+Conventions (docs/architecture.md, Frames, units, precision): world space is Blender's; a light object shines down its local −Z;
 ``to_world`` is the object's ``matrix_world``. The per-lane geometry (cones, spheres, frames)
 lives in ``backend/kernels/lights/``.
 """

@@ -1,7 +1,7 @@
 """A dielectric interface over a Lambertian body, in closed form: the two-layer stacks of every
 non-metallic Principled BSDF, evaluated without the random walk's noise.
 
-The stack (backend/layered/forms.py decides which stacks qualify): a smooth or rough isotropic
+The stack (backend/layered/coated_diffuse.py decides which stacks qualify): a smooth or rough isotropic
 dielectric of relative index η with a constant transmission tint t, an empty or purely absorbing
 slab of optical depth τ (RGB), and a Lambertian body of albedo ρ (a texture may vary it, and the
 interface's roughness). Light either reflects at the interface (its own BSDF, exactly as the

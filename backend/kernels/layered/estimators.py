@@ -2,7 +2,7 @@
 and unidirectional), the approximate and the stochastic pdf, sample, the integrator's combined
 light connection + continuation sample, and the albedo estimate.
 
-Three independent stochastic quantities, never combined as eval/pdf (digest §8, §14):
+Three independent stochastic quantities, never combined as eval/pdf (Guo et al. 2018 §4.3; backend/layered/bsdf.py):
 * ``sample``: a forward walk from wi; its throughput at the exit is the weight f·|cos|/p.
 * ``eval``: the bidirectional (default) or unidirectional estimator of f·|cos θo|.
 * ``pdf``: the approximate pdf (media removed, short interface paths, plus a constant) or the
@@ -16,7 +16,7 @@ unchanged. Sides: a reflection-only stack (opaque bottom) is two-sided — the i
 frame to the viewer — so queries with wi or wo below the surface return 0. A transmissive stack
 is one-sided: wi below the surface enters through the bottom interface.
 
-Bidirectional estimator (Guo et al. §4.2.2, digest §6.2). A walk L from wi and a walk R from wo
+Bidirectional estimator (Guo et al. §4.2.2). A walk L from wi and a walk R from wo
 (both importance transport) are connected vertex to vertex inside a slab. A full path
 x_1 … x_n (x_1 on the entry interface, x_n on the exit one) has 2(n − 1) strategies: the depth
 split s and whether the connecting direction was sampled by L (u = 0: L's sampled direction at
@@ -34,7 +34,7 @@ paths with the integrand replaced by the sampler's densities; L *is* the sampler
 connection contributes UP/Σ (UP: the product of forward/reverse ratios from the strategy to the
 all-L one) times L's ``gamma``.
 
-Unidirectional estimator (§4.2.1, digest §6.1): next-event estimation through the exit interface
+Unidirectional estimator (§4.2.1): next-event estimation through the exit interface
 E (top if wo points up, else bottom) from every walk vertex that sees E directly (a medium vertex
 of the slab next to E, or a vertex on the interface F across that slab), with one refraction
 sample through E from outside per query, and the walk's own direction as the second strategy,

@@ -12,7 +12,7 @@ One deliberate difference from the standard BSDFs: a Beckmann interface is sampl
 stack with m ∝ D(m) cos θm (closed form) instead of visible normals (a Newton iteration on erfc);
 the densities reported are this sampler's, so the walk stays exact. GGX uses visible normals.
 
-Bound interface block (``B[o + …]``, written by table.bind): kind (DIFFUSE, CONDUCTOR,
+Bound interface block (``B[o + …]``, written by kernels/layered/table.py's bind_iface): kind (DIFFUSE, CONDUCTOR,
 DIELECTRIC of kernels/materials.py, or NULL: an index-matched pass-through with a tint), the
 microfacet codes, the 12 material parameters of ``kernels.materials.bind``, and an optional
 shading normal (a per-interface normal map: the interface works in the frame (s, t, n), and a

@@ -118,7 +118,7 @@ def _scalar(values, tex, r, slot, TX, u, v):
 
 @kernel
 def _iface_params(values, tex, kind, r, TX, u, v):
-    """The 12 lane parameters of interface row r (kernels/materials.bind_row's layout)."""
+    """The 12 lane parameters of interface row r (the layout of kernels/materials.py's bind)."""
     if kind == km.DIFFUSE:
         c = _rgb(values, tex, r, km.COLOR, TX, u, v)
         return (c[0], c[1], c[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)

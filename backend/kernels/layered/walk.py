@@ -1,4 +1,4 @@
-"""The random walk through a bound layer stack (Guo et al. 2018 §4.1 / digest §5), one lane.
+"""The random walk through a bound layer stack (Guo et al. 2018 §4.1), one lane.
 
 Geometry: interface l (0 = top) lies at depth t = l; slab k fills k < t < k + 1 (normalised depth
 s = t − k inside it: 0 = its top, 1 = its bottom). Directions are in the material's local frame

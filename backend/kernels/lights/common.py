@@ -7,7 +7,7 @@ two atomic reference-count updates each (measured: 40 → 120 ns per point-light
 selection reads them without knowing the kind); each kind module defines its own columns from
 ``FIRST`` / ``I_FIRST`` on.
 
-Conventions (DESIGN.md §3): world space is Blender's (right-handed, Z up, metres); a light
+Conventions (docs/architecture.md, Frames, units, precision): world space is Blender's (right-handed, Z up, metres); a light
 object shines down its local −Z; directions are unit 3-tuples, float64.
 """
 from __future__ import annotations

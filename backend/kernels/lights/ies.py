@@ -1,6 +1,6 @@
 """IES (LM-63) intensity per lane: Cycles' interpolation of the candela table.
 
-Frame (DESIGN.md §3, Cycles ``svm_node_ies``): for a direction d in the light's local frame,
+Frame (docs/lights.md, IES lights; Cycles ``svm_node_ies``): for a direction d in the light's local frame,
 vertical angle v = acos(−d_z) (0 = local −Z) and horizontal angle h = atan2(d_x, d_y) + π, so
 h = 0 → local −Y, 90° → −X, 180° → +Y, 270° → +X (clockwise seen from above, i.e. from +Z).
 
