@@ -6,10 +6,13 @@
   rendering belongs to the backend's own process;
 * the add-on imports nothing of the backend's rendering code (only preset files, errors and the
   LM-63 file reader, for the IES panel's peak intensity);
-* compiled functions use the kernels/jit.py decorators (never Numba's njit directly)."""
+* compiled functions use the kernels/jit.py decorators (never Numba's njit directly);
+* comments and docstrings cite only files that are in the repository (docs/architecture.md is the
+  map; a design document or digest outside it cannot be read by the next contributor)."""
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -73,3 +76,30 @@ def test_compiled_functions_use_the_kernel_decorators(path):
     for module, level, names in imports(path):
         if level == 0 and module.split(".")[0] == "numba":
             assert "njit" not in names and "jit" not in names, (path, module, names)
+
+
+# A path-like token in a comment or docstring: folders, then a file with a known suffix.
+CITED_PATH = re.compile(r"(?<![\w/.])((?:[\w-]+/)+[\w-]+\.(?:py|md|json|txt|toml))\b")
+OUTSIDE = re.compile(r"DESIGN\.md|DESIGN §|digest §|guo2018-digest|\.\./shared/")
+# Tokens that name no file of the repository on purpose (an example path; the installed
+# packages an extension test looks for).
+NOT_FILES = {"x/scene/scene.json", "embreex/__init__.py", "numba/__init__.py", "llvmlite/__init__.py"}
+
+
+@pytest.mark.parametrize("folder", ["backend", "addon", "tests", "benchmarks", "tools"])
+def test_comments_cite_only_files_in_the_repository(folder):
+    missing = []
+    for path in sources(folder):
+        for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            where = f"{path.relative_to(ROOT)}:{n}"
+            if OUTSIDE.search(line) and path.name != "test_architecture.py":
+                missing.append(f"{where}: cites a document outside the repository")
+            for m in CITED_PATH.finditer(line):
+                token = m.group(1)
+                if token in NOT_FILES:
+                    continue
+                # as written from the root, from a top folder, or from the citing file's folder
+                bases = (ROOT, ROOT / "backend", ROOT / "addon", ROOT / "tests", ROOT / "docs", path.parent)
+                if not any((base / token).exists() for base in bases):
+                    missing.append(f"{where}: {token}")
+    assert not missing, "\n".join(missing)
