@@ -30,6 +30,7 @@ from .kernels.soup import shading_rows
 from .kernels.trace import RAYHIT_WORDS
 from .layered.stack_table import StackBuilder
 from .passes import NO_LANES, PassLayout
+from .render_settings import kernel_values
 from .scene.links import CAMERA, NO_RECEIVER
 from .visibility import RAY_BITS, Visibility
 
@@ -192,16 +193,17 @@ class PathTracer:
         estimated_pdf = bool(np.any((head[:, H_PDF] != LOBES) | (head[:, H_TRANS] > 0.0)))
         defer_pdf = estimated_pdf and self.queue_per_lane <= DEFER_MAX_LIGHTS and not any(
             l.fills_sphere and pw > 0 for l, pw in zip(self.lights, powers))
+        # Settings the kernels take as they are come from the table (backend/render_settings.py:
+        # rr_depth, clamp, glossy_nee); the rest are derived here.
         self.settings = ki.Settings(
-            seed=np.uint64(s.seed), max_segments=self.max_segments, rr_depth=s.rr_depth,
-            clamp=float(s.clamp), transparent=bool(scene.transparent), has_lights=has_lights,
-            mesh_light=mesh_light,
+            seed=np.uint64(s.seed), max_segments=self.max_segments,
+            transparent=bool(scene.transparent), has_lights=has_lights, mesh_light=mesh_light,
             hittable=np.array([i for i, l in enumerate(self.lights) if l.is_hittable], np.int64),
             infinite=np.array([i for i, l in enumerate(self.lights) if l.is_infinite], np.int64),
             visible_camera=np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights]
                                     or [False]),
             sampler=SAMPLERS[s.sampler], stratified_bounces=STRATIFIED_BOUNCES, nee_all=nee_all,
-            glossy_nee=int(s.glossy_light_samples), defer_pdf=defer_pdf, **self.vis.kernel_fields())
+            defer_pdf=defer_pdf, **kernel_values(s), **self.vis.kernel_fields())
         self.camera = camera_vector(scene.camera)
         self.camera_motion = np.ascontiguousarray(scene.camera.motion_delta, np.float64)
         if self.motion and (self.vis.filter_shadows or self.vis.skip_hits):

@@ -83,6 +83,11 @@ def items_in_flight(workers: int) -> int:
 SCHEDULE = ("stream", items_in_flight)
 
 
+#: The render settings that a RenderOptions field of the same name overrides (the ``render``
+#: command's options, backend/render_settings.py ``cli``; --strict is handled by the loader).
+OPTION_SETTINGS = ("spp", "seed", "time_limit", "noise_target", "min_spp", "max_bounces", "sampler")
+
+
 @dataclass
 class RenderOptions:
     spp: int | None = None
@@ -105,7 +110,7 @@ class RenderOptions:
         if self.view is not None:
             select_view(scene, self.view)
         s = scene.settings
-        for name in ("spp", "seed", "time_limit", "noise_target", "min_spp", "max_bounces", "sampler"):
+        for name in OPTION_SETTINGS:
             value = getattr(self, name)
             if value is not None:
                 setattr(s, name, value)

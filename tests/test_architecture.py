@@ -20,7 +20,7 @@ import pytest
 from conftest import ROOT
 
 FORBIDDEN_IN_ADDON = {"threading", "_thread", "multiprocessing", "concurrent", "asyncio"}
-BACKEND_MODULES_THE_ADDON_MAY_USE = {"presets", "errors", "ies.lm63"}
+BACKEND_MODULES_THE_ADDON_MAY_USE = {"presets", "errors", "ies.lm63", "render_settings"}
 
 
 def imports(path: Path):

@@ -12,6 +12,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ...backend.render_settings import SETTINGS
 from ..util import matrix_rows
 from .camera import CameraError, camera_json, film_json, film_size
 from .images import ImageExporter, safe_name
@@ -80,17 +81,15 @@ def warning_text(notes: list[str], limit: int = 12) -> str | None:
 
 def render_json(scene, *, samples: int | None = None, seed_offset: int = 0) -> dict:
     s = scene.lamina
-    out = {"spp": int(samples if samples is not None else s.samples),
-           "max_bounces": int(s.max_bounces),
-           "rr_depth": int(s.rr_depth),
-           "seed": int(s.seed) + int(seed_offset),
-           "clamp": float(s.clamp),
-           "noise_target": float(s.noise_threshold),
-           "min_spp": int(s.min_samples),
-           "time_limit": float(s.time_limit),
-           "sampler": s.sampler.lower(),
-           "glossy_light_samples": int(s.glossy_light_samples),
-           "missing_textures": "error" if s.fail_on_missing_textures else "magenta"}
+    out = {}
+    for st in SETTINGS:                    # Blender's property of each (backend/render_settings.py)
+        if st.property_name is not None:
+            value = getattr(s, st.property_name)
+            out[st.name] = value.lower() if st.kind is str else st.kind(value)
+    if samples is not None:
+        out["spp"] = int(samples)
+    out["seed"] += int(seed_offset)
+    out["missing_textures"] = "error" if s.fail_on_missing_textures else "magenta"
     layered = {}
     if s.estimator != "AUTOMATIC":
         layered["estimator"] = {"BIDIRECTIONAL": "bi", "UNIDIRECTIONAL": "uni"}[s.estimator]

@@ -1,16 +1,17 @@
-"""``Scene.lamina``: sampling and engine settings (written to the scene file's ``render``)."""
+"""``Scene.lamina``: sampling and engine settings (written to the scene file's ``render``).
+
+The render settings of the scene file (samples, bounces, seed, ...) are made here from the
+backend's one table of them (backend/render_settings.py): their names, ranges, defaults and
+descriptions are written there once. The rest (viewport, denoising, workers, ...) are the
+add-on's own."""
 from __future__ import annotations
 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 from bpy.types import PropertyGroup
 
+from ...backend.render_settings import INT32_MAX, SETTINGS
 from ..constants import ESTIMATORS, PDF_MODES
-
-SAMPLERS = (
-    ("SOBOL", "Sobol", "Owen-scrambled Sobol points: stratified per pixel, less noise at equal samples", 0),
-    ("INDEPENDENT", "Independent", "Independent random numbers (the reference)", 1),
-)
 
 FILTERS = (
     ("BLACKMAN_HARRIS", "Blackman-Harris", "Cycles' default pixel filter", 0),
@@ -20,32 +21,9 @@ FILTERS = (
 
 
 class LaminaRenderSettings(PropertyGroup):
-    samples: IntProperty(name="Samples", default=64, min=1, soft_max=4096, max=1 << 24,
-                         description="Samples per pixel (the maximum when a noise threshold is set)")
     viewport_samples: IntProperty(name="Viewport Samples", default=32, min=0, soft_max=4096, max=1 << 24,
                                   description="Samples per pixel of Rendered shading in the viewport, "
                                               "after which it stops; 0 = until stopped")
-    time_limit: FloatProperty(name="Time Limit", default=0.0, min=0.0, unit='TIME_ABSOLUTE',
-                              description="Stop after this time (after a full sample pass); 0 = no limit")
-    noise_threshold: FloatProperty(name="Noise Threshold", default=0.0, min=0.0, max=1.0, precision=4,
-                                   description="Adaptive sampling: stop pixels whose relative standard "
-                                               "error is below this; 0 = off")
-    min_samples: IntProperty(name="Min Samples", default=16, min=1, soft_max=1024,
-                             description="Adaptive sampling: samples before a pixel may stop")
-    max_bounces: IntProperty(name="Max Bounces", default=12, min=0, max=1024, soft_max=64,
-                             description="Maximum number of bounces of a path (as Cycles' Max Bounces)")
-    rr_depth: IntProperty(name="Russian Roulette Depth", default=3, min=0, max=1024,
-                          description="Bounces before paths may be terminated at random")
-    clamp: FloatProperty(name="Clamp Indirect", default=0.0, min=0.0,
-                         description="Clamp indirect sample values (trades bias for fireflies); 0 = off")
-    glossy_light_samples: IntProperty(name="Glossy Light Samples", default=2, min=1, max=8,
-                                      description="Light samples per light at a rough metal's surface "
-                                                  "(less noise on glossy reflections of lights, a shadow "
-                                                  "ray each)")
-    sampler: EnumProperty(name="Sampler", items=SAMPLERS, default="SOBOL",
-                          description="How samples are placed in each pixel and path dimension")
-    seed: IntProperty(name="Seed", default=0, min=0, description="Random seed; same seed and samples "
-                                                               "give the same image")
     use_animated_seed: BoolProperty(name="Animated Seed", default=False,
                                     description="Add the frame number to the seed (noise changes per frame)")
     workers: IntProperty(name="Workers", default=0, min=0, max=64,
@@ -78,6 +56,27 @@ class LaminaRenderSettings(PropertyGroup):
                                    unit='TIME_ABSOLUTE',
                                    description="Seconds between progressive updates of the image")
 
+
+def _property(st):
+    """The Blender property of render setting ``st`` (backend/render_settings.py)."""
+    default = st.blender_default if st.blender_default is not None else st.default
+    common = {"name": st.label, "description": st.doc, **st.ui}
+    if st.kind is int:
+        hi = INT32_MAX if st.hi is None else min(int(st.hi), INT32_MAX)
+        return IntProperty(default=int(default), min=int(st.lo), max=hi, **common)
+    if st.kind is float:
+        bounds = {"min": float(st.lo)} if st.lo is not None else {}
+        if st.hi is not None:
+            bounds["max"] = float(st.hi)
+        return FloatProperty(default=float(default), **bounds, **common)
+    items = tuple((value.upper(), label, doc, i) for i, (value, label, doc) in enumerate(st.choices))
+    return EnumProperty(items=items, default=str(default).upper(), **common)
+
+
+for _st in SETTINGS:
+    if _st.property_name is not None:
+        LaminaRenderSettings.__annotations__[_st.property_name] = _property(_st)
+del _st
 
 CLASSES = (LaminaRenderSettings,)
 

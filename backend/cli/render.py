@@ -7,7 +7,8 @@ import sys
 from pathlib import Path
 
 from ..errors import LaminaError
-from ..limits import MAX_BOUNCES, MAX_FILM_SIDE, MAX_SEED, MAX_SPP, MAX_WORKERS
+from ..limits import MAX_FILM_SIDE, MAX_WORKERS
+from ..render_settings import BY_NAME
 from .render_one import ProgressPrinter, render_scene
 
 
@@ -17,9 +18,9 @@ def register(sub) -> None:
                    "several: the frames of an animation (-o then needs #### for the frame number)")
     p.add_argument("-o", "--output", required=True, help="output EXR path")
     p.add_argument("--png", help="also write a display preview (PNG/JPEG, sRGB)")
-    p.add_argument("--spp", type=_int_in(1, MAX_SPP), help="samples per pixel (overrides the scene)")
-    p.add_argument("--seed", type=_int_in(0, MAX_SEED), help="random seed (overrides the scene)")
-    p.add_argument("--sampler", choices=("sobol", "independent"),
+    p.add_argument("--spp", type=_setting("spp"), help="samples per pixel (overrides the scene)")
+    p.add_argument("--seed", type=_setting("seed"), help="random seed (overrides the scene)")
+    p.add_argument("--sampler", choices=[c[0] for c in BY_NAME["sampler"].choices],
                    help="path sampler (overrides the scene; default sobol: scrambled Sobol points)")
     p.add_argument("--workers", type=_int_in(1, MAX_WORKERS), help="parallel workers (default: all cores)")
     p.add_argument("--parallel", choices=("threads", "processes"),
@@ -32,10 +33,10 @@ def register(sub) -> None:
                         "cached there; default), or 'shared': the workers read the same paths")
     p.add_argument("--cluster-timeout", type=_number(0.1), metavar="SECONDS",
                    help="with --cluster: seconds to reach the scheduler and its first worker, and to wait for a lost scheduler connection to come back (default 10)")
-    p.add_argument("--max-bounces", type=_int_in(0, MAX_BOUNCES), help="Cycles-style max bounces")
-    p.add_argument("--time-limit", type=_number(0.0), help="seconds (0 = none); stop after this time, never before the first full pass")
-    p.add_argument("--noise-target", type=_number(0.0, 1.0), help="adaptive sampling: relative error target (0 = off)")
-    p.add_argument("--min-spp", type=_int_in(1, MAX_SPP), help="adaptive sampling: samples before a pixel may stop")
+    p.add_argument("--max-bounces", type=_setting("max_bounces"), help="Cycles-style max bounces")
+    p.add_argument("--time-limit", type=_setting("time_limit"), help="seconds (0 = none); stop after this time, never before the first full pass")
+    p.add_argument("--noise-target", type=_setting("noise_target"), help="adaptive sampling: relative error target (0 = off)")
+    p.add_argument("--min-spp", type=_setting("min_spp"), help="adaptive sampling: samples before a pixel may stop")
     p.add_argument("--resolution", type=_resolution, help="WxH, overrides the film size")
     p.add_argument("--progress", choices=("bar", "json", "none"), default=None,
                    help="progress display (default: bar on a terminal, none otherwise)")
@@ -59,6 +60,13 @@ def register(sub) -> None:
     v.add_argument("--json", action="store_true")
     v.add_argument("--strict", action="store_true", help="an image texture that cannot be read is an error")
     v.set_defaults(func=cmd_validate)
+
+
+def _setting(name: str):
+    """An argparse type for the option that overrides render setting ``name``: its type and
+    range as the scene file has them (backend/render_settings.py)."""
+    st = BY_NAME[name]
+    return _int_in(st.lo, st.hi) if st.kind is int else _number(st.lo, st.hi)
 
 
 def _int_in(lo: int, hi: int):

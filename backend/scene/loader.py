@@ -15,31 +15,14 @@ import numpy as np
 from ..errors import SceneError
 from ..geometry.accel import TriangleSoup
 from ..geometry.mesh import Mesh, parse_mesh
-from ..limits import MAX_BOUNCES, MAX_GLOSSY_LIGHT_SAMPLES, MAX_COORDINATE, MAX_FILM_SIDE, MAX_SEED, MAX_SPP, film_memory_problem, short
+from ..limits import MAX_COORDINATE, MAX_FILM_SIDE, film_memory_problem, short
+from ..render_settings import SETTINGS, RenderSettings
 from .inputs import record_inputs
 from .links import CAMERA, LIGHT_FLAGS, OBJECT_FLAGS, SHADOW, build_links, parse_linking, parse_visibility
 from .reader import MISSING_TEXTURES, LoadContext, Node, dispatch, path_problem, read_json
 
 FORMAT = "lamina-scene"
 VERSION = 1
-
-
-@dataclass
-class RenderSettings:
-    spp: int = 16
-    max_bounces: int = 12
-    rr_depth: int = 3
-    seed: int = 0
-    clamp: float = 0.0
-    noise_target: float = 0.0
-    min_spp: int = 16
-    time_limit: float = 0.0
-    light_selection: str = "local"
-    sampler: str = "sobol"
-    glossy_light_samples: int = 2   # next-event samples per light at a rough conductor (docs/scene-format.md)
-    # An image texture that cannot be read: "magenta" renders it magenta with a warning (as
-    # Cycles does), "error" fails the load (farms: `render --strict`). backend/textures.py.
-    missing_textures: str = "magenta"
 
 
 @dataclass
@@ -300,19 +283,14 @@ def parse_settings(node: Node | None, ctx: LoadContext) -> RenderSettings:
         ctx.cache["layered_defaults"] = {}
         ctx.missing_textures = MISSING_TEXTURES.get() or s.missing_textures
         return s
-    s.spp = node.integer("spp", s.spp, lo=1, hi=MAX_SPP)
-    s.max_bounces = node.integer("max_bounces", s.max_bounces, lo=0, hi=MAX_BOUNCES)
-    s.rr_depth = node.integer("rr_depth", s.rr_depth, lo=0, hi=MAX_BOUNCES)
-    s.seed = node.integer("seed", s.seed, lo=0, hi=MAX_SEED)
-    s.clamp = node.number("clamp", s.clamp, lo=0)
-    s.noise_target = node.number("noise_target", s.noise_target, lo=0, hi=1)
-    s.min_spp = node.integer("min_spp", s.min_spp, lo=1, hi=MAX_SPP)
-    s.time_limit = node.number("time_limit", s.time_limit, lo=0)
-    s.light_selection = node.string("light_selection", s.light_selection, choices=("local", "power"))
-    s.sampler = node.string("sampler", s.sampler, choices=("sobol", "independent"))
-    s.glossy_light_samples = node.integer("glossy_light_samples", s.glossy_light_samples, lo=1,
-                                          hi=MAX_GLOSSY_LIGHT_SAMPLES)
-    s.missing_textures = node.string("missing_textures", s.missing_textures, choices=("magenta", "error"))
+    for st in SETTINGS:                  # each field as backend/render_settings.py defines it
+        if st.kind is int:
+            value = node.integer(st.name, st.default, lo=st.lo, hi=st.hi)
+        elif st.kind is float:
+            value = node.number(st.name, st.default, lo=st.lo, hi=st.hi)
+        else:
+            value = node.string(st.name, st.default, choices=tuple(c[0] for c in st.choices))
+        setattr(s, st.name, value)
     s.missing_textures = MISSING_TEXTURES.get() or s.missing_textures
     ctx.missing_textures = s.missing_textures
     layered = node.optional_child("layered")

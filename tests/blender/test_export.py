@@ -272,3 +272,31 @@ def test_export_operator_single_frame_and_animation(more):
     assert 0.0 < r["heights"][1] < 2.0 and r["single_height"] == pytest.approx(r["heights"][1])
     assert r["frame_after"] == 2                        # the current frame is restored
     assert r["mesh_bytes_stable"]                       # no time stamp in the .npz
+
+
+def test_render_properties_follow_the_settings_table_and_export_what_the_loader_reads(tmp_path):
+    """Blender's Render Properties are made from backend/render_settings.py: the same ranges and
+    descriptions; the export writes each under the scene file's name, and the loader reads back
+    exactly what Blender held."""
+    import copy
+    from backend.render_settings import SETTINGS
+    from backend.scene.loader import load_scene_data
+    from test_scene_validation import BASE
+    r = result_of(run_cases("export_cases", ["render_settings"], tmp=tmp_path), "render_settings")
+    for st in SETTINGS:
+        if st.property_name is None:
+            continue
+        prop = r["props"][st.name]
+        assert prop["description"] == st.doc, st.name
+        default = st.blender_default if st.blender_default is not None else st.default
+        assert prop["default"] == default and r["defaults"][st.name] == default, st.name
+        if st.kind is not str and st.lo is not None:
+            assert prop["min"] == st.lo, st.name
+    assert r["props"]["spp"]["max"] == SETTINGS[0].hi          # 2^24 fits Blender's int
+    assert r["missing"] == "error"
+    for values in (r["defaults"], r["edited"]):
+        data = copy.deepcopy(BASE)
+        data["render"] = dict(values, missing_textures="magenta")
+        s = load_scene_data(data, "scene.json").settings
+        for name, value in values.items():
+            assert getattr(s, name) == value, name

@@ -361,3 +361,34 @@ def export_operator(tmp):
             "single_height": doc["objects"][0]["to_world"][2][3], "frame_after": sc.frame_current,
             "mesh_file_exists": mesh_file.is_file(),
             "mesh_bytes_stable": bool(first_bytes) and mesh_file.read_bytes() == first_bytes}
+
+
+def render_settings(tmp):
+    """The Render Properties as Blender holds them (defaults, then every field set to a value of
+    its own) and the scene file's ``render`` the export writes for them."""
+    from lamina.addon.export.scene import render_json
+    from lamina.backend.render_settings import SETTINGS
+    sc = build.scene()
+    rna = type(sc.lamina).bl_rna.properties
+    defaults = {st.name: render_json(sc)[st.name] for st in SETTINGS if st.property_name}
+    props = {st.name: {"min": getattr(rna[st.property_name], "hard_min", None),
+                       "max": getattr(rna[st.property_name], "hard_max", None),
+                       "default": rna[st.property_name].default if st.kind is not str else
+                       rna[st.property_name].default.lower(),
+                       "description": rna[st.property_name].description}
+             for st in SETTINGS if st.property_name}
+    edited = {}
+    for st in SETTINGS:
+        if st.property_name is None:
+            continue
+        if st.kind is str:
+            value = st.choices[-1][0].upper()
+        elif st.kind is int:
+            value = int(st.lo) + 3
+        else:
+            value = float(st.lo) + 0.125
+        setattr(sc.lamina, st.property_name, value)
+        edited[st.name] = render_json(sc)[st.name]
+    sc.lamina.fail_on_missing_textures = True
+    return {"defaults": defaults, "props": props, "edited": edited,
+            "missing": render_json(sc)["missing_textures"]}
