@@ -40,6 +40,15 @@ from .microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from .params import ParamPacker, param_rgb, param_scalar
 
 DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK, LAYERED, MIX, ADD, COATED_DIFFUSE, TABULATED = 0, 1, 2, 3, 4, 5, 6, 7, 8
+KINDS = {DIFFUSE: "diffuse", CONDUCTOR: "conductor", DIELECTRIC: "dielectric", BLACK: "black",
+         LAYERED: "layered", MIX: "mix", ADD: "add", COATED_DIFFUSE: "coated_diffuse", TABULATED: "tabulated"}
+#: The kinds with a BSDF of their own, and which dispatcher below answers which kinds (a layered
+#: stack's walk, mixes and black surfaces are the integrator's own): tests/test_kind_dispatch.py
+#: checks each dispatcher's branches against this, so a new kind cannot miss one.
+BSDF_KINDS = (DIFFUSE, CONDUCTOR, DIELECTRIC, COATED_DIFFUSE, TABULATED)
+ANSWERS = {"bind": BSDF_KINDS, "eval_pdf": BSDF_KINDS, "sample": BSDF_KINDS, "albedo": BSDF_KINDS,
+           "is_delta_only": (CONDUCTOR, DIELECTRIC, BLACK), "is_mix": (MIX, ADD),
+           "is_stack": (LAYERED, COATED_DIFFUSE, TABULATED)}
 NSLOT = 22
 EMISSION = 0                 # RGB, every kind
 N_MAP, N_STRENGTH = 16, 19   # every kind: the normal map (RGB) and its strength

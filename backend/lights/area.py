@@ -25,7 +25,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.lights import area as _ka
-from ..kernels.lights import common as _kc
 from ..kernels.lights import profiles as _kp
 from ..mathutil import dot, outer3
 from . import register
@@ -98,7 +97,7 @@ class AreaLight(Light):
     # ------------------------------------------------------------------ light table
     def pack(self, b) -> None:
         g = self.geo
-        row = b.light(_kc.AREA, hittable=True, visible_camera=self.visible_camera)
+        row = b.light(_ka.AREA, hittable=True, visible_camera=self.visible_camera)
         # Light selection: one-sided, 0 behind the emitter (kernels/lights/selection.py).
         # A profile (spread, cutoff) concentrates the power: weighed by it towards the point.
         k = self.profile.normalization
@@ -141,7 +140,7 @@ class CollimatedAreaLight(Light):
         return power_luminance(self.color, self.watts * (1.0 if self.normalize else self.geo.area))
 
     def pack(self, b) -> None:
-        row = b.light(_kc.COLLIMATED, delta=True)
+        row = b.light(_ka.COLLIMATED, delta=True)
         row.select_point(self.geo.center, 0.0)
         self.geo.pack(row)
         row.put(_ka.A_SCALE, self.irradiance)

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.lights import common as _kc
 from ..kernels.lights import environment as _ke
 from ..mathutil import LUMINANCE
 from ..sampling.discrete import PiecewiseConstant2D
@@ -56,7 +55,7 @@ class ConstantWorld(Light):
         return power_luminance(self.radiance, 4.0 * np.pi ** 2 * self.scene_radius ** 2)
 
     def pack(self, b) -> None:
-        row = b.light(_kc.CONSTANT, infinite=True, visible_camera=True)
+        row = b.light(_ke.CONSTANT, infinite=True, visible_camera=True)
         row.select_uniform()
         row.put(_ke.W_RADIANCE, self.radiance)
 
@@ -92,7 +91,7 @@ class EnvironmentMap(Light):
         return max(np.pi * self.scene_radius ** 2 * self.integral, 0.0)
 
     def pack(self, b) -> None:
-        row = b.light(_kc.ENVIRONMENT, infinite=True, visible_camera=True)
+        row = b.light(_ke.ENVIRONMENT, infinite=True, visible_camera=True)
         row.select_uniform()
         row.put(_ke.E_TO_WORLD, self.to_world)
         row.put(_ke.E_TO_LOCAL, self.to_local)

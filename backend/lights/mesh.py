@@ -22,7 +22,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.lights import batch as _batch
-from ..kernels.lights import common as _kc
 from ..kernels.lights import mesh as _km
 from ..mathutil import cross, luminance
 from ..sampling.discrete import Discrete1D
@@ -77,7 +76,7 @@ class MeshLight(Light):
         return np.pi * self._sided_total
 
     def pack(self, b) -> None:
-        row = b.light(_kc.MESH)
+        row = b.light(_km.MESH)
         row.select_point(self.position, self.extent)
         tris = np.concatenate([self.v0, self.e1, self.e2, self.normal, self.area[:, None], self.radiance,
                                self.two_sided[:, None].astype(np.float64)], axis=1)

@@ -19,7 +19,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.lights import batch as _batch
-from ..kernels.lights import common as _kc
 from ..kernels.lights import point as _kp
 from . import register
 from .base import Light
@@ -110,7 +109,7 @@ class PointLight(Light):
     def pack(self, b) -> None:
         shape = (_kp.SHAPE_DELTA if self.is_delta else
                  _kp.SHAPE_SPHERE if self.is_sphere else _kp.SHAPE_DISK)
-        row = b.light(_kc.POINT, delta=self.is_delta, hittable=self.is_hittable,
+        row = b.light(_kp.POINT, delta=self.is_delta, hittable=self.is_hittable,
                       visible_camera=self.visible_camera)
         row.put(_kp.P_POS, self.position)
         if self.profile is not None or self._has_cone():

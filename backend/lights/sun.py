@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.lights import common as _kc
 from ..kernels.lights import sun as _ks
 from . import register
 from .base import Light
@@ -53,7 +52,7 @@ class SunLight(Light):
         return power_luminance(self.color, self.strength) * np.pi * self.scene_radius ** 2
 
     def pack(self, b) -> None:
-        row = b.light(_kc.SUN, delta=self.is_delta, infinite=True, visible_camera=self.visible_camera)
+        row = b.light(_ks.SUN, delta=self.is_delta, infinite=True, visible_camera=self.visible_camera)
         row.select_uniform()
         row.put(_ks.S_DIR, self.direction)
         row.put(_ks.S_IRRADIANCE, self.irradiance)

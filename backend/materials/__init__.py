@@ -2,22 +2,27 @@
 
 ``REGISTRY`` maps the scene-file ``type`` to a parser ``from_node(node) -> Material`` (``node`` is
 a ``scene.reader.Node``; ``node.ctx`` is the load context). Modules register themselves with
-``@register("type")`` when imported; ``load_all()`` imports the known modules.
+``@register("type")`` when imported; ``load_all()`` imports every module of this folder but the
+helpers, and ``ELSEWHERE``.
 """
 from __future__ import annotations
 
 import importlib
+import pkgutil
 
 REGISTRY: dict = {}
 
-MODULES = (
-    "backend.materials.diffuse",
-    "backend.materials.conductor",
-    "backend.materials.dielectric",
-    "backend.materials.emission",
-    "backend.materials.mix",
-    "backend.layered.material",
-)
+#: Modules of this package that hold no material type (the rest are found by ``load_all``: a new
+#: BSDF is a new module here, nothing to list), and material types defined elsewhere.
+HELPERS = ("base", "common", "fresnel", "metals", "microfacet", "normal", "row_bsdf", "specfun")
+ELSEWHERE = ("backend.layered.material",)
+
+
+def modules() -> list[str]:
+    """The material-type modules: this folder's (but the helpers) and ELSEWHERE."""
+    here = [f"{__name__}.{m.name}" for m in pkgutil.iter_modules(__path__)
+            if not m.ispkg and m.name not in HELPERS]
+    return here + list(ELSEWHERE)
 
 
 def register(type_name: str):
@@ -28,10 +33,6 @@ def register(type_name: str):
 
 
 def load_all() -> dict:
-    for name in MODULES:
-        try:
-            importlib.import_module(name)
-        except ModuleNotFoundError as exc:  # a module not written yet
-            if exc.name != name:
-                raise
+    for name in modules():
+        importlib.import_module(name)
     return REGISTRY

@@ -39,6 +39,10 @@ from ..warp import disk_concentric
 from . import profiles as _prof
 from .common import FIRST, I_FIRST, INF, ZERO3, get3, unit_or_zero
 
+# Kind codes (unique within the family: dispatch.py KINDS).
+AREA = 1           # rectangle / ellipse emitter with an angular profile
+COLLIMATED = 2     # area light with spread 0: a delta light along the normal
+
 # Below this solid angle [sr] the spherical-rectangle map is no better than area sampling and
 # its angles lose relative precision: sample by area instead.
 MIN_SOLID_ANGLE = 1e-8

@@ -18,16 +18,8 @@ from ..jit import kernel
 from ..vec import coordinate_system, dot, length
 from ..warp import uniform_cone_local
 
-# ------------------------------------------------------------------ kinds
-POINT = 0          # point / sphere / soft-falloff disk; optional spot cone and IES profile
-AREA = 1           # rectangle / ellipse emitter with an angular profile (area.py)
-COLLIMATED = 2     # area light with spread 0: a delta light along the normal
-SUN = 3            # distant light, delta or a disk of directions
-CONSTANT = 4       # uniform world
-ENVIRONMENT = 5    # equirectangular environment map
-MESH = 6           # emissive triangles
-KIND_NAMES = ("point", "area", "collimated", "sun", "constant", "environment", "mesh")
-
+# ------------------------------------------------------------------ table rows
+# (each kind's code is in its own module: dispatch.py KINDS lists them)
 NP = 48            # float64 columns per light
 NI = 12            # int64 columns per light
 

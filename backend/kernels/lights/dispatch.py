@@ -40,7 +40,22 @@ from . import mesh as _mesh
 from . import point as _point
 from . import selection as _sel
 from . import sun as _sun
-from .common import AREA, COLLIMATED, CONSTANT, ENVIRONMENT, INF, MESH, POINT, SUN, ZERO3
+from .area import AREA, COLLIMATED
+from .common import INF, ZERO3
+from .environment import CONSTANT, ENVIRONMENT
+from .mesh import MESH
+from .point import POINT
+from .sun import SUN
+
+#: The family's kinds: code → name. Each kind's code lives in its own kernel module; a test
+#: (tests/test_kind_dispatch.py) checks that the codes are unique and that every dispatcher below
+#: has a branch for exactly the kinds ANSWERS gives it.
+KINDS = {POINT: "point", AREA: "area", COLLIMATED: "collimated", SUN: "sun", CONSTANT: "constant",
+         ENVIRONMENT: "environment", MESH: "mesh"}
+HITTABLE = (POINT, AREA)                  # lights a ray can hit (a surface in space)
+ESCAPED = (SUN, CONSTANT, ENVIRONMENT)    # lights a ray that leaves the scene sees
+ANSWERS = {"sample": tuple(KINDS), "intersect": HITTABLE, "eval_hit": HITTABLE, "pdf_hit": HITTABLE,
+           "eval_escaped": ESCAPED, "pdf_escaped": ESCAPED, "mesh_pdf_hit": (MESH,), "mesh_eval": (MESH,)}
 
 
 @inlined

@@ -31,6 +31,10 @@ from ..consts import INV_4PI
 from ..warp import uniform_sphere
 from .common import FIRST, I_FIRST, INF, get3, mat3, unit_or_zero
 
+# Kind codes (unique within the family: dispatch.py KINDS).
+CONSTANT = 4       # uniform world
+ENVIRONMENT = 5    # equirectangular environment map
+
 W_RADIANCE = FIRST       # constant world: 3, [W m⁻² sr⁻¹]
 
 E_TO_WORLD = FIRST       # 9: row-major rotation, map frame → world

@@ -33,6 +33,8 @@ from ..vec import dot
 from ..warp import triangle_barycentric
 from .common import I_FIRST, ZERO3, aux3, unit_or_zero
 
+MESH = 6           # kind code (unique within the family: dispatch.py KINDS): emissive triangles
+
 TRI_STRIDE = 17
 T_V0, T_E1, T_E2, T_N, T_AREA, T_RAD, T_TWO_SIDED = 0, 3, 6, 9, 12, 13, 16
 

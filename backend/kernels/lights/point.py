@@ -39,6 +39,9 @@ from .common import (FIRST, I_FIRST, INF, ZERO3, get3, mat3, ray_sphere, sample_
                      sin2_to_one_minus_cos, unit_or_zero)
 from .spot import attenuation
 
+# The kind code of this light in the light table (unique within the family: dispatch.py KINDS).
+POINT = 0          # point / sphere / soft-falloff disk; optional spot cone and IES profile
+
 # float columns
 P_POS = FIRST            # 3: centre [m]
 P_INTENSITY = FIRST + 3  # 3: colour × P/(4π) [W/sr] (radius 0)

@@ -19,6 +19,8 @@ from ..jit import kernel
 from ..vec import dot
 from .common import FIRST, I_FIRST, INF, ZERO3, get3, sample_cone
 
+SUN = 3            # kind code (unique within the family: dispatch.py KINDS): distant light, delta or a disk of directions
+
 S_DIR = FIRST            # 3: unit, towards the sun (local +Z)
 S_IRRADIANCE = FIRST + 3     # 3: colour × E [W/m²]
 S_RADIANCE = FIRST + 6   # 3: E/(π sin² a) × colour [W m⁻² sr⁻¹] (angle > 0)

@@ -2,7 +2,7 @@
 
 ``LightTable`` (a namedtuple of NumPy arrays and two scalars; n lights):
 
-* ``kind``            (n,) int64     kind code (common.POINT, AREA, COLLIMATED, SUN, CONSTANT,
+* ``kind``            (n,) int64     kind code (dispatch.KINDS: point.POINT, area.AREA, …,
                                      ENVIRONMENT, MESH)
 * ``is_delta``        (n,) bool      no BSDF ray can find it (point/spot/IES, collimated, sun
                                      without angle): ``sample`` returns pdf 0, is_delta True
