@@ -28,6 +28,8 @@ from .kernels.params import ParamPacker
 from .kernels.sampler import SAMPLERS
 from .kernels.soup import shading_rows
 from .kernels.trace import RAYHIT_WORDS
+from .kernels.workitems import (FilmColumns, Lanes, QueuedEmission, RayQueue, SceneTables, ShadowRays,
+                                TracedHits, WalkScratch)
 from .layered.stack_table import StackBuilder
 from .passes import NO_LANES, PassLayout
 from .render_settings import kernel_values
@@ -72,9 +74,9 @@ class _Queue:
         # lane where a scene has layered stacks, one unused row otherwise.
         self.dfr = np.empty((n if deferred else 1, ki.DFR_COLUMNS))
 
-    def outputs(self):
-        return (self.slot, self.key, self.o, self.d, self.o32, self.d32, self.beta, self.pdf, self.delta,
-                self.rtype, self.recv, self.dfr)
+    def outputs(self) -> RayQueue:
+        return RayQueue(self.slot, self.key, self.o, self.d, self.o32, self.d32, self.beta, self.pdf,
+                        self.delta, self.rtype, self.recv, self.dfr)
 
 
 class _Scratch:
@@ -100,7 +102,7 @@ class _Scratch:
         self.sh_t32 = np.empty(m, np.float32)
         self.sh_c = np.empty((m, 3))
         self.sh_mask = np.empty(m, np.int64)
-        self.walk = layered_batch.scratch(walk_capacity)
+        self.walk = WalkScratch(*layered_batch.scratch(walk_capacity))
         # The compiled bounce loop's (kernels/item_loop.py): hits, shadow-ray times and answers,
         # embree's ray block, the loop's state.
         self.prim = np.empty(n, np.int32)
@@ -111,6 +113,9 @@ class _Scratch:
         self.blocked = np.empty(m, np.int32)
         self.rayhit = np.empty(RAYHIT_WORDS, np.float32)
         self.state = np.zeros(8, np.int64)
+        self.shadows = ShadowRays(self.sh_slot, self.sh_o32, self.sh_d32, self.sh_t32, self.sh_c, self.sh_mask,
+                                  self.sh_time, self.blocked)
+        self.queued_emission = QueuedEmission(self.queued_at, self.queued)
 
 
 class RenderInterrupted(Exception):
@@ -271,8 +276,9 @@ class PathTracer:
                     cur.key[:n], cur.o[:n], cur.d[:n], cur.o32[:n], cur.d32[:n], tmax32[:n], lane_time)
         # Camera rays: emission seen directly gets weight 1 (VIA_DELTA); light linking does not
         # apply to them (Cycles).
-        start_lanes(cur.outputs(), n, ki.VIA_DELTA, CAMERA, NO_RECEIVER, sc.walk, (L, albedo, normal, alpha))
-        lc = sc.walk[3]
+        start_lanes(cur.outputs(), n, ki.VIA_DELTA, CAMERA, NO_RECEIVER, sc.walk,
+                    FilmColumns(L, albedo, normal, alpha, aux))
+        lc = sc.walk.counters
         counts = np.zeros(5, np.int64)
         queries = self.accel.queries
         if queries.direct is not None and self.accel.recorder is None and not (self.skip_camera or self.skip_indirect):
@@ -296,9 +302,9 @@ class PathTracer:
         fn_hit, fn_occ = queries._intersect_fn, queries._occluded_fn
         embree = (fn_hit, fn_occ, queries.direct.handle, queries.offset1, sc.rayhit)
         hits = (sc.tmax32, sc.prim, sc.b1, sc.b2, sc.times)
-        sh = (sc.sh_slot, sc.sh_o32, sc.sh_d32, sc.sh_t32, sc.sh_c, sc.sh_mask, sc.sh_time, sc.blocked)
-        film = (L, albedo, normal, alpha, aux)
+        film = FilmColumns(L, albedo, normal, alpha, aux)
         queues = [q.outputs() for q in sc.queues]
+        tables, lanes = self.tables(), Lanes(pixels, spp, sample0, lane_time)
         stop = self.stop_flag if self.stop_flag is not None else self._never
         one_segment = bool(self.vis.filter_shadows)
         state = sc.state
@@ -308,9 +314,8 @@ class PathTracer:
         while True:
             if self.interrupt is not None and self.interrupt():
                 raise RenderInterrupted
-            run_item(self.geometry, self.materials, self.textures, self.light_table, self.settings,
-                     self.pass_params, self.stacks, pixels, spp, sample0, lane_time, queues[0], queues[1],
-                     sh, sc.walk, sc.queued_at, sc.queued, film, embree, hits, one_segment, stop, counts, state)
+            run_item(tables, lanes, queues[0], queues[1], sc.shadows, sc.walk, sc.queued_emission, film,
+                     embree, hits, one_segment, stop, counts, state)
             killed += int(state[3])
             deferred += int(state[4])
             rays += int(state[5])
@@ -330,6 +335,12 @@ class PathTracer:
         self._count(killed, deferred)
         return rays
 
+    def tables(self) -> SceneTables:
+        """The scene's tables as the kernels take them (built per call: an edit in the viewport
+        session replaces some of them, the data passes' with the camera)."""
+        return SceneTables(self.geometry, self.materials, self.textures, self.light_table, self.settings,
+                           self.pass_params, self.stacks)
+
     def _count(self, killed: int, deferred: int) -> None:
         if killed:
             stats.add("paths_nonfinite_killed", killed)
@@ -343,7 +354,8 @@ class PathTracer:
         cur, nxt = sc.queues
         tmax32 = sc.tmax32
         sh_slot, sh_o32, sh_d32, sh_t32, sh_c = sc.sh_slot, sc.sh_o32, sc.sh_d32, sc.sh_t32, sc.sh_c
-        lw, lb, lr, lc = sc.walk
+        tables, lanes = self.tables(), Lanes(pixels, spp, sample0, lane_time)
+        film = FilmColumns(L, albedo, normal, alpha, aux)
         killed = 0
         deferred = 0
         rays = 0
@@ -367,14 +379,9 @@ class PathTracer:
                 prim, t, b1, b2 = self.vis.skip_hidden(self.accel, o32, d32, t_in, cur.rtype[:active],
                                                        prim, t, b1, b2)
             counts[:] = 0
-            ki.shade(self.geometry, self.materials, self.textures, self.light_table, self.settings,
-                     self.pass_params, segment, pixels, spp, sample0, lane_time,
-                     cur.slot[:active], cur.key[:active], cur.o[:active], cur.d[:active], cur.beta[:active],
-                     cur.pdf[:active], cur.delta[:active], cur.rtype[:active], cur.recv[:active],
-                     cur.dfr[:active], t_in, prim, t, b1, b2,
-                     L, albedo, normal, alpha, aux, *nxt.outputs(),
-                     sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sc.sh_mask, self.stacks, lw, lb, lr, lc,
-                     sc.queued_at, sc.queued, counts)
+            ki.shade(tables, segment, lanes, RayQueue(*(a[:active] for a in cur.outputs())),
+                     TracedHits(t_in, prim, t, b1, b2), film, nxt.outputs(), sc.shadows, sc.walk,
+                     sc.queued_emission, counts)
             ns = int(counts[1])
             if ns:
                 if self.vis.filter_shadows:

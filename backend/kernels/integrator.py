@@ -572,26 +572,32 @@ def _write_passes(PS, aux, sl, p, ng, ns, wi, u, v, has_uvs, m, pr):
 
 
 @kernel(nogil=True)
-def shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
-          slot, key, o, d, beta, prev_pdf, prev_delta, rtype, recv, dfr, tmax32, prim, t32, b1_32, b2_32,
-          L, albedo, normal, alpha, aux,
-          nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, nx_rtype, nx_recv, nx_dfr,
-          sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask,
-          ST, LW, LB, LR, LC, PD, PC, counts):
-    """One bounce for every traced lane (see the module docstring). Lane slot ``sl`` is sample
-    ``sample0 + sl % spp`` of pixel ``pixels[sl // spp]`` (for the path sampler). ``counts``
-    (int64[5]) gets [next rays, shadow rays, layered lanes, non-finite paths killed, deferred
-    layered pdfs estimated].
-    ``PS``, ``aux``: the data passes' table and per-lane columns (backend/passes.py; untouched
-    when ``PS.active`` is false). ``lane_time``: each lane's shutter time in [0, 1) (motion
-    blur; read only for moving triangles, ``G.moving_start`` …).
-    ``ST``: the layered stack table; ``LW``, ``LB``, ``LR``, ``LC``: the layered walks' scratch
-    and counters (kernels/layered/batch.py). ``rtype``/``recv``: each ray's type and the receiver
-    set of the vertex it left (ray visibility, light linking: ``Settings``); ``sh_mask``: each
-    shadow ray's blocker sets. ``dfr``/``nx_dfr``: the rays' deferred MIS pdfs (DFR_*; one row
-    suffices without layered stacks); ``PD`` (int64 (m, 2): lane, target) and ``PC`` (float64
-    (m, 4): emission, light density): the emission queued behind them, m ≥ the lanes × the
-    lights a ray can find with light sampling competing (``S.defer_pdf`` only)."""
+def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, counts):
+    """One bounce for every traced lane (see the module docstring), with the named bundles of
+    kernels/workitems.py: ``tables`` (SceneTables), ``lanes`` (Lanes: lane slot ``sl`` is sample
+    ``sample0 + sl % spp`` of pixel ``pixels[sl // spp]``, for the path sampler), ``cur`` (the
+    traced rays: a RayQueue of the active lanes) and ``hits`` (TracedHits) in; ``film``
+    (FilmColumns), ``nxt`` (the next rays: a RayQueue), ``shadows`` (ShadowRays), ``walk``
+    (WalkScratch) and ``queued`` (QueuedEmission) out. ``counts`` (int64[5]) gets [next rays,
+    shadow rays, layered lanes, non-finite paths killed, deferred layered pdfs estimated].
+    The data passes' table and columns (``tables.passes``, ``film.aux``: backend/passes.py) are
+    untouched when ``PS.active`` is false; the shutter times are read only for moving triangles
+    (``G.moving_start`` …). A ray's type and the receiver set of the vertex it left drive ray
+    visibility and light linking (``Settings``); ``shadows.mask``: each shadow ray's blocker
+    sets. The deferred MIS pdfs need one row only without layered stacks; the queued emission
+    has room for the lanes × the lights a ray can find with light sampling competing
+    (``S.defer_pdf`` only)."""
+    G, MT, TX, LT, S, PS, ST = tables
+    pixels, spp, sample0, lane_time = lanes
+    slot, key, o, d, beta = cur.slot, cur.key, cur.o, cur.d, cur.beta
+    prev_pdf, prev_delta, rtype, recv, dfr = cur.pdf, cur.delta, cur.rtype, cur.recv, cur.dfr
+    tmax32, prim, t32, b1_32, b2_32 = hits
+    L, albedo, normal, alpha, aux = film
+    nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, nx_rtype, nx_recv, nx_dfr = nxt
+    sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask = (shadows.slot, shadows.o32, shadows.d32, shadows.t32,
+                                                      shadows.c, shadows.mask)
+    LW, LB, LR, LC = walk
+    PD, PC = queued
     camera = segment == 0
     inv_spp = 1.0 / spp
     last = segment == S.max_segments - 1

@@ -7,11 +7,11 @@ which is what bounds a render with many threads: at 2.5 % held, 40 threads at mo
 at once however many cores there are. Here one call renders the item and holds the GIL only to
 enter and leave.
 
-The queues travel as tuples in the order of ``integrator._Queue.outputs`` (slot, key, o, d, o32,
-d32, beta, pdf, delta, rtype, recv, dfr); the shadow rays as (slot, o32, d32, t32, c, mask,
-time32, blocked); the film columns as (L, albedo, normal, alpha, aux); embree as (intersect
-function, occluded function, scene handle, geometry-1 offset, RTCRayHit scratch), the hits as
-(tmax32, prim, b1, b2, time32).
+The bundles are kernels/workitems.py's named tuples: the scene's tables, the lanes, two ray
+queues (the rays of this bounce and of the next, swapped after each), the shadow rays, the film
+columns, the walks' scratch, the queued emission; embree as (intersect function, occluded
+function, scene handle, geometry-1 offset, RTCRayHit scratch); the hits as (tmax32, prim, b1, b2,
+time32), the item loop's own arrays.
 
 ``one_segment``: shade a single segment and leave its shadow rays to the caller (scenes whose
 shadow rays need filters made in Python: backend/visibility.py). ``stop[0]`` non-zero (another
@@ -28,6 +28,8 @@ import numpy as np
 from .integrator import add_unoccluded, shade
 from .jit import kernel
 from .trace import intersect_rays, occluded_rays
+from .workitems import TracedHits, queue_head
+
 
 @kernel(nogil=True)
 def start_lanes(q, n, delta, rtype, recv, walk, film):
@@ -35,7 +37,7 @@ def start_lanes(q, n, delta, rtype, recv, walk, film):
     throughput 1, no previous pdf, the given ``delta``, ray type and receiver set; the layered
     walks' scratch as fresh (its counters are per item); the film columns (L, albedo, normal,
     alpha: allocated empty, zeroed here without the GIL) at 0."""
-    slot, beta, pdf, dl, rt, rv = q[0], q[6], q[7], q[8], q[9], q[10]
+    slot, beta, pdf, dl, rt, rv = q.slot, q.beta, q.pdf, q.delta, q.rtype, q.recv
     for i in range(n):
         slot[i] = i
         beta[i, 0] = 1.0
@@ -45,14 +47,14 @@ def start_lanes(q, n, delta, rtype, recv, walk, film):
         dl[i] = delta
         rt[i] = rtype
         rv[i] = recv
-    walk[0].fill(0.0)
-    walk[1].fill(0.0)
-    walk[2].fill(0)
-    walk[3].fill(0)
-    film[0].fill(0.0)
-    film[1].fill(0.0)
-    film[2].fill(0.0)
-    film[3].fill(0.0)
+    walk.vertices.fill(0.0)
+    walk.stack.fill(0.0)
+    walk.stream.fill(0)
+    walk.counters.fill(0)
+    film.L.fill(0.0)
+    film.albedo.fill(0.0)
+    film.normal.fill(0.0)
+    film.alpha.fill(0.0)
 
 
 DONE = 0
@@ -61,16 +63,17 @@ FAR = np.float32(3e38)
 
 
 @kernel(nogil=True)
-def run_item(G, MT, TX, LT, S, PS, ST, pixels, spp, sample0, lane_time, q0, q1, sh, walk, PD, PC, film, embree,
-             hits, one_segment, stop, counts, state):
+def run_item(tables, lanes, q0, q1, shadows, walk, queued, film, embree, hits, one_segment, stop, counts, state):
+    S = tables.settings
+    lane_time = lanes.time
     segment = state[0]
     active = state[1]
     motion = lane_time.shape[0] > 0
     tmax, prim, b1, b2, tt = hits
     fn_hit, fn_occ, scene, offset1, rayhit = embree
-    L, albedo, normal, alpha, aux = film
-    sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, sh_time, blocked = sh
-    LW, LB, LR, LC = walk
+    L = film.L
+    sh_slot, sh_o32, sh_d32, sh_t32, sh_c = shadows.slot, shadows.o32, shadows.d32, shadows.t32, shadows.c
+    sh_time, blocked = shadows.time32, shadows.blocked
     killed = 0
     deferred = 0
     rays = 0
@@ -89,20 +92,16 @@ def run_item(G, MT, TX, LT, S, PS, ST, pixels, spp, sample0, lane_time, q0, q1, 
         times = tt[:active] if motion else tt[:0]
         if motion:
             for i in range(active):
-                times[i] = lane_time[cur[0][i]]
+                times[i] = lane_time[cur.slot[i]]
         t_in = tmax[:active]
-        intersect_rays(fn_hit, scene, offset1, rayhit, cur[4][:active], cur[5][:active], t_in, times,
+        intersect_rays(fn_hit, scene, offset1, rayhit, cur.o32[:active], cur.d32[:active], t_in, times,
                        prim[:active], b1[:active], b2[:active])
         rays += active
         for k in range(counts.shape[0]):
             counts[k] = 0
-        shade(G, MT, TX, LT, S, PS, segment, pixels, spp, sample0, lane_time,
-              cur[0][:active], cur[1][:active], cur[2][:active], cur[3][:active], cur[6][:active],
-              cur[7][:active], cur[8][:active], cur[9][:active], cur[10][:active], cur[11][:active],
-              t_in, prim[:active], t_in, b1[:active], b2[:active],
-              L, albedo, normal, alpha, aux,
-              nxt[0], nxt[1], nxt[2], nxt[3], nxt[4], nxt[5], nxt[6], nxt[7], nxt[8], nxt[9], nxt[10], nxt[11],
-              sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, ST, LW, LB, LR, LC, PD, PC, counts)
+        shade(tables, segment, lanes, queue_head(cur, active),
+              TracedHits(t_in, prim[:active], t_in, b1[:active], b2[:active]),
+              film, nxt, shadows, walk, queued, counts)
         ns = counts[1]
         killed += counts[3]
         deferred += counts[4]
