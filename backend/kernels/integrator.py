@@ -440,40 +440,37 @@ def _light_sample(S, LT, TX, li, p, u0, u1, fs, ft, ns, ng):
 
 
 @inlined
-def _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, mask, sh_slot, sh_o32, sh_d32, sh_t32,
-                 sh_c, sh_mask, counts):
+def _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, mask, shadows, counts):
     """A shadow ray from p (offset) towards wi_w over dist, carrying c if nothing blocks it;
     ``mask``: the blocker sets that stop it (shadow linking; −1: all)."""
-    _push_ray(S, segment, slot, _offset(p, ng, wi_w), wi_w, dist, c, mask, sh_slot, sh_o32, sh_d32,
-              sh_t32, sh_c, sh_mask, counts)
+    _push_ray(S, segment, slot, _offset(p, ng, wi_w), wi_w, dist, c, mask, shadows, counts)
 
 
 @inlined
-def _push_ray(S, segment, slot, origin, wi_w, dist, c, mask, sh_slot, sh_o32, sh_d32, sh_t32,
-              sh_c, sh_mask, counts):
+def _push_ray(S, segment, slot, origin, wi_w, dist, c, mask, shadows, counts):
+    """Append a shadow ray to ``shadows`` (kernels/workitems.py ShadowRays)."""
     k = counts[1]
-    sh_slot[k] = slot
-    sh_mask[k] = mask
+    shadows.slot[k] = slot
+    shadows.mask[k] = mask
     for j in range(3):
-        sh_o32[k, j] = origin[j]
-        sh_d32[k, j] = wi_w[j]
-    sh_t32[k] = min(dist * (1.0 - SHADOW_EPS), 3e38) if math.isfinite(dist) else 3e38
+        shadows.o32[k, j] = origin[j]
+        shadows.d32[k, j] = wi_w[j]
+    shadows.t32[k] = min(dist * (1.0 - SHADOW_EPS), 3e38) if math.isfinite(dist) else 3e38
     cc = _clamped(c, S.clamp, segment)
-    sh_c[k, 0], sh_c[k, 1], sh_c[k, 2] = cc
+    shadows.c[k, 0], shadows.c[k, 1], shadows.c[k, 2] = cc
     counts[1] = k + 1
 
 
 @inlined
 def _nee(S, segment, slot, beta, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p, f, bsdf_pdf,
-         mask, sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, counts):
+         mask, shadows, counts):
     """Light-sample contribution: MIS (power heuristic) against BSDF sampling, divided by the
     selection probability; a shadow ray if it carries anything."""
     w = 1.0 if is_delta else power_heuristic(sel_p * lpdf, bsdf_pdf)
     w /= sel_p
     c = (w * beta[0] * f[0] * value[0], w * beta[1] * f[1] * value[1], w * beta[2] * f[2] * value[2])
     if max(c[0], max(c[1], c[2])) > 0.0:
-        _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, mask, sh_slot, sh_o32, sh_d32, sh_t32,
-                     sh_c, sh_mask, counts)
+        _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, mask, shadows, counts)
 
 
 @inlined
@@ -500,11 +497,9 @@ def _roulette(MT, TX, m, u, v, wi, ng, beta):
 
 
 @inlined
-def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, via, rtype, recv,
-              nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, nx_rtype,
-              nx_recv, counts):
-    """The next ray: leak guard, compaction into the next-ray queue (Russian roulette is
-    decided at the surface the ray reaches, ``_roulette``)."""
+def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, via, rtype, recv, nxt, counts):
+    """The next ray: leak guard, compaction into the next-ray queue ``nxt`` (a RayQueue; Russian
+    roulette is decided at the surface the ray reaches, ``_roulette``)."""
     # The sampled side must agree for the shading and the geometric normal.
     if not (_dot(d_world, ng) * wo_z > 0.0):
         return
@@ -517,18 +512,18 @@ def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, vi
         return
     k = counts[0]
     origin = _offset(p, ng, d_world)
-    nx_slot[k] = slot
-    nx_key[k] = key
+    nxt.slot[k] = slot
+    nxt.key[k] = key
     for j in range(3):
-        nx_o[k, j] = origin[j]
-        nx_d[k, j] = d_world[j]
-        nx_o32[k, j] = origin[j]
-        nx_d32[k, j] = d_world[j]
-        nx_beta[k, j] = b[j]
-    nx_pdf[k] = pdf
-    nx_delta[k] = via
-    nx_rtype[k] = rtype
-    nx_recv[k] = recv
+        nxt.o[k, j] = origin[j]
+        nxt.d[k, j] = d_world[j]
+        nxt.o32[k, j] = origin[j]
+        nxt.d32[k, j] = d_world[j]
+        nxt.beta[k, j] = b[j]
+    nxt.pdf[k] = pdf
+    nxt.delta[k] = via
+    nxt.rtype[k] = rtype
+    nxt.recv[k] = recv
     counts[0] = k + 1
 
 
@@ -593,9 +588,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
     prev_pdf, prev_delta, rtype, recv, dfr = cur.pdf, cur.delta, cur.rtype, cur.recv, cur.dfr
     tmax32, prim, t32, b1_32, b2_32 = hits
     L, albedo, normal, alpha, aux = film
-    nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, nx_rtype, nx_recv, nx_dfr = nxt
-    sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask = (shadows.slot, shadows.o32, shadows.d32, shadows.t32,
-                                                      shadows.c, shadows.mask)
+    sh_c = shadows.c
     LW, LB, LR, LC = walk
     PD, PC = queued
     camera = segment == 0
@@ -638,8 +631,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
             if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
                 c = (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2])
                 k = counts[1]
-                _push_ray(S, segment, sl, ro, rd, tl, c, S.light_shadow[li], sh_slot, sh_o32, sh_d32, sh_t32,
-                          sh_c, sh_mask, counts)
+                _push_ray(S, segment, sl, ro, rd, tl, c, S.light_shadow[li], shadows, counts)
                 _light_hit(LT, S, li, pdf_l, pp, pd, ro, c, segment, i, sl, k, L, sh_c, PD, PC, counts)
         # 1. lights passed on the way (transparent, as in Cycles)
         for j in range(nh):
@@ -807,15 +799,14 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                 albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = alb
             if live:
                 _nee(S, segment, sl, bt, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p, f, bpdf,
-                     S.light_shadow[li], sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, counts)
+                     S.light_shadow[li], shadows, counts)
             if not last and (weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0):
                 nrt = _lobe_class(S, kind, m, wi_l[2] * wo[2] > 0.0) if S.track else 0
                 k0 = counts[0]
                 _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
-                          spdf, VIA_DELTA if sdelta else VIA_SAMPLED, nrt, rs, nx_slot, nx_key, nx_o,
-                          nx_d, nx_o32, nx_d32, nx_beta, nx_pdf, nx_delta, nx_rtype, nx_recv, counts)
+                          spdf, VIA_DELTA if sdelta else VIA_SAMPLED, nrt, rs, nxt, counts)
                 if spdf < 0.0 and counts[0] > k0:
-                    _defer_row(nx_dfr[k0], sid, u, v, duv, wi_l, wo)
+                    _defer_row(nxt.dfr[k0], sid, u, v, duv, wi_l, wo)
             continue
         dist_code = MT.dist[m]
         mask_code = MT.masking[m]
@@ -854,7 +845,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                 if live_k:
                     f, bpdf = km.eval_pdf(MT.tables, kind, dist_code, mask_code, prm, 0, wi_l, wok)
                     _nee(S, segment, sl, bt, p, ng, wk, dk, vk, pk, dlk, float(reps), f, bpdf,
-                         S.light_shadow[lk], sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, counts)
+                         S.light_shadow[lk], shadows, counts)
         elif can_nee and not delta_only:
             for r in range(reps):
                 if r > 0:
@@ -871,7 +862,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                 if live:
                     f, bpdf = km.eval_pdf(MT.tables, kind, dist_code, mask_code, prm, 0, wi_l, wo_n)
                     _nee(S, segment, sl, bt, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p * reps, f, bpdf,
-                         S.light_shadow[li], sh_slot, sh_o32, sh_d32, sh_t32, sh_c, sh_mask, counts)
+                         S.light_shadow[li], shadows, counts)
         # 5. continuation
         if not last:
             ub0, ub1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_BSDF))
@@ -884,8 +875,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                                                 + (VIA_TABLE if more else 0))
                 nrt = _lobe_class(S, kind, m, wi_l[2] * wo[2] > 0.0) if S.track else 0
                 _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
-                          spdf, via, nrt, rs, nx_slot, nx_key, nx_o, nx_d, nx_o32, nx_d32, nx_beta,
-                          nx_pdf, nx_delta, nx_rtype, nx_recv, counts)
+                          spdf, via, nrt, rs, nxt, counts)
     # Emission queued behind a deferred layered pdf (``_light_hit``): each lane's pdf estimated
     # once, its rows weighed. After the lane loop, so that compiling this kernel reaches the
     # layered lane (compiled by another process, kernels/cache.py) after everything else.
