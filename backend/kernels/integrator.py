@@ -184,7 +184,7 @@ def _weighted_to(c, w, S, segment, sl, target, L, sh_c):
 
 
 @inlined
-def _deferred_pdf(ST, TX, dfr, i, key, segment, LW, LB, LR, LC):
+def _deferred_pdf(ST, TX, dfr, i, key, segment, walk):
     """The MIS pdf of the layered continuation lane i sampled at bounce ``segment``: its row of
     ``dfr`` holds the stack, (u, v), dP/du and dP/dv, wi and wo in the shading frame (DFR_*)."""
     r = dfr[i]
@@ -192,7 +192,8 @@ def _deferred_pdf(ST, TX, dfr, i, key, segment, LW, LB, LR, LC):
         ST, TX, int(r[DFR_STACK]), r[DFR_UV], r[DFR_UV + 1],
         (r[DFR_DUV], r[DFR_DUV + 1], r[DFR_DUV + 2], r[DFR_DUV + 3], r[DFR_DUV + 4], r[DFR_DUV + 5]),
         (r[DFR_WI], r[DFR_WI + 1], r[DFR_WI + 2]), (r[DFR_WO], r[DFR_WO + 1], r[DFR_WO + 2]),
-        False, False, False, False, True, False, key, segment, LW, LB, LR, LC)
+        layered.LaneAsks(nee=False, nee_pdf=False, do_continue=False, sample_pdf=False, pdf_only=True,
+                         camera=False), key, segment, walk)
     return p
 
 
@@ -589,7 +590,6 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
     tmax32, prim, t32, b1_32, b2_32 = hits
     L, albedo, normal, alpha, aux = film
     sh_c = shadows.c
-    LW, LB, LR, LC = walk
     PD, PC = queued
     camera = segment == 0
     inv_spp = 1.0 / spp
@@ -793,8 +793,10 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
             if ST.head[sid, H_BUMP] != 0.0:
                 duv = _local_uv_derivatives(R, pr, fs, ft, ns)
             f, bpdf, wo, weight, spdf, sdelta, alb = layered.shade_lane(
-                ST, TX, sid, u, v, duv, wi_l, wo_n, live, not is_delta,
-                not last, not S.defer_pdf, False, camera, key[i], segment, LW, LB, LR, LC)
+                ST, TX, sid, u, v, duv, wi_l, wo_n,
+                layered.LaneAsks(nee=live, nee_pdf=not is_delta, do_continue=not last,
+                                 sample_pdf=not S.defer_pdf, pdf_only=False, camera=camera),
+                key[i], segment, walk)
             if camera:
                 albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = alb
             if live:
@@ -887,7 +889,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
         i = PD[k, 0]
         if i != lane:
             lane = i
-            pdf = _deferred_pdf(ST, TX, dfr, i, key[i], segment - 1, LW, LB, LR, LC)
+            pdf = _deferred_pdf(ST, TX, dfr, i, key[i], segment - 1, walk)
             estimates += 1
         _weighted_to((PC[k, 0], PC[k, 1], PC[k, 2]), power_heuristic(pdf, PC[k, 3]), S, segment, slot[i],
                      PD[k, 1], L, sh_c)

@@ -57,13 +57,13 @@ def layered_lane_signature() -> tuple:
     from .layered import batch
     from .layered.table import empty_table
     from .textures import empty_table as empty_textures
+    from .workitems import WalkScratch
     TX = empty_textures()
     vec3 = types.UniTuple(types.float64, 3)
-    flag = types.boolean
+    asks = typeof(batch.LaneAsks(*(False,) * len(batch.LaneAsks._fields)))
     return (typeof(empty_table(TX)), typeof(TX), types.int64, types.float64, types.float64,
-            types.UniTuple(types.float64, 6), vec3, vec3, flag, flag, flag, flag, flag, flag, types.uint64,
-            types.int64,
-            *(typeof(a) for a in batch.scratch(2)))
+            types.UniTuple(types.float64, 6), vec3, vec3, asks, types.uint64, types.int64,
+            typeof(WalkScratch(*batch.scratch(2))))
 
 
 def precompile_layered() -> None:

@@ -13,6 +13,8 @@ Random numbers: the integrator's lane draws from ``hash(path key, bounce dimensi
 """
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 
 from ..jit import kernel
@@ -31,18 +33,27 @@ def scratch(max_vertices: int = 1024):
     return (np.zeros((2, cap, NF)), np.zeros(BSIZE), np.zeros(2, np.uint64), np.zeros(4, np.int64))
 
 
+#: What the bounce loop asks of a layered lane (``shade_lane``), by name: the light connection
+#: towards ``wo`` (``nee``) and its MIS pdf (``nee_pdf``), a continuation sample (``do_continue``)
+#: and its MIS pdf now (``sample_pdf``; false: left for later, −1), or only that deferred pdf
+#: (``pdf_only``); ``camera``: the lane's first hit (the albedo AOV).
+LaneAsks = namedtuple("LaneAsks", ["nee", "nee_pdf", "do_continue", "sample_pdf", "pdf_only", "camera"])
+
+
 @kernel
-def shade_lane(ST, TX, s, u, v, duv, wi, wo, nee, nee_pdf, do_continue, sample_pdf, pdf_only, camera, key,
-               segment, W, Bs, R, C):
+def shade_lane(ST, TX, s, u, v, duv, wi, wo, asks, key, segment, walk):
     """The layered part of one bounce of one lane (RADIANCE transport): (f, pdf of the light
-    direction, continuation wo, weight, pdf, delta, albedo AOV estimate). At a camera hit the AOV
-    is the continuation's reflected weight (it averages to the directional albedo at the viewing
-    angle, delta lobes included, at no extra cost), else a one-sample normal-incidence walk.
-    ``duv``: the surface's dP/du and dP/dv in the lane's shading frame (the interfaces' bump maps;
-    table.H_BUMP). ``sample_pdf`` false: the continuation's MIS pdf is left for later (−1);
-    ``pdf_only``: that deferred pdf, of the continuation ``wo`` this lane sampled at ``segment``
-    (returned as the second value), from a sub-stream of its own (SLOT_MIS_PDF): independent of
-    the walks that sampled wo, as an estimate made at the time would be."""
+    direction, continuation wo, weight, pdf, delta, albedo AOV estimate). ``asks``: a LaneAsks.
+    At a camera hit the AOV is the continuation's reflected weight (it averages to the
+    directional albedo at the viewing angle, delta lobes included, at no extra cost), else a
+    one-sample normal-incidence walk. ``duv``: the surface's dP/du and dP/dv in the lane's
+    shading frame (the interfaces' bump maps; table.H_BUMP). A deferred pdf (``asks.pdf_only``)
+    is the one of the continuation ``wo`` this lane sampled at ``segment`` (returned as the second
+    value), from a sub-stream of its own (SLOT_MIS_PDF): independent of the walks that sampled
+    wo, as an estimate made at the time would be. ``walk``: the thread's WalkScratch
+    (kernels/workitems.py)."""
+    nee, nee_pdf, do_continue, sample_pdf, pdf_only, camera = asks
+    W, Bs, R, C = walk
     R[0] = stream_key(key, bounce_dim(segment, SLOT_MIS_PDF if pdf_only else SLOT_SPARE))
     R[1] = 0
     if ST.textured[s]:
