@@ -55,8 +55,9 @@ class PixelFilter:
     INVERSE_TABLE = 1 << 14
 
     def tables(self):
-        """What the camera kernel needs: (cdf, grid, inverse, kinked, support)."""
-        return self._cdf, self._grid, self._inverse, self._kinked, float(self.support)
+        """What the camera kernel needs (kernels/camera.py PixelFilterTable)."""
+        from .kernels.camera import PixelFilterTable
+        return PixelFilterTable(self._cdf, self._grid, self._inverse, self._kinked, float(self.support))
 
     def sample(self, u: np.ndarray) -> np.ndarray:
         """u (n, 2) uniform in [0, 1) → pixel-centre offsets (n, 2) in pixels (the renderer's own

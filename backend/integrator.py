@@ -271,9 +271,9 @@ class PathTracer:
         cur, nxt = sc.queues
         tmax32 = sc.tmax32
         lane_time = sc.lane_time[:n] if self.motion else NO_TIMES
-        camera_rays(self.camera, self.camera_motion, *self.filter, W, H, self.settings.seed,
-                    self.settings.sampler, pixels, spp, sample0,
-                    cur.key[:n], cur.o[:n], cur.d[:n], cur.o32[:n], cur.d32[:n], tmax32[:n], lane_time)
+        camera_rays(self.camera, self.camera_motion, self.filter, W, H, self.settings.seed,
+                    self.settings.sampler, Lanes(pixels, spp, sample0, lane_time),
+                    RayQueue(*(a[:n] for a in cur.outputs())), tmax32[:n])
         # Camera rays: emission seen directly gets weight 1 (VIA_DELTA); light linking does not
         # apply to them (Cycles).
         start_lanes(cur.outputs(), n, ki.VIA_DELTA, CAMERA, NO_RECEIVER, sc.walk,

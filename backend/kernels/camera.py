@@ -15,12 +15,18 @@ from __future__ import annotations
 
 import math
 
+from collections import namedtuple
+
 import numpy as np
 
 from .jit import kernel
 from .rng import BOUNCE_BASE, DIM_FILTER, DIM_LENS, SLOT_TIME, path_key
 from .sampler import get2, pixel_seed
 from .warp import disk_concentric
+
+#: A pixel filter as the camera kernel samples it (backend/film.py ``PixelFilter.tables``):
+#: the inverted cumulative table, its grid and inverse, the kink flag and the support [pixels].
+PixelFilterTable = namedtuple("PixelFilterTable", ["cdf", "grid", "inverse", "kinked", "support"])
 
 CAMERA_SIZE = 32
 
@@ -180,25 +186,29 @@ def _moved(cm, tt, ro, rd):
 
 
 @kernel(nogil=True)
-def camera_rays(cam, cam_motion, cdf, grid, inverse, kinked, fwidth, width, height, seed, sampler,
-                pixels, spp, sample0, key, o, d, o32, d32, tmax32, lane_time):
-    """The primary rays of a work item: lane i is sample ``sample0 + i % spp`` of pixel
-    ``pixels[i // spp]`` (flat index, row 0 = top). Writes the lane's random-number key, the ray
-    in float64 (shading) and float32 (embree, with its clipped length). Motion blur (``lane_time``
-    not empty): each lane's shutter time in [0, 1), stratified per pixel; the ray moves with the
-    camera by ``cam_motion`` (K rows of a 3 × 4 change from the camera's transform, at K equally
-    spaced times, interpolated linearly; empty: the camera does not move)."""
+def camera_rays(cam, cam_motion, pixel_filter, width, height, seed, sampler, lanes, q, tmax32):
+    """The primary rays of a work item (``lanes``, kernels/workitems.py Lanes): lane i is sample
+    ``sample0 + i % spp`` of pixel ``pixels[i // spp]`` (flat index, row 0 = top). Writes into the
+    RayQueue ``q`` (its first lanes) each lane's random-number key and the ray in float64
+    (shading) and float32 (embree), and its clipped length into ``tmax32``. ``pixel_filter``: a
+    PixelFilterTable. Motion blur (``lanes.time`` not empty): each lane's shutter time in [0, 1),
+    stratified per pixel; the ray moves with the camera by ``cam_motion`` (K rows of a 3 × 4 change
+    from the camera's transform, at K equally spaced times, interpolated linearly; empty: the
+    camera does not move)."""
+    cdf, grid, inverse, kinked, fwidth = pixel_filter
+    pixels, spp, sample0, lane_time = lanes
+    key, o, d, o32, d32 = q.key, q.o, q.d, q.o32, q.d32
     lens = cam[28] > 0.0 and cam[27] > 0.0
     inv_w = 1.0 / width
     inv_h = 1.0 / height
     # Nested over pixels and samples (no 64-bit integer division per lane: ~25 ns of ~60).
-    for q in range(key.shape[0] // spp):
-        pix = pixels[q]
+    for q_ in range(key.shape[0] // spp):
+        pix = pixels[q_]
         ps = pixel_seed(seed, pix)
         px = pix % width
         py = pix // width
         for j in range(spp):
-            i = q * spp + j
+            i = q_ * spp + j
             smp = sample0 + j
             k = path_key(seed, pix, smp)
             key[i] = k

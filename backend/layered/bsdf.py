@@ -61,6 +61,7 @@ class LayeredBSDF(BSDF):
     def _run(self, op, wi, wo=None, nee=None, rng=None, mode=RADIANCE, est=-1, kind=-1,
              want_pdf=True, nee_pdf=True, want_sample=True):
         from ..kernels.layered import batch
+        from ..kernels.workitems import WalkScratch
         ST, TX, s = self.material.kernel_table()
         wi = _rows3(wi)
         n = wi.shape[0]
@@ -69,12 +70,15 @@ class LayeredBSDF(BSDF):
         if nee.size == 1 and n > 1:
             nee = np.broadcast_to(nee, (n,)).copy()
         uv = self.uv if self.uv.shape[0] in (1, n) else np.broadcast_to(self.uv[:1], (n, 2)).copy()
-        W, Bs, R, C = batch.scratch(self.options.max_vertices)
-        f, p = np.zeros((n, 3)), np.zeros(n)
-        wo_s, w_s, p_s, d_s = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n), np.zeros(n, bool)
+        walk = WalkScratch(*batch.scratch(self.options.max_vertices))
+        C = walk.counters
+        out = batch.Answers(np.zeros((n, 3)), np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n),
+                            np.zeros(n, bool))
         seed = draw_seed(rng if rng is not None else np.random.default_rng())
-        batch.run(op, ST, TX, s, uv, wi, wo, nee, int(mode), int(est), int(kind), bool(want_pdf),
-                  bool(nee_pdf), bool(want_sample), seed, W, Bs, R, C, f, p, wo_s, w_s, p_s, d_s)
+        query = batch.Query(op=op, mode=int(mode), est=int(est), kind=int(kind), want_pdf=bool(want_pdf),
+                            nee_pdf=bool(nee_pdf), want_sample=bool(want_sample), seed=seed)
+        batch.run(query, ST, TX, s, uv, wi, wo, nee, walk, out)
+        f, p, wo_s, w_s, p_s, d_s = out
         self.stats["walks"] += int(C[0])
         self.stats["vertices"] += int(C[1])
         if C[2]:

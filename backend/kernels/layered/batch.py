@@ -74,13 +74,23 @@ def shade_lane(ST, TX, s, u, v, duv, wi, wo, asks, key, segment, walk):
     return f, p_nee, wo_s, w_s, p_s, d_s, alb
 
 
+#: A query of ``run``: which (OP_*), the transport mode, the estimator and pdf kind (−1: the
+#: stack's own), whether a sample's pdf, the light connection's pdf and the continuation sample
+#: are wanted, and the seed of the lanes' random streams.
+Query = namedtuple("Query", ["op", "mode", "est", "kind", "want_pdf", "nee_pdf", "want_sample", "seed"])
+#: ``run``'s outputs, one row per lane: f, pdf, and the sample (direction, weight, pdf, delta).
+Answers = namedtuple("Answers", ["f", "p", "wo_s", "w_s", "p_s", "d_s"])
+
+
 @kernel(nogil=True)
-def run(op, ST, TX, s, uv, wi, wo, nee, mode, est, kind, want_pdf, nee_pdf, want_sample, seed,
-        W, Bs, R, C, f, p, wo_s, w_s, p_s, d_s):
-    """One query per lane i (``uv``, ``wi``, ``wo``, ``nee``: (1 | n) rows; outputs (n, ·)):
-    OP_EVAL f = eval (``est`` −1: the stack's estimator); OP_PDF p = pdf (``kind`` −1: the stack's);
-    OP_SAMPLE (wo_s, w_s, p_s, d_s) = sample; OP_NEE f, p (light connection) and the sample;
-    OP_ALBEDO w_s = one-sample normal-incidence albedo."""
+def run(query, ST, TX, s, uv, wi, wo, nee, walk, out):
+    """One query per lane i (``uv``, ``wi``, ``wo``, ``nee``: (1 | n) rows; ``out``: Answers of
+    (n, ·) rows; ``walk``: a WalkScratch): OP_EVAL f = eval (``est`` −1: the stack's estimator);
+    OP_PDF p = pdf (``kind`` −1: the stack's); OP_SAMPLE (wo_s, w_s, p_s, d_s) = sample; OP_NEE f, p
+    (light connection) and the sample; OP_ALBEDO w_s = one-sample normal-incidence albedo."""
+    op, mode, est, kind, want_pdf, nee_pdf, want_sample, seed = query
+    W, Bs, R, C = walk
+    f, p, wo_s, w_s, p_s, d_s = out
     n = f.shape[0]
     for i in range(n):
         a = i if uv.shape[0] > 1 else 0
