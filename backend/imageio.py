@@ -180,7 +180,15 @@ def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = Fals
         spec.alpha_channel = names.index("A")
     spec.attribute("compression", "zip")
     spec.attribute("Software", "Lamina")
-    tmp = _atomic_target(path, ".exr")
+    _write_atomically(path, ".exr", spec, data)
+    return changed
+
+
+def _write_atomically(path: Path, suffix: str, spec, data: np.ndarray) -> None:
+    """Write an image to a temporary name beside ``path`` and rename it over ``path``: a reader
+    never sees half a file, and a failed write leaves what was there."""
+    import OpenImageIO as oiio
+    tmp = _atomic_target(path, suffix)
     try:
         out = oiio.ImageOutput.create(str(tmp))
         if out is None or not out.open(str(tmp), spec):
@@ -193,7 +201,6 @@ def write_exr(path: str | Path, layers: dict[str, np.ndarray], half: bool = Fals
     finally:
         if tmp.exists():
             tmp.unlink()
-    return changed
 
 
 def write_preview(path: str | Path, rgb: np.ndarray, exposure: float = 0.0) -> None:
@@ -206,19 +213,7 @@ def write_preview(path: str | Path, rgb: np.ndarray, exposure: float = 0.0) -> N
     data = np.clip(np.round(linear_to_srgb(img) * 255.0), 0, 255).astype(np.uint8)
     h, w, _ = data.shape
     spec = oiio.ImageSpec(w, h, 3, oiio.UINT8)
-    tmp = _atomic_target(path, path.suffix or ".png")
-    try:
-        out = oiio.ImageOutput.create(str(tmp))
-        if out is None or not out.open(str(tmp), spec):
-            raise LaminaError(f"cannot write {path}: {oiio.geterror()}")
-        ok = out.write_image(np.ascontiguousarray(data))
-        out.close()
-        if not ok:
-            raise LaminaError(f"cannot write {path}: {out.geterror()}")
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    _write_atomically(path, path.suffix or ".png", spec, np.ascontiguousarray(data))
 
 
 def write_npy(path: str | Path, array: np.ndarray) -> int:

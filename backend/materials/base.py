@@ -137,6 +137,20 @@ class BSDF:
         raise NotImplementedError
 
 
+class ClosedFormBSDF(BSDF):
+    """A BSDF whose value and pdf come from one compiled call, ``_eval_pdf(wi, wo, mode)`` →
+    (f (n, 3), pdf (n,)): ``eval`` and ``pdf`` are its two halves."""
+
+    def _eval_pdf(self, wi, wo, mode):
+        raise NotImplementedError
+
+    def eval(self, wi, wo, rng=None, mode=RADIANCE, **_):
+        return self._eval_pdf(wi, wo, mode)[0]
+
+    def pdf(self, wi, wo, rng=None, mode=RADIANCE, **_):
+        return self._eval_pdf(wi, wo, mode)[1]
+
+
 class Material:
     """A scene material. Parsed from the scene file, bound per shading batch.
 

@@ -18,7 +18,8 @@ from ..kernels.lazy import lazy
 from ..kernels.microfacet_codes import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from ..limits import short as _short
 from . import register
-from .base import BSDF, BSDFSample, Material, ShadingContext, lanes, rows1, rows3, sample_arrays
+from .base import (RADIANCE, BSDFSample, ClosedFormBSDF, Material, ShadingContext, lanes, rows1, rows3,
+                   sample_arrays)
 from .common import any_textured, as_param, delta_lanes, parse_microfacet_kind, parse_roughness
 from .emission import parse_emission
 from .metals import METALS, metal_ior
@@ -28,7 +29,7 @@ from .microfacet import GGX, HEIGHT_CORRELATED
 _batch = lazy("bsdf.batch")     # compiled on first use (kernels/lazy.py)
 
 
-class ConductorBSDF(BSDF):
+class ConductorBSDF(ClosedFormBSDF):
     """Per-lane maths: backend/kernels/bsdf/conductor.py."""
 
     def __init__(self, n, eta, k, tint, alpha_u, alpha_v, distribution=GGX,
@@ -45,18 +46,14 @@ class ConductorBSDF(BSDF):
                       rows1(np.maximum(alpha_u, ALPHA_MIN)), rows1(np.maximum(alpha_v, ALPHA_MIN)),
                       rows1(self.smooth, bool), DISTRIBUTION_CODES[distribution], MASKING_CODES[masking])
 
-    def _eval_pdf(self, wi, wo):
+    def _eval_pdf(self, wi, wo, mode=RADIANCE):
         wi, wo = rows3(wi), rows3(wo)
         f = np.empty((wi.shape[0], 3))
         pdf = np.empty(wi.shape[0])
         _batch.conductor_eval_pdf(*self._args, wi, wo, f, pdf)
         return f, pdf
 
-    def eval(self, wi, wo, rng=None, mode=0):
-        return self._eval_pdf(wi, wo)[0]
 
-    def pdf(self, wi, wo, rng=None, mode=0):
-        return self._eval_pdf(wi, wo)[1]
 
     def sample(self, wi, rng, mode=0):
         wi = rows3(wi)

@@ -24,7 +24,7 @@ import numpy as np
 from ..kernels.lazy import lazy
 from ..kernels.microfacet_codes import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from . import register
-from .base import (BSDF, RADIANCE, BSDFSample, Material, ShadingContext, lanes, rows1, rows3,
+from .base import (RADIANCE, ClosedFormBSDF, BSDFSample, Material, ShadingContext, lanes, rows1, rows3,
                    sample_arrays)
 from .common import any_textured, as_param, delta_lanes, parse_microfacet_kind, parse_roughness
 from .emission import parse_emission
@@ -34,7 +34,7 @@ from .microfacet import GGX, HEIGHT_CORRELATED
 _batch = lazy("bsdf.batch")     # compiled on first use (kernels/lazy.py)
 
 
-class DielectricBSDF(BSDF):
+class DielectricBSDF(ClosedFormBSDF):
     """Per-lane maths: backend/kernels/bsdf/dielectric.py."""
 
     transmissive = True
@@ -62,11 +62,7 @@ class DielectricBSDF(BSDF):
         _batch.dielectric_eval_pdf(*self._args, int(mode), wi, wo, f, pdf)
         return f, pdf
 
-    def eval(self, wi, wo, rng=None, mode=RADIANCE):
-        return self._eval_pdf(wi, wo, mode)[0]
 
-    def pdf(self, wi, wo, rng=None, mode=RADIANCE):
-        return self._eval_pdf(wi, wo, mode)[1]
 
     def sample(self, wi, rng, mode=RADIANCE):
         wi = rows3(wi)

@@ -5,7 +5,7 @@ import numpy as np
 
 from ..kernels.lazy import lazy
 from . import register
-from .base import BSDF, BSDFSample, Material, ShadingContext, lanes, rows3, sample_arrays
+from .base import RADIANCE, BSDFSample, ClosedFormBSDF, Material, ShadingContext, lanes, rows3, sample_arrays
 from .common import any_textured, as_param
 from .emission import parse_emission
 
@@ -13,25 +13,21 @@ from .emission import parse_emission
 _batch = lazy("bsdf.batch")     # compiled on first use (kernels/lazy.py)
 
 
-class DiffuseBSDF(BSDF):
+class DiffuseBSDF(ClosedFormBSDF):
     """Two-sided Lambertian (per-lane maths: backend/kernels/bsdf/diffuse.py)."""
 
     def __init__(self, n: int, color: np.ndarray):
         self.n = n
         self.color = color  # (1, 3) constant or (n, 3) textured, linear RGB albedo
 
-    def _eval_pdf(self, wi, wo):
+    def _eval_pdf(self, wi, wo, mode=RADIANCE):
         wi, wo = rows3(wi), rows3(wo)
         f = np.empty((wi.shape[0], 3))
         pdf = np.empty(wi.shape[0])
         _batch.diffuse_eval_pdf(rows3(self.color), wi, wo, f, pdf)
         return f, pdf
 
-    def eval(self, wi, wo, rng=None, mode=0):
-        return self._eval_pdf(wi, wo)[0]
 
-    def pdf(self, wi, wo, rng=None, mode=0):
-        return self._eval_pdf(wi, wo)[1]
 
     def sample(self, wi, rng, mode=0):
         wi = rows3(wi)

@@ -7,12 +7,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.lazy import lazy
-from .base import BSDF, RADIANCE, BSDFSample, rows3, sample_arrays
+from .base import RADIANCE, BSDFSample, ClosedFormBSDF, rows3, sample_arrays
 
 _batch = lazy("bsdf.batch")     # compiled on first use (kernels/lazy.py)
 
 
-class RowBSDF(BSDF):
+class RowBSDF(ClosedFormBSDF):
     """``material`` (one with a ``pack``) bound at ``uv`` ((1 | n, 2)) for n lanes. Reflection only
     and two-sided, like the stacks that use it; exact (not estimated) eval, pdf and weights."""
 
@@ -49,11 +49,7 @@ class RowBSDF(BSDF):
         _batch.row_eval_pdf(mt, tx, 0, self._uv_for(n), int(mode), wi, wo, f, pdf)
         return f, pdf
 
-    def eval(self, wi, wo, rng=None, mode=RADIANCE, **_):
-        return self._eval_pdf(wi, wo, mode)[0]
 
-    def pdf(self, wi, wo, rng=None, mode=RADIANCE, **_):
-        return self._eval_pdf(wi, wo, mode)[1]
 
     def sample(self, wi, rng, mode=RADIANCE, **_):
         mt, tx = self._table()
