@@ -25,7 +25,7 @@ if "lamina_engine_pkg" not in sys.modules:
     sys.modules["lamina_engine_pkg"] = _module
     _pkg.loader.exec_module(_module)
 from lamina_engine_pkg.job import child_environment  # noqa: E402
-from lamina_engine_pkg.render_server import RenderServer, ServerPool  # noqa: E402
+from lamina_engine_pkg.render_server import JOBS_PER_SERVER, RenderServer, ServerPool  # noqa: E402
 
 linux_only = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="process groups (POSIX)")
 
@@ -164,3 +164,32 @@ def test_the_raw_protocol_cancel_before_start_ping_and_end_of_input(tmp_path):
     assert next(e for e in events if e["event"] == "ready")["protocol"] == 1
     # Every event of a job carries its id; stdout holds nothing but events.
     assert all("job" in e for e in events if e["event"] in ("start", "progress", "done"))
+
+
+def test_the_pool_replaces_a_server_after_its_jobs_and_never_shares_a_busy_one():
+    class Stub:
+        made = []
+
+        def __init__(self, python, env):
+            self.key = (python, tuple(sorted((env or {}).items())))
+            self.alive, self.busy, self.jobs_done, self.stopped = True, False, 0, False
+            Stub.made.append(self)
+
+        def submit(self, args):
+            self.jobs_done += 1
+            return ("job", self, tuple(args))
+
+        def stop(self):
+            self.stopped, self.alive = True, False
+
+    pool = ServerPool(factory=Stub)
+    first = pool.job_for("final", "py", {}, ["a"])[1]
+    for _ in range(JOBS_PER_SERVER - 1):
+        assert pool.job_for("final", "py", {}, ["a"])[1] is first
+    second = pool.job_for("final", "py", {}, ["a"])[1]
+    assert second is not first and first.stopped          # replaced after JOBS_PER_SERVER jobs
+    second.busy = True
+    assert pool.job_for("final", "py", {}, ["a"]) is None   # busy: the caller starts its own process
+    assert pool.job_for("preview", "py", {}, ["a"])[1] is not second   # one server per purpose
+    pool.stop_all()
+    assert second.stopped and not pool.servers

@@ -22,6 +22,10 @@ import time
 from .job import BackendJob
 
 CANCEL_GRACE = 3.0         # seconds a cancelled job may take to end before the server is killed
+#: Jobs a server renders before the pool replaces it (between two jobs): the files its output goes
+#: through (job.py) only grow, by ~100 kB a render's progress events, and a process that lives
+#: for a whole animation should not carry them (or anything else a render leaves) forever.
+JOBS_PER_SERVER = 100
 
 
 def serve_command(python: str) -> list[str]:
@@ -187,7 +191,7 @@ class ServerPool:
         key = (python, tuple(sorted((env or {}).items())))
         if server is not None and server.busy:
             return None
-        if server is not None and (not server.alive or server.key != key):
+        if server is not None and (not server.alive or server.key != key or server.jobs_done >= JOBS_PER_SERVER):
             server.stop()
             server = None
         if server is None:
