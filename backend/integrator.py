@@ -199,7 +199,7 @@ class PathTracer:
         defer_pdf = estimated_pdf and self.queue_per_lane <= DEFER_MAX_LIGHTS and not any(
             l.fills_sphere and pw > 0 for l, pw in zip(self.lights, powers))
         # Settings the kernels take as they are come from the table (backend/render_settings.py:
-        # rr_depth, clamp, glossy_nee); the rest are derived here.
+        # rr_depth, clamp, glossy_light_samples); the rest are derived here.
         self.settings = ki.Settings(
             seed=np.uint64(s.seed), max_segments=self.max_segments,
             transparent=bool(scene.transparent), has_lights=has_lights, mesh_light=mesh_light,
@@ -228,9 +228,9 @@ class PathTracer:
     def _scratch(self, n: int) -> _Scratch:
         sc = getattr(self._local, "scratch", None)
         if sc is None or sc.n < n:
-            # Shadow rays per lane: next-event estimation's (glossy_nee per light at a glossy
+            # Shadow rays per lane: next-event estimation's (glossy_light_samples per light at a glossy
             # vertex), and one dedicated ray per light with shadow linking (kernels/integrator.py).
-            per_lane = max(1, self.settings.nee_all) * self.settings.glossy_nee * self._nee_factor \
+            per_lane = max(1, self.settings.nee_all) * self.settings.glossy_light_samples * self._nee_factor \
                 + int(self.vis.shadow_linked.size)
             sc = self._local.scratch = _Scratch(n, self.walk_capacity, per_lane, self.settings.defer_pdf,
                                                 self.queue_per_lane)

@@ -6,7 +6,8 @@ written in one place (docs/scene-format.md, ``render``, is the users' page for i
 
 No bpy, no Numba: the add-on imports this module (tests/test_architecture.py allows it).
 
-Names: ``name`` is the scene file's field and the loader's attribute; ``blender`` the Scene.lamina
+Names: ``name`` is the scene file's field, the loader's attribute and, where the kernels take
+the value as it is, their ``Settings`` field too; ``blender`` the Scene.lamina
 property that holds it in Blender, where Blender's own word differs (Cycles says Samples, Noise
 Threshold, Min Samples: an artist finds them under those names, and a .blend keeps a property's
 value under its name, so renaming it would lose saved values); ``kernel`` the field of the
@@ -81,7 +82,7 @@ SETTINGS: tuple[Setting, ...] = (
             label="Sampler", cli="--sampler"),
     Setting("glossy_light_samples", int, 2, "Light samples per light at a rough metal's surface (less "
             "noise on glossy reflections of lights, a shadow ray each)",
-            lo=1, hi=MAX_GLOSSY_LIGHT_SAMPLES, label="Glossy Light Samples", kernel="glossy_nee"),
+            lo=1, hi=MAX_GLOSSY_LIGHT_SAMPLES, label="Glossy Light Samples", kernel="glossy_light_samples"),
     # Blender shows it as a checkbox (Fail on Missing Textures, addon/props/scene.py).
     Setting("missing_textures", str, "magenta", "An image texture that cannot be read: rendered "
             "magenta with a warning (as in Cycles), or an error (farms: render --strict)",

@@ -82,6 +82,6 @@ def test_the_kernels_get_the_fields_the_table_names():
     from backend.kernels.integrator import Settings
     values = kernel_values(load_scene_data(with_render(rr_depth=5, clamp=2.5, glossy_light_samples=3),
                                            "scene.json").settings)
-    assert (values["rr_depth"], values["clamp"], values["glossy_nee"]) == (5, 2.5, 3)
+    assert (values["rr_depth"], values["clamp"], values["glossy_light_samples"]) == (5, 2.5, 3)
     assert set(values) <= set(Settings._fields)
     assert set(values) == {st.kernel for st in SETTINGS if st.kernel}

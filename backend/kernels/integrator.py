@@ -66,7 +66,7 @@ Geometry = namedtuple("Geometry", ["rows", "irows", "holdout", "has_normals", "h
 Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", "transparent",
                                    "has_lights", "mesh_light", "hittable", "infinite",
                                    "visible_camera", "sampler", "stratified_bounces", "nee_all",
-                                   "glossy_nee", "track", "gated", "links", "shadow_linked", "tri_recv",
+                                   "glossy_light_samples", "track", "gated", "links", "shadow_linked", "tri_recv",
                                    "light_vis", "light_recv", "light_shadow", "emit_vis",
                                    "emit_recv", "mat_refl", "defer_pdf"])
 # Ray visibility and light/shadow linking (scene/links.py; integrator.py builds the tables):
@@ -92,7 +92,7 @@ NO_PARAMS = (0.0,) * 12      # km.bind's 12-tuple, for lanes that do not use it
 _NO_DUV = (0.0,) * 6         # a layered lane's dP/du, dP/dv where its stack has no bump map
 MAX_MIX_DEPTH = 4            # materials/mix.MAX_DEPTH: nested Mix / Add Shaders
 ONE_MINUS_EPS = 1.0 - 2.0 ** -53
-TABLE_NEE = 2                # light samples at a tabulated stack: this many times glossy_nee
+TABLE_NEE = 2                # light samples at a tabulated stack: this many times glossy_light_samples
 
 
 @kernel
@@ -126,7 +126,7 @@ def _add(L, slot, c):
 VIA_SAMPLED = 0      # a non-delta BSDF sample; next-event estimation picked one light
 VIA_DELTA = 1        # a delta lobe (or the camera): no light sampling competes
 VIA_ALL_LIGHTS = 2   # a non-delta BSDF sample; next-event estimation sampled every light
-VIA_SPLIT = 4        # (added to 0 or 2) next-event estimation took S.glossy_nee samples, not one
+VIA_SPLIT = 4        # (added to 0 or 2) next-event estimation took S.glossy_light_samples samples, not one
 VIA_TABLE = 8        # (added to VIA_SPLIT) ... times TABLE_NEE (a tabulated stack)
 
 # A ray's deferred MIS pdf (``S.defer_pdf``): one float64 row per queued ray, written where a
@@ -147,7 +147,7 @@ def _light_density(LT, S, li, pdf_light, via, o):
     else:
         sel = ld.select_prob(LT, o, li)
     if via & VIA_SPLIT:
-        sel *= S.glossy_nee
+        sel *= S.glossy_light_samples
     if via & VIA_TABLE:
         sel *= TABLE_NEE
     return sel * pdf_light
@@ -816,8 +816,8 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
             a = km.albedo(MT.tables, kind, prm, wi_l)
             albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = a
         # 4b. next-event estimation. At a rough conductor light sampling is the noisy strategy
-        # (its glossy lobe weighs the light's points very unequally): S.glossy_nee samples there,
-        # each weighted 1/S.glossy_nee. Measured (docs/scene-format.md): 2 samples cut the IES
+        # (its glossy lobe weighs the light's points very unequally): S.glossy_light_samples samples there,
+        # each weighted 1/S.glossy_light_samples. Measured (docs/scene-format.md): 2 samples cut the IES
         # room's variance at equal samples 1497 -> 1194 for +2 % CPU, the grazing strips' 72 -> 62;
         # rough dielectrics gained nothing (their light samples mostly end inside the object).
         # Tabulated stacks whose top is not nearly a mirror take TABLE_NEE times as many: their
@@ -829,7 +829,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
         # variance went 13.9 → 24.2, the car paint's share 26 → 41 % (benchmarks/peers/diagnose).
         # The shadow-ray buffers are sized for it (integrator.py).
         more = kind == km.TABULATED and km.tabulated.more_light_samples(MT.tables, int(prm[0]))
-        reps = S.glossy_nee if (kind == km.CONDUCTOR or kind == km.TABULATED) else 1
+        reps = S.glossy_light_samples if (kind == km.CONDUCTOR or kind == km.TABULATED) else 1
         if more:
             reps *= TABLE_NEE
         if all_lights and not delta_only:
