@@ -24,9 +24,9 @@
                     B_HEIGHT, strength in B_STRENGTH (kernels/integrator.py ``_bumped_normal``)
 
 Per lane, ``bind`` evaluates a row's parameters at a UV into a fixed 12-tuple ``p`` (so every
-kind returns the same Numba type): diffuse (colour); conductor (eta, k, tint, αu, αv, smooth);
-dielectric (eta, tint, αu, αv, smooth); coated diffuse (eta, αu, αv, smooth, body colour, table
-offset); tabulated (table offset, a textured body's colour). ``eval_pdf`` / ``sample`` / ``albedo`` dispatch on kind.
+kind returns the same Numba type). Each kind's slots and its 12-tuple are its kernel module's
+(kernels/bsdf/<kind>.py, "binding": ``params`` packs it, ``eval_pdf_p`` / ``sample_p`` /
+``albedo_p`` read it); ``eval_pdf`` / ``sample`` / ``albedo`` here only dispatch on kind.
 """
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ import numpy as np
 
 from .bsdf import coated_diffuse, conductor, dielectric, diffuse, tabulated
 from .jit import inlined, kernel
-from .microfacet import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
+from .microfacet import DISTRIBUTION_CODES, MASKING_CODES
 from .params import ParamPacker, param_rgb, param_scalar
 
 DIFFUSE, CONDUCTOR, DIELECTRIC, BLACK, LAYERED, MIX, ADD, COATED_DIFFUSE, TABULATED = 0, 1, 2, 3, 4, 5, 6, 7, 8
@@ -53,13 +53,16 @@ NSLOT = 22
 EMISSION = 0                 # RGB, every kind
 N_MAP, N_STRENGTH = 16, 19   # every kind: the normal map (RGB) and its strength
 B_HEIGHT, B_STRENGTH = 20, 21   # every kind: the bump map's height × distance and its strength
-COLOR = 3                    # diffuse: RGB albedo
-ETA, K, TINT, AU, AV = 3, 6, 9, 12, 13         # conductor: relative eta, k (RGB), tint, α
-D_ETA, D_TINT, D_AU, D_AV = 3, 4, 7, 8           # dielectric: relative eta, transmission colour, α
+# Each BSDF kind's slots are in its kernel module (kernels/bsdf/*.py, "binding"); the names here
+# are for the Python materials that pack them.
+COLOR = diffuse.COLOR
+ETA, K, TINT, AU, AV = conductor.ETA, conductor.K, conductor.TINT, conductor.AU, conductor.AV
+D_ETA, D_TINT, D_AU, D_AV = dielectric.ETA, dielectric.TINT, dielectric.AU, dielectric.AV
+CD_ETA, CD_AU, CD_AV, CD_RHO, CD_TAB = (coated_diffuse.ETA, coated_diffuse.AU, coated_diffuse.AV,
+                                        coated_diffuse.RHO, coated_diffuse.TAB)
+TB_TAB, TB_RHO = tabulated.TAB, tabulated.RHO
 LAYER_ID = 3                 # layered: the stack's row in the stack table
 MIX_FACTOR, MIX_N, MIX_C0 = 3, 4, 5   # mix/add (materials/mix.py): factor, count, component rows (≤ 8)
-CD_ETA, CD_AU, CD_AV, CD_RHO, CD_TAB = 3, 4, 5, 6, 9   # coated diffuse: relative eta, α, body colour, table
-TB_TAB, TB_RHO = 3, 4        # tabulated stack: its table block, a textured body's colour (RGB)
 
 MaterialTable = namedtuple("MaterialTable", ["kind", "dist", "masking", "two_sided", "emits",
                                              "values", "tex", "emit_front", "nmode", "bump", "tables"])
@@ -195,40 +198,25 @@ def emission(mt, tx, m, u, v):
 
 @inlined
 def bind(mt, tx, m, u, v):
-    """The 12-tuple of lane parameters (see the module docstring)."""
+    """The 12-tuple of lane parameters (see the module docstring): each kind's slots read here,
+    packed by its kernel module's ``params``."""
     kind = mt.kind[m]
     if kind == DIFFUSE:
-        c = _rgb(mt, tx, m, COLOR, u, v)
-        return (c[0], c[1], c[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return diffuse.params(_rgb(mt, tx, m, diffuse.COLOR, u, v))
     if kind == CONDUCTOR:
-        e = _rgb(mt, tx, m, ETA, u, v)
-        k = _rgb(mt, tx, m, K, u, v)
-        t = _rgb(mt, tx, m, TINT, u, v)
-        au = _scalar(mt, tx, m, AU, u, v)
-        av = _scalar(mt, tx, m, AV, u, v)
-        smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
-        return (e[0], e[1], e[2], k[0], k[1], k[2], t[0], t[1], t[2],
-                max(au, ALPHA_MIN), max(av, ALPHA_MIN), smooth)
+        return conductor.params(_rgb(mt, tx, m, conductor.ETA, u, v), _rgb(mt, tx, m, conductor.K, u, v),
+                                _rgb(mt, tx, m, conductor.TINT, u, v), _scalar(mt, tx, m, conductor.AU, u, v),
+                                _scalar(mt, tx, m, conductor.AV, u, v))
     if kind == DIELECTRIC:
-        # A texture may hold 0 (texels are clamped to the range's closed end): keep the index
-        # positive so 1/eta stays finite.
-        eta = max(_scalar(mt, tx, m, D_ETA, u, v), 1e-4)
-        t = _rgb(mt, tx, m, D_TINT, u, v)
-        au = _scalar(mt, tx, m, D_AU, u, v)
-        av = _scalar(mt, tx, m, D_AV, u, v)
-        smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
-        return (eta, t[0], t[1], t[2], max(au, ALPHA_MIN), max(av, ALPHA_MIN), smooth,
-                0.0, 0.0, 0.0, 0.0, 0.0)
+        return dielectric.params(_scalar(mt, tx, m, dielectric.ETA, u, v), _rgb(mt, tx, m, dielectric.TINT, u, v),
+                                 _scalar(mt, tx, m, dielectric.AU, u, v), _scalar(mt, tx, m, dielectric.AV, u, v))
     if kind == COATED_DIFFUSE:
-        au = _scalar(mt, tx, m, CD_AU, u, v)
-        av = _scalar(mt, tx, m, CD_AV, u, v)
-        c = _rgb(mt, tx, m, CD_RHO, u, v)
-        smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
-        return (mt.values[m, CD_ETA], max(au, ALPHA_MIN), max(av, ALPHA_MIN), smooth, c[0], c[1], c[2],
-                mt.values[m, CD_TAB], 0.0, 0.0, 0.0, 0.0)
+        au = _scalar(mt, tx, m, coated_diffuse.AU, u, v)
+        av = _scalar(mt, tx, m, coated_diffuse.AV, u, v)
+        c = _rgb(mt, tx, m, coated_diffuse.RHO, u, v)
+        return coated_diffuse.params(mt.values[m, coated_diffuse.ETA], au, av, c, mt.values[m, coated_diffuse.TAB])
     if kind == TABULATED:
-        c = _rgb(mt, tx, m, TB_RHO, u, v)
-        return (mt.values[m, TB_TAB], c[0], c[1], c[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return tabulated.params(mt.values[m, tabulated.TAB], _rgb(mt, tx, m, tabulated.RHO, u, v))
     return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
@@ -236,9 +224,9 @@ def bind(mt, tx, m, u, v):
 def is_delta_only(kind, p):
     """Every lobe is a delta (no light sampling needed): smooth metals and glass, black."""
     if kind == CONDUCTOR:
-        return p[11] > 0.0
+        return conductor.delta_only_p(p)
     if kind == DIELECTRIC:
-        return p[6] > 0.0
+        return dielectric.delta_only_p(p)
     return kind == BLACK
 
 
@@ -246,18 +234,15 @@ def is_delta_only(kind, p):
 def eval_pdf(T, kind, dist, masking, p, mode, wi, wo):
     """(f·|cos θo| RGB, pdf) of the non-delta part; T: the material table's ``tables``."""
     if kind == DIFFUSE:
-        return diffuse.eval_pdf((p[0], p[1], p[2]), wi, wo)
+        return diffuse.eval_pdf_p(p, wi, wo)
     if kind == CONDUCTOR:
-        return conductor.eval_pdf((p[0], p[1], p[2]), (p[3], p[4], p[5]), (p[6], p[7], p[8]),
-                                  p[9], p[10], p[11] > 0.0, dist, masking, wi, wo)
+        return conductor.eval_pdf_p(p, dist, masking, wi, wo)
     if kind == DIELECTRIC:
-        return dielectric.eval_pdf(p[0], (p[1], p[2], p[3]), p[4], p[5], p[6] > 0.0, dist, masking,
-                                   mode, wi, wo)
+        return dielectric.eval_pdf_p(p, dist, masking, mode, wi, wo)
     if kind == COATED_DIFFUSE:
-        return coated_diffuse.eval_pdf(T, int(p[7]), p[0], p[1], p[2], p[3] > 0.0, (p[4], p[5], p[6]),
-                                       dist, masking, wi, wo)
+        return coated_diffuse.eval_pdf_p(T, p, dist, masking, wi, wo)
     if kind == TABULATED:
-        return tabulated.eval_pdf(T, int(p[0]), (p[1], p[2], p[3]), wi, wo)
+        return tabulated.eval_pdf_p(T, p, wi, wo)
     return (0.0, 0.0, 0.0), 0.0
 
 
@@ -265,18 +250,15 @@ def eval_pdf(T, kind, dist, masking, p, mode, wi, wo):
 def sample(T, kind, dist, masking, p, mode, wi, u0, u1, u2):
     """(wo, weight RGB, pdf, is_delta); weight 0 ends the path."""
     if kind == DIFFUSE:
-        return diffuse.sample((p[0], p[1], p[2]), wi, u0, u1)
+        return diffuse.sample_p(p, wi, u0, u1)
     if kind == CONDUCTOR:
-        return conductor.sample((p[0], p[1], p[2]), (p[3], p[4], p[5]), (p[6], p[7], p[8]),
-                                p[9], p[10], p[11] > 0.0, dist, masking, wi, u0, u1)
+        return conductor.sample_p(p, dist, masking, wi, u0, u1)
     if kind == DIELECTRIC:
-        return dielectric.sample(p[0], (p[1], p[2], p[3]), p[4], p[5], p[6] > 0.0, dist, masking,
-                                 mode, wi, u0, u1, u2)
+        return dielectric.sample_p(p, dist, masking, mode, wi, u0, u1, u2)
     if kind == COATED_DIFFUSE:
-        return coated_diffuse.sample(T, int(p[7]), p[0], p[1], p[2], p[3] > 0.0, (p[4], p[5], p[6]),
-                                     dist, masking, wi, u0, u1, u2)
+        return coated_diffuse.sample_p(T, p, dist, masking, wi, u0, u1, u2)
     if kind == TABULATED:
-        return tabulated.sample(T, int(p[0]), (p[1], p[2], p[3]), wi, u0, u1, u2)
+        return tabulated.sample_p(T, p, wi, u0, u1, u2)
     return (0.0, 0.0, 1.0 if wi[2] >= 0.0 else -1.0), (0.0, 0.0, 0.0), 0.0, False
 
 
@@ -284,13 +266,13 @@ def sample(T, kind, dist, masking, p, mode, wi, u0, u1, u2):
 def albedo(T, kind, p, wi):
     """RGB reflectance estimate for the denoising AOV (a stack's: its directional albedo at wi)."""
     if kind == DIFFUSE:
-        return (p[0], p[1], p[2])
+        return diffuse.albedo_p(p)
     if kind == CONDUCTOR:
-        return conductor.albedo((p[0], p[1], p[2]), (p[3], p[4], p[5]), (p[6], p[7], p[8]))
+        return conductor.albedo_p(p)
     if kind == DIELECTRIC:
-        return (p[1], p[2], p[3])
+        return dielectric.albedo_p(p)
     if kind == COATED_DIFFUSE:
-        return coated_diffuse.albedo(T, int(p[7]), p[1], (p[4], p[5], p[6]), wi[2])
+        return coated_diffuse.albedo_p(T, p, wi[2])
     if kind == TABULATED:
-        return tabulated.albedo(T, int(p[0]), (p[1], p[2], p[3]), wi[2])
+        return tabulated.albedo_p(T, p, wi[2])
     return (0.0, 0.0, 0.0)

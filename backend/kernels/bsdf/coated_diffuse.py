@@ -56,7 +56,7 @@ from . import IMPORTANCE
 from . import dielectric
 from .. import microfacet as mf
 from ..fresnel import dielectric as fresnel
-from ..jit import kernel
+from ..jit import inlined, kernel
 from ..turns import cos_sin_turns
 
 from ..consts import INV_PI
@@ -356,3 +356,33 @@ def integrate_node(eta, tint, alpha, smooth, dist, masking, tau, n, gl_x, gl_w, 
         for c in range(3):
             out[EBAR_AT + c] += w * e[c]
             out[R_AT + c] += w * math.exp(-tau[c] / mu) * d[c]
+
+
+# ----------------------------------------------------------------------------- binding
+# The kind's slots in a material row (kernels/materials.py ``MaterialTable.values``: its Python
+# material packs them) and its lane parameters: the 12-tuple every kind binds to (one Numba type
+# for all, kernels/materials.py ``bind``), written and read here only.
+ETA, AU, AV, RHO, TAB = 3, 4, 5, 6, 9   # relative eta, α, body colour (RGB), table offset
+
+
+@inlined
+def params(eta, au, av, rho, tab):
+    smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
+    return (eta, max(au, mf.ALPHA_MIN), max(av, mf.ALPHA_MIN), smooth, rho[0], rho[1], rho[2], tab,
+            0.0, 0.0, 0.0, 0.0)
+
+
+@inlined
+def eval_pdf_p(T, p, dist, masking, wi, wo):
+    return eval_pdf(T, int(p[7]), p[0], p[1], p[2], p[3] > 0.0, (p[4], p[5], p[6]), dist, masking, wi, wo)
+
+
+@inlined
+def sample_p(T, p, dist, masking, wi, u0, u1, u2):
+    return sample(T, int(p[7]), p[0], p[1], p[2], p[3] > 0.0, (p[4], p[5], p[6]), dist, masking, wi,
+                  u0, u1, u2)
+
+
+@inlined
+def albedo_p(T, p, mu):
+    return albedo(T, int(p[7]), p[1], (p[4], p[5], p[6]), mu)

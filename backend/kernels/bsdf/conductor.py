@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from .. import microfacet as mf
 from ..fresnel import conductor_rgb
-from ..jit import kernel
+from ..jit import inlined, kernel
 from ..vec import normalize
 
 ZERO3 = (0.0, 0.0, 0.0)
@@ -69,3 +69,39 @@ def albedo(eta, k, tint):
     """Normal-incidence reflectance: the metal's colour, what a denoiser wants as albedo."""
     F = conductor_rgb(1.0, eta, k)
     return (F[0] * tint[0], F[1] * tint[1], F[2] * tint[2])
+
+
+# ----------------------------------------------------------------------------- binding
+# The kind's slots in a material row (kernels/materials.py ``MaterialTable.values``: its Python
+# material packs them) and its lane parameters: the 12-tuple every kind binds to (one Numba type
+# for all, kernels/materials.py ``bind``), written and read here only.
+ETA, K, TINT, AU, AV = 3, 6, 9, 12, 13     # relative eta (RGB), k (RGB), tint (RGB), α
+
+
+@inlined
+def params(eta, k, tint, au, av):
+    smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
+    return (eta[0], eta[1], eta[2], k[0], k[1], k[2], tint[0], tint[1], tint[2],
+            max(au, mf.ALPHA_MIN), max(av, mf.ALPHA_MIN), smooth)
+
+
+@inlined
+def eval_pdf_p(p, dist, masking, wi, wo):
+    return eval_pdf((p[0], p[1], p[2]), (p[3], p[4], p[5]), (p[6], p[7], p[8]), p[9], p[10], p[11] > 0.0,
+                    dist, masking, wi, wo)
+
+
+@inlined
+def sample_p(p, dist, masking, wi, u0, u1):
+    return sample((p[0], p[1], p[2]), (p[3], p[4], p[5]), (p[6], p[7], p[8]), p[9], p[10], p[11] > 0.0,
+                  dist, masking, wi, u0, u1)
+
+
+@inlined
+def albedo_p(p):
+    return albedo((p[0], p[1], p[2]), (p[3], p[4], p[5]), (p[6], p[7], p[8]))
+
+
+@inlined
+def delta_only_p(p):
+    return p[11] > 0.0

@@ -19,7 +19,7 @@ import math
 from .. import microfacet as mf
 from ..fresnel import dielectric as fresnel
 from . import RADIANCE
-from ..jit import kernel
+from ..jit import inlined, kernel
 
 ZERO3 = (0.0, 0.0, 0.0)
 
@@ -112,3 +112,40 @@ def sample(eta, tint, au, av, smooth, dist, masking, mode, wi, u0, u1, u2):
     ts = 1.0 if mode != RADIANCE else _div(1.0, e * e)
     w = ratio * ts
     return wo, (tint[0] * w, tint[1] * w, tint[2] * w), pt, False
+
+
+# ----------------------------------------------------------------------------- binding
+# The kind's slots in a material row (kernels/materials.py ``MaterialTable.values``: its Python
+# material packs them) and its lane parameters: the 12-tuple every kind binds to (one Numba type
+# for all, kernels/materials.py ``bind``), written and read here only.
+ETA, TINT, AU, AV = 3, 4, 7, 8      # relative eta, transmission colour (RGB), α
+
+
+@inlined
+def params(eta, tint, au, av):
+    # A texture may hold 0 (texels are clamped to the range's closed end): keep the index
+    # positive so 1/eta stays finite.
+    eta = max(eta, 1e-4)
+    smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
+    return (eta, tint[0], tint[1], tint[2], max(au, mf.ALPHA_MIN), max(av, mf.ALPHA_MIN), smooth,
+            0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@inlined
+def eval_pdf_p(p, dist, masking, mode, wi, wo):
+    return eval_pdf(p[0], (p[1], p[2], p[3]), p[4], p[5], p[6] > 0.0, dist, masking, mode, wi, wo)
+
+
+@inlined
+def sample_p(p, dist, masking, mode, wi, u0, u1, u2):
+    return sample(p[0], (p[1], p[2], p[3]), p[4], p[5], p[6] > 0.0, dist, masking, mode, wi, u0, u1, u2)
+
+
+@inlined
+def albedo_p(p):
+    return (p[1], p[2], p[3])
+
+
+@inlined
+def delta_only_p(p):
+    return p[6] > 0.0

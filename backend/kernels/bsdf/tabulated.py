@@ -63,7 +63,7 @@ from . import IMPORTANCE
 from . import conductor, dielectric, diffuse
 from .coated_diffuse import SHARP_ALPHA, reflected_visible, reflection_density, specular_share, three_from_one
 from ..fresnel import dielectric as fresnel
-from ..jit import kernel
+from ..jit import inlined, kernel
 from ..turns import cos_sin_turns
 
 SMOOTH_TOP, ROUGH_TOP = 0, 1
@@ -437,3 +437,30 @@ def eval_table_part(T, o, rho, wi, wo, out):
     for k in range(wi.shape[0]):
         v = table_part(T, o, r, (wi[k, 0], wi[k, 1], wi[k, 2]), (wo[k, 0], wo[k, 1], wo[k, 2]))
         out[k, 0], out[k, 1], out[k, 2] = v
+
+
+# ----------------------------------------------------------------------------- binding
+# The kind's slots in a material row (kernels/materials.py ``MaterialTable.values``: its Python
+# material packs them) and its lane parameters: the 12-tuple every kind binds to (one Numba type
+# for all, kernels/materials.py ``bind``), written and read here only.
+TAB, RHO = 3, 4        # its table block's offset, a textured body's colour (RGB)
+
+
+@inlined
+def params(tab, rho):
+    return (tab, rho[0], rho[1], rho[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@inlined
+def eval_pdf_p(T, p, wi, wo):
+    return eval_pdf(T, int(p[0]), (p[1], p[2], p[3]), wi, wo)
+
+
+@inlined
+def sample_p(T, p, wi, u0, u1, u2):
+    return sample(T, int(p[0]), (p[1], p[2], p[3]), wi, u0, u1, u2)
+
+
+@inlined
+def albedo_p(T, p, mu):
+    return albedo(T, int(p[0]), (p[1], p[2], p[3]), mu)

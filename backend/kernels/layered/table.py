@@ -47,8 +47,8 @@ import numpy as np
 
 from .. import bump as _bump
 from .. import materials as km
+from ..bsdf import conductor, dielectric, diffuse
 from ..jit import inlined, kernel
-from ..microfacet import ALPHA_MIN
 from ..params import param_rgb, param_scalar
 from ..textures import lookup_gradient
 from . import iface as ki
@@ -118,26 +118,19 @@ def _scalar(values, tex, r, slot, TX, u, v):
 
 @kernel
 def _iface_params(values, tex, kind, r, TX, u, v):
-    """The 12 lane parameters of interface row r (the layout of kernels/materials.py's bind)."""
+    """The 12 lane parameters of interface row r (each kind's ``params``, kernels/bsdf/*.py)."""
     if kind == km.DIFFUSE:
-        c = _rgb(values, tex, r, km.COLOR, TX, u, v)
-        return (c[0], c[1], c[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return diffuse.params(_rgb(values, tex, r, diffuse.COLOR, TX, u, v))
     if kind == km.CONDUCTOR:
-        e = _rgb(values, tex, r, km.ETA, TX, u, v)
-        k = _rgb(values, tex, r, km.K, TX, u, v)
-        t = _rgb(values, tex, r, km.TINT, TX, u, v)
-        au = _scalar(values, tex, r, km.AU, TX, u, v)
-        av = _scalar(values, tex, r, km.AV, TX, u, v)
-        smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
-        return (e[0], e[1], e[2], k[0], k[1], k[2], t[0], t[1], t[2],
-                max(au, ALPHA_MIN), max(av, ALPHA_MIN), smooth)
-    eta = max(_scalar(values, tex, r, km.D_ETA, TX, u, v), 1e-4)
-    t = _rgb(values, tex, r, km.D_TINT, TX, u, v)
-    au = _scalar(values, tex, r, km.D_AU, TX, u, v)
-    av = _scalar(values, tex, r, km.D_AV, TX, u, v)
-    smooth = 1.0 if (au <= 0.0 and av <= 0.0) else 0.0
-    return (eta, t[0], t[1], t[2], max(au, ALPHA_MIN), max(av, ALPHA_MIN), smooth,
-            0.0, 0.0, 0.0, 0.0, 0.0)
+        return conductor.params(_rgb(values, tex, r, conductor.ETA, TX, u, v),
+                                _rgb(values, tex, r, conductor.K, TX, u, v),
+                                _rgb(values, tex, r, conductor.TINT, TX, u, v),
+                                _scalar(values, tex, r, conductor.AU, TX, u, v),
+                                _scalar(values, tex, r, conductor.AV, TX, u, v))
+    return dielectric.params(_scalar(values, tex, r, dielectric.ETA, TX, u, v),
+                             _rgb(values, tex, r, dielectric.TINT, TX, u, v),
+                             _scalar(values, tex, r, dielectric.AU, TX, u, v),
+                             _scalar(values, tex, r, dielectric.AV, TX, u, v))
 
 
 @kernel
