@@ -139,10 +139,20 @@ class BSDF:
 
 class ClosedFormBSDF(BSDF):
     """A BSDF whose value and pdf come from one compiled call, ``_eval_pdf(wi, wo, mode)`` →
-    (f (n, 3), pdf (n,)): ``eval`` and ``pdf`` are its two halves."""
+    (f (n, 3), pdf (n,)): ``eval`` and ``pdf`` are its two halves; and whose sampler is one
+    compiled call too, ``_sample_into(wi, rng, mode, out)`` filling ``sample_arrays``."""
 
     def _eval_pdf(self, wi, wo, mode):
         raise NotImplementedError
+
+    def _sample_into(self, wi, rng, mode, out) -> None:
+        raise NotImplementedError
+
+    def sample(self, wi, rng, mode=RADIANCE, **_):
+        wi = rows3(wi)
+        out = sample_arrays(wi.shape[0])
+        self._sample_into(wi, rng, mode, out)
+        return BSDFSample(*out)
 
     def eval(self, wi, wo, rng=None, mode=RADIANCE, **_):
         return self._eval_pdf(wi, wo, mode)[0]

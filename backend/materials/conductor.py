@@ -18,8 +18,7 @@ from ..kernels.lazy import lazy
 from ..kernels.microfacet_codes import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from ..limits import short as _short
 from . import register
-from .base import (RADIANCE, BSDFSample, ClosedFormBSDF, Material, ShadingContext, lanes, rows1, rows3,
-                   sample_arrays)
+from .base import RADIANCE, ClosedFormBSDF, Material, ShadingContext, lanes, rows1, rows3
 from .common import any_textured, as_param, delta_lanes, parse_microfacet_kind, parse_roughness
 from .emission import parse_emission
 from .metals import METALS, metal_ior
@@ -55,12 +54,8 @@ class ConductorBSDF(ClosedFormBSDF):
 
 
 
-    def sample(self, wi, rng, mode=0):
-        wi = rows3(wi)
-        n = wi.shape[0]
-        out = sample_arrays(n)
-        _batch.conductor_sample(*self._args, wi, rng.random((n, 2)), *out)
-        return BSDFSample(*out)
+    def _sample_into(self, wi, rng, mode, out):
+        _batch.conductor_sample(*self._args, wi, rng.random((wi.shape[0], 2)), *out)
 
     def albedo(self):
         # Normal-incidence reflectance: the metal's colour, what a denoiser wants as albedo.

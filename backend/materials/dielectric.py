@@ -24,8 +24,7 @@ import numpy as np
 from ..kernels.lazy import lazy
 from ..kernels.microfacet_codes import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from . import register
-from .base import (RADIANCE, ClosedFormBSDF, BSDFSample, Material, ShadingContext, lanes, rows1, rows3,
-                   sample_arrays)
+from .base import ClosedFormBSDF, Material, ShadingContext, lanes, rows1, rows3
 from .common import any_textured, as_param, delta_lanes, parse_microfacet_kind, parse_roughness
 from .emission import parse_emission
 from .microfacet import GGX, HEIGHT_CORRELATED
@@ -64,12 +63,8 @@ class DielectricBSDF(ClosedFormBSDF):
 
 
 
-    def sample(self, wi, rng, mode=RADIANCE):
-        wi = rows3(wi)
-        n = wi.shape[0]
-        out = sample_arrays(n)
-        _batch.dielectric_sample(*self._args, int(mode), wi, rng.random((n, 3)), *out)
-        return BSDFSample(*out)
+    def _sample_into(self, wi, rng, mode, out):
+        _batch.dielectric_sample(*self._args, int(mode), wi, rng.random((wi.shape[0], 3)), *out)
 
     def albedo(self):
         # For the denoising AOV: what shows through the glass is tinted by transmission_color.

@@ -5,7 +5,7 @@ import numpy as np
 
 from ..kernels.lazy import lazy
 from . import register
-from .base import RADIANCE, BSDFSample, ClosedFormBSDF, Material, ShadingContext, lanes, rows3, sample_arrays
+from .base import RADIANCE, ClosedFormBSDF, Material, ShadingContext, lanes, rows3
 from .common import any_textured, as_param
 from .emission import parse_emission
 
@@ -29,12 +29,8 @@ class DiffuseBSDF(ClosedFormBSDF):
 
 
 
-    def sample(self, wi, rng, mode=0):
-        wi = rows3(wi)
-        n = wi.shape[0]
-        out = sample_arrays(n)
-        _batch.diffuse_sample(rows3(self.color), wi, rng.random((n, 2)), *out)
-        return BSDFSample(*out)
+    def _sample_into(self, wi, rng, mode, out):
+        _batch.diffuse_sample(rows3(self.color), wi, rng.random((wi.shape[0], 2)), *out)
 
     def albedo(self):
         return self.color

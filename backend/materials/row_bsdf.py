@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.lazy import lazy
-from .base import RADIANCE, BSDFSample, ClosedFormBSDF, rows3, sample_arrays
+from .base import ClosedFormBSDF, rows3
 
 _batch = lazy("bsdf.batch")     # compiled on first use (kernels/lazy.py)
 
@@ -51,13 +51,10 @@ class RowBSDF(ClosedFormBSDF):
 
 
 
-    def sample(self, wi, rng, mode=RADIANCE, **_):
+    def _sample_into(self, wi, rng, mode, out):
         mt, tx = self._table()
-        wi = rows3(wi)
         n = wi.shape[0]
-        out = sample_arrays(n)
         _batch.row_sample(mt, tx, 0, self._uv_for(n), int(mode), wi, rng.random((n, 3)), *out)
-        return BSDFSample(*out)
 
     def albedo(self, wi=None):
         """The directional albedo per lane at ``wi`` (default: normal incidence)."""
