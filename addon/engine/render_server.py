@@ -38,7 +38,6 @@ class RenderServer:
         # ``job``: a stand-in with BackendJob's interface (tests).
         self.job = job if job is not None else BackendJob(serve_command(python), env=env, stdin_pipe=True)
         self.current: ServerJob | None = None
-        self.ready = False
         self.jobs_done = 0
         self._count = 0
 
@@ -63,8 +62,6 @@ class RenderServer:
         """Read the server's events and hand them to the job in progress."""
         for event in self.job.poll(timeout):
             kind = event.get("event")
-            if kind == "ready":
-                self.ready = True
             job = self.current
             if job is None or job.done:
                 continue
@@ -100,7 +97,6 @@ class ServerJob:
         self.status: int | None = None
         self.message: str | None = None
         self.cancelled = False
-        self.started = time.perf_counter()
 
     # -- what the server said
 

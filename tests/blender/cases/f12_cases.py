@@ -141,12 +141,9 @@ def warm_cancel(tmp, after=0.7):
 
 def _preview_of(mat, timeout=240.0):
     """Seconds until a material's preview shows pixels, and until it stops changing."""
+    from .preview_cases import generate_preview
     t0 = time.perf_counter()
-    try:
-        with bpy.context.temp_override(id=mat):
-            bpy.ops.ed.lib_id_generate_preview()
-    except RuntimeError:            # bpy 5.3: the operator's poll needs a UI context; same job
-        mat.asset_generate_preview()
+    generate_preview(mat)
     first = px = None
     while time.perf_counter() - t0 < timeout:
         w, h = mat.preview.image_size

@@ -9,16 +9,21 @@ import numpy as np
 from . import build
 
 
-def preview(tmp, timeout=240.0):       # (a first preview in a new checkout may compile kernels)
-    sc = build.scene()
-    mat = build.diffuse_material("Preview", (0.8, 0.2, 0.1))
-    mat.preview_render_type = "SPHERE"
-    t0 = time.perf_counter()
+def generate_preview(mat) -> None:
+    """Ask Blender for a material's preview (a background job; pixels arrive later)."""
     try:
         with bpy.context.temp_override(id=mat):
             bpy.ops.ed.lib_id_generate_preview()
     except RuntimeError:            # bpy 5.3: the operator's poll needs a UI context; same job
         mat.asset_generate_preview()
+
+
+def preview(tmp, timeout=240.0):       # (a first preview in a new checkout may compile kernels)
+    sc = build.scene()
+    mat = build.diffuse_material("Preview", (0.8, 0.2, 0.1))
+    mat.preview_render_type = "SPHERE"
+    t0 = time.perf_counter()
+    generate_preview(mat)
     # The preview buffer exists as soon as the job starts; wait until pixels arrive.
     px = None
     while time.perf_counter() - t0 < timeout:
