@@ -5,6 +5,8 @@ reordered or added later.
 """
 from __future__ import annotations
 
+from ..backend.layered.phase_schema import PHASES
+
 # Named metals of the conductor interface (docs/materials.md, `conductor.metal`).
 METALS = (
     ("Ag", "Silver"), ("Al", "Aluminium"), ("Au", "Gold"), ("Be", "Beryllium"), ("Co", "Cobalt"),
@@ -28,19 +30,9 @@ INTERFACE_KINDS = (
 )
 OPAQUE_KINDS = {"conductor", "diffuse"}
 
-PHASE_KINDS = (
-    ("ISOTROPIC", "Isotropic", "Scatters equally in all directions", 0),
-    ("HG", "Henyey-Greenstein", "Forward (g > 0) or backward (g < 0) scattering", 1),
-    ("MICROFLAKE", "Microflake (fibre)", "Oriented flakes/fibres (Guo et al. 2018): anisotropic "
-     "scattering and extinction", 2),
-    ("VMF", "von Mises-Fisher", "A forward lobe of concentration κ", 3),
-    ("SGGX", "SGGX", "SGGX specular microflakes (fibres or flakes) with a roughness", 4),
-)
-
-SGGX_SHAPES = (
-    ("FIBER", "Fibres", "Fibres along the axis", 0),
-    ("FLAKE", "Flakes", "Flakes whose normal is the axis", 1),
-)
+# Phase functions: one row each in backend/layered/phase_schema.py (the enum's numbers are what
+# saved .blend files hold).
+PHASE_KINDS = tuple((k.enum, k.label, k.description, k.number) for k in PHASES)
 
 DISTRIBUTIONS = (
     ("GGX", "GGX", "GGX (Trowbridge-Reitz) microfacets, as Cycles", 0),

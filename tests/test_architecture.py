@@ -20,7 +20,7 @@ import pytest
 from conftest import ROOT
 
 FORBIDDEN_IN_ADDON = {"threading", "_thread", "multiprocessing", "concurrent", "asyncio"}
-BACKEND_MODULES_THE_ADDON_MAY_USE = {"presets", "errors", "ies.lm63", "render_settings"}
+BACKEND_MODULES_THE_ADDON_MAY_USE = {"presets", "errors", "ies.lm63", "render_settings", "layered.phase_schema"}
 
 
 def imports(path: Path):

@@ -5,6 +5,7 @@ a stack of one interface is written as that interface's own material type.
 """
 from __future__ import annotations
 
+from ...backend.layered.phase_schema import BY_ENUM
 from ..util import f32, rgb
 
 
@@ -110,15 +111,30 @@ def _interface_json(layer, images) -> dict:
     raise StackError(f"unknown interface kind {kind!r}")
 
 
-def _axis(layer, images=None):
-    """The axis as entered (the renderer normalises it); a zero vector means +X (the default).
-    An axis texture replaces it (decoded by the renderer like a normal map)."""
-    if layer.orientation_texture is not None and images is not None:
-        tex = images.texture(layer.orientation_texture)
+def _axis(layer, param, images=None):
+    """An axis parameter as entered (the renderer normalises it); a zero vector means the
+    schema's default. Its texture replaces it (decoded by the renderer like a normal map)."""
+    image = getattr(layer, param.texture_prop)
+    if image is not None and images is not None:
+        tex = images.texture(image)
         if tex is not None:
-            return _labelled(images, tex, _source(layer, layer.orientation_texture))
-    axis = [f32(v) for v in layer.flake_orientation]
-    return axis if any(axis) else [1.0, 0.0, 0.0]
+            return _labelled(images, tex, _source(layer, image))
+    axis = [f32(v) for v in getattr(layer, param.prop)]
+    return axis if any(axis) else list(param.default)
+
+
+def phase_json(layer, images=None) -> dict:
+    """The medium's phase function, from its row in backend/layered/phase_schema.py."""
+    kind = BY_ENUM[layer.phase]
+    out = {"type": kind.name}
+    for p in kind.params:
+        if p.kind == "choice":
+            out[p.key] = getattr(layer, p.prop).lower()
+        elif p.kind == "axis":
+            out[p.key] = _axis(layer, p, images)
+        else:
+            out[p.key] = f32(getattr(layer, p.prop))
+    return out
 
 
 def _density(layer, images):
@@ -146,17 +162,7 @@ def medium_json(layer, images) -> dict:
     if clear:
         return out
     out["albedo"] = _colour(layer.albedo, layer.albedo_texture, images, layer)
-    if layer.phase == "HG":
-        out["phase"] = {"type": "hg", "g": f32(layer.hg_g)}
-    elif layer.phase == "MICROFLAKE":
-        out["phase"] = {"type": "microflake", "stddev": f32(layer.flake_stddev), "orientation": _axis(layer, images)}
-    elif layer.phase == "VMF":
-        out["phase"] = {"type": "vmf", "kappa": f32(layer.vmf_kappa)}
-    elif layer.phase == "SGGX":
-        out["phase"] = {"type": "sggx", "shape": layer.sggx_shape.lower(), "orientation": _axis(layer, images),
-                        "roughness": f32(layer.sggx_roughness)}
-    else:
-        out["phase"] = {"type": "isotropic"}
+    out["phase"] = phase_json(layer, images)
     return out
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import bpy
 
+from ...backend.layered.phase_schema import BY_NAME, default_of
 from ..ops.stack import add_layer, default_name
 from .library import PresetError, find, read_document
 
@@ -274,47 +275,41 @@ class Converter:
     def phase(self, layer, phase, path: str) -> None:
         if not isinstance(phase, dict):
             raise PresetError(f"{self.name}: {path}: expected a phase-function object")
-        kind = phase.get("type", "isotropic")
-        used = {"type"}
-        if kind == "isotropic":
+        name = phase.get("type", "isotropic")
+        kind = BY_NAME.get(name)
+        if kind is None or (name == "sggx" and "matrix" in phase):
             layer.phase = "ISOTROPIC"
-        elif kind == "hg":
-            layer.phase = "HG"
-            used.add("g")
-            self.scalar(layer, "hg_g", None, phase.get("g", 0.0), f"{path}.g", 0.0)
-        elif kind == "vmf":
-            layer.phase = "VMF"
-            used.add("kappa")
-            self.scalar(layer, "vmf_kappa", None, phase.get("kappa", 10.0), f"{path}.kappa", 10.0)
-        elif kind == "microflake":
-            layer.phase = "MICROFLAKE"
-            used |= {"stddev", "orientation"}
-            self.scalar(layer, "flake_stddev", None, phase.get("stddev", 0.05), f"{path}.stddev", 0.05)
-            self.axis(layer, phase.get("orientation", [1.0, 0.0, 0.0]), f"{path}.orientation", [1.0, 0.0, 0.0])
-        elif kind == "sggx" and "matrix" not in phase:
-            layer.phase = "SGGX"
-            used |= {"shape", "orientation", "roughness"}
-            shape = phase.get("shape", "fiber")
-            layer.sggx_shape = "FLAKE" if shape == "flake" else "FIBER"
-            default = [0.0, 0.0, 1.0] if shape == "flake" else [1.0, 0.0, 0.0]
-            self.axis(layer, phase.get("orientation", default), f"{path}.orientation", default)
-            self.scalar(layer, "sggx_roughness", None, phase.get("roughness", 0.3), f"{path}.roughness", 0.3)
-        else:
-            layer.phase = "ISOTROPIC"
-            used = set(phase)
-            what = "an explicit SGGX matrix" if kind == "sggx" else f"phase function {kind!r}"
+            what = "an explicit SGGX matrix" if name == "sggx" else f"phase function {name!r}"
             self.drop(path, f"{what} (the editor shows it as isotropic)")
+            self.unknown(phase, set(phase), path)
+            return
+        layer.phase = kind.enum
+        used, choices = {"type"}, {}
+        for p in kind.params:                       # its row in backend/layered/phase_schema.py
+            used.add(p.key)
+            where = f"{path}.{p.key}"
+            if p.kind == "choice":
+                value = phase.get(p.key, p.default)
+                value = value if value in [c[0] for c in p.choices] else p.default
+                choices[p.key] = value
+                setattr(layer, p.prop, value.upper())
+            elif p.kind == "axis":
+                default = list(default_of(p, choices))
+                self.axis(layer, p, phase.get(p.key, default), where, default)
+            else:
+                default = p.default if p.ui_default is None else p.ui_default
+                self.scalar(layer, p.prop, None, phase.get(p.key, default), where, default)
         self.unknown(phase, used, path)
 
-    def axis(self, layer, value, path: str, default) -> None:
-        layer.orientation_texture = None
+    def axis(self, layer, param, value, path: str, default) -> None:
+        setattr(layer, param.texture_prop, None)
         if isinstance(value, dict):               # a normal-map-encoded axis texture
             if value.get("scale", 1.0) not in (1, 1.0, [1, 1, 1], [1.0, 1.0, 1.0]):
                 self.drop(f"{path}.scale", "a scaled axis texture")
-            layer.flake_orientation = default
-            layer.orientation_texture = self.image(value, path, colour=False)
+            setattr(layer, param.prop, default)
+            setattr(layer, param.texture_prop, self.image(value, path, colour=False))
             return
-        self.colour(layer, "flake_orientation", None, value, path, default)
+        self.colour(layer, param.prop, None, value, path, default)
 
     # ------------------------------------------------------------------ whole material
 

@@ -12,7 +12,8 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorPro
                        PointerProperty, StringProperty)
 from bpy.types import PropertyGroup
 
-from ..constants import DISTRIBUTIONS, INTERFACE_KINDS, MASKINGS, METALS, PHASE_KINDS, SGGX_SHAPES
+from ...backend.layered.phase_schema import PHASES
+from ..constants import DISTRIBUTIONS, INTERFACE_KINDS, MASKINGS, METALS, PHASE_KINDS
 
 METAL_ITEMS = [(sym, f"{name} ({sym})", f"Measured complex IOR of {name.lower()}", i)
                for i, (sym, name) in enumerate(METALS)]
@@ -115,21 +116,27 @@ class LaminaLayer(PropertyGroup):
                                 description="Single-scattering albedo of the medium (1 = no absorption)")
     albedo_texture: _image_prop("Albedo Texture", "the medium albedo (multiplied by Albedo)")
     phase: EnumProperty(name="Phase Function", items=PHASE_KINDS, default="ISOTROPIC")
-    hg_g: FloatProperty(name="Anisotropy g", default=0.0, min=-0.999, max=0.999, subtype='FACTOR',
-                        description="Henyey-Greenstein mean cosine: > 0 forward, < 0 backward scattering")
-    flake_stddev: FloatProperty(name="Flake Spread", default=0.05, min=0.001, max=1.0, precision=3,
-                                description="Standard deviation of the microflake/fibre orientation distribution")
-    flake_orientation: FloatVectorProperty(name="Axis", size=3, subtype='XYZ',
-                                           default=(1.0, 0.0, 0.0), soft_min=-1.0, soft_max=1.0,
-                                           description="Fibre axis (or SGGX flake normal) in the shading frame "
-                                                       "(x = UV tangent, z = normal); the renderer normalises it")
     orientation_texture: _image_prop("Axis Texture", "the fibre axis / flake normal, encoded like a "
                                                     "tangent-space normal map (RGB·2 − 1; non-colour data)")
-    vmf_kappa: FloatProperty(name="Concentration κ", default=10.0, min=0.0, soft_max=1000.0,
-                             description="von Mises-Fisher concentration: 0 = isotropic, larger = narrower forward lobe")
-    sggx_shape: EnumProperty(name="Shape", items=SGGX_SHAPES, default="FIBER")
-    sggx_roughness: FloatProperty(name="Roughness", default=0.3, min=0.001, max=1.0, subtype='FACTOR',
-                                  description="SGGX roughness: 1 = isotropic, small = aligned fibres/flakes")
+    # Each phase function's parameters are added below from its schema row.
+
+
+def _phase_property(param):
+    """A phase parameter's property, from its row in backend/layered/phase_schema.py."""
+    if param.kind == "choice":
+        items = [(value.upper(), label, doc, i) for i, (value, label, doc) in enumerate(param.choices)]
+        return EnumProperty(name=param.label, items=items, default=param.default.upper(),
+                            description=param.description)
+    default = param.default if param.ui_default is None else param.ui_default
+    if param.kind == "axis":
+        return FloatVectorProperty(name=param.label, default=tuple(default), description=param.description,
+                                   **param.ui)
+    return FloatProperty(name=param.label, default=default, description=param.description, **param.ui)
+
+
+for _kind in PHASES:
+    for _param in _kind.params:
+        LaminaLayer.__annotations__.setdefault(_param.prop, _phase_property(_param))
 
 
 CLASSES = (LaminaLayer,)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import bpy
 
+from ...backend.layered.phase_schema import BY_ENUM, label_of
 from ..constants import INTERFACE_KINDS
 from ..export import preset_link
 from ..export.images import ImageExporter
@@ -45,8 +46,8 @@ def optical_depth(layer) -> str:
 def medium_summary(layer) -> str:
     if is_clear(layer):
         return "clear"
-    phase = {"ISOTROPIC": "iso", "HG": f"g {layer.hg_g:.2g}", "MICROFLAKE": "fibres",
-             "VMF": f"κ {layer.vmf_kappa:.3g}", "SGGX": "sggx"}[layer.phase]
+    kind = BY_ENUM[layer.phase]
+    phase = kind.summary.format(**{p.prop: getattr(layer, p.prop) for p in kind.params})
     return f"τ {optical_depth(layer)} · {phase}"
 
 
@@ -152,18 +153,13 @@ def draw_medium(layout, layer, index: int) -> None:
     if not is_clear(layer):
         _texture_row(col, layer, "albedo", "albedo_texture")
         col.prop(layer, "phase")
-        if layer.phase == "HG":
-            col.prop(layer, "hg_g")
-        elif layer.phase == "MICROFLAKE":
-            col.prop(layer, "flake_stddev")
-            _texture_row(col, layer, "flake_orientation", "orientation_texture")
-        elif layer.phase == "VMF":
-            col.prop(layer, "vmf_kappa")
-        elif layer.phase == "SGGX":
-            col.prop(layer, "sggx_shape")
-            _texture_row(col, layer, "flake_orientation", "orientation_texture",
-                         text="Normal" if layer.sggx_shape == "FLAKE" else "Axis")
-            col.prop(layer, "sggx_roughness")
+        kind = BY_ENUM[layer.phase]
+        choices = {p.key: getattr(layer, p.prop).lower() for p in kind.params if p.kind == "choice"}
+        for p in kind.params:                       # its row in backend/layered/phase_schema.py
+            if p.kind == "axis":
+                _texture_row(col, layer, p.prop, p.texture_prop, text=label_of(p, choices))
+            else:
+                col.prop(layer, p.prop)
         col.label(text=f"Optical depth τ = σt·d = {optical_depth(layer)}")
 
 

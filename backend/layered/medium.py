@@ -30,6 +30,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .phase import Isotropic, Phase, PhaseSpec, parse_phase
+from .phase.parse import isotropic_spec
 from .phase.base import lanes
 
 GRAZING = 1e-7
@@ -264,6 +265,6 @@ def parse_medium(node) -> MediumSpec:
         grey = sigma_t.is_constant and bool(np.all(sigma_t.bind(None) == sigma_t.bind(None)[0, 0]))
     albedo = node.param("albedo", 1.0, channels=3, lo=0.0, hi=1.0)
     phase_node = node.optional_child("phase")
-    phase = parse_phase(phase_node) if phase_node is not None else PhaseSpec("isotropic", Isotropic, {}, False)
+    phase = parse_phase(phase_node) if phase_node is not None else isotropic_spec()
     node.finish()
     return MediumSpec(thickness, sigma_t, albedo, phase, grey)

@@ -17,6 +17,7 @@ from ..kernels.layered.table import (ABSORBING, APPROX, BI, EMPTY, F_FLAKE, F_MA
                                      STOCHASTIC, UNI, StackTable, assemble, fill_rows)
 from ..materials.dielectric import DielectricMaterial
 from .flat import flatten
+from .phase_schema import BY_NAME
 from .phase.fiber import kernel_table
 from .stack import NullMaterial
 
@@ -143,25 +144,24 @@ class StackBuilder:
         s6 = np.zeros(6)
         row = -1
         params = p.params
-        if pk in (ph.HG, ph.VMF):
-            put(S_PA, params["g" if pk == ph.HG else "kappa"], 1)
-        elif pk == ph.FIBER:
-            put(S_PA, params["stddev"], 1)
-            put(S_PV, params["orientation"], 3)
-            if params["stddev"].is_constant:
-                row = ph.FIRST_MEDIUM_ROW + len(self.fiber_rows)
-                self.fiber_rows.append(float(np.asarray(params["stddev"].bind(None)).reshape(-1)[0]))
-        elif pk == ph.SGGX:
-            if "matrix" in p.settings:
-                flags |= F_MATRIX
-                s6 = np.asarray(p.settings["matrix"], dtype=np.float64).reshape(6)
-            else:
-                if p.settings.get("shape") == "flake":
-                    flags |= F_FLAKE
-                put(S_PA, params["roughness"], 1)
-                put(S_PV, params["orientation"], 3)
-        if pk in (ph.FIBER, ph.SGGX) and "orientation" in params and not params["orientation"].is_constant:
-            flags |= F_TEX_ORIENT
+        for param in BY_NAME[p.type_name].params:           # the schema's slots (phase_schema.py)
+            if param.key not in params:
+                continue
+            if param.slot == "a":
+                put(S_PA, params[param.key], 1)
+            elif param.slot == "v":
+                put(S_PV, params[param.key], 3)
+                if not params[param.key].is_constant:
+                    flags |= F_TEX_ORIENT                      # decoded like a normal map
+        # Two kinds' own extras: the fiber's σ row for a constant spread, SGGX's matrix or shape.
+        if pk == ph.FIBER and params["stddev"].is_constant:
+            row = ph.FIRST_MEDIUM_ROW + len(self.fiber_rows)
+            self.fiber_rows.append(float(np.asarray(params["stddev"].bind(None)).reshape(-1)[0]))
+        if "matrix" in p.settings:
+            flags |= F_MATRIX
+            s6 = np.asarray(p.settings["matrix"], dtype=np.float64).reshape(6)
+        elif p.settings.get("shape") == "flake":
+            flags |= F_FLAKE
         textured = bool(spec.uses_textures)
         return {"kind": kind, "grey": bool(spec.grey), "sigma3": sigma3, "values": values, "tex": tex,
                 "phase": pk, "flags": flags, "s6": s6, "row": row}, textured

@@ -356,6 +356,29 @@ def _sggx_d4(P, o, h):
 
 # ----------------------------------------------------------------------------- dispatch
 @kernel(error_model="numpy")
+def bind(P, o, kind, a, v, choice, FT, row):
+    """Kind ``kind``'s block at P[o:] from a medium row's slots (backend/layered/phase_schema.py):
+    the scalar ``a``, the unit-or-not vector ``v``, the choice index (SGGX: 1 = flakes), and for
+    the fiber its precomputed FT ``row`` (−1: interpolate)."""
+    if kind == HG:
+        bind_hg(P, o, a)
+    elif kind == VMF:
+        bind_vmf(P, o, a)
+    elif kind == FIBER:
+        bind_fiber(P, o, a, v, FT, row)
+    elif kind == SGGX:
+        bind_sggx(P, o, sggx_preset(choice == 1, v, a))
+    else:
+        P[o + PK] = kind
+
+
+@kernel(error_model="numpy")
+def directional(kind):
+    """Does the kind's extinction depend on the direction (``sigma_scale`` not 1)?"""
+    return kind == FIBER or kind == SGGX
+
+
+@kernel(error_model="numpy")
 def sigma_scale(P, o, FT, d):
     """Direction-dependent extinction factor σt(d)/σt: 1 except for microflake phases."""
     kind = P[o + PK]

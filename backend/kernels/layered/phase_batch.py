@@ -12,23 +12,12 @@ from . import phase as ph
 
 
 @kernel
-def bind_hg_rows(g, P):
+def bind_rows(kind, a, v, choice, FT, P):
+    """Rows of kind ``kind`` from the slots (phase.bind): ``a`` (1 | n,), ``v`` (1 | n, 3)."""
     for i in range(P.shape[0]):
-        ph.bind_hg(P[i], 0, g[i])
-
-
-@kernel
-def bind_vmf_rows(kappa, P):
-    for i in range(P.shape[0]):
-        ph.bind_vmf(P[i], 0, kappa[i])
-
-
-@kernel
-def bind_fiber_rows(stddev, axis, FT, P):
-    for i in range(P.shape[0]):
-        ph.bind_fiber(P[i], 0, stddev[i if stddev.shape[0] > 1 else 0],
-                      (axis[i if axis.shape[0] > 1 else 0, 0], axis[i if axis.shape[0] > 1 else 0, 1],
-                       axis[i if axis.shape[0] > 1 else 0, 2]), FT, -1)
+        ia = i if a.shape[0] > 1 else 0
+        iv = i if v.shape[0] > 1 else 0
+        ph.bind(P[i], 0, kind, a[ia], (v[iv, 0], v[iv, 1], v[iv, 2]), choice, FT, -1)
 
 
 @kernel

@@ -227,26 +227,17 @@ def bind_into(ST, TX, s, u, v, duv, B):
             B[o + M_ALB + j] = alb[j]
         pk = ST.md_phase[r]
         po = o + M_PH
-        B[o + M_DIR] = 1.0 if (pk == ph.FIBER or pk == ph.SGGX) else 0.0
+        B[o + M_DIR] = 1.0 if ph.directional(pk) else 0.0
         flags = ST.md_flags[r]
-        if pk == ph.ISOTROPIC:
-            B[po + ph.PK] = ph.ISOTROPIC
-        elif pk == ph.HG:
-            ph.bind_hg(B, po, _scalar(mv, mt, r, S_PA, TX, u, v))
-        elif pk == ph.VMF:
-            ph.bind_vmf(B, po, _scalar(mv, mt, r, S_PA, TX, u, v))
+        if flags & F_MATRIX:
+            s6 = ST.md_s6
+            ph.bind_sggx(B, po, (s6[r, 0], s6[r, 1], s6[r, 2], s6[r, 3], s6[r, 4], s6[r, 5]))
         else:
+            a = _scalar(mv, mt, r, S_PA, TX, u, v)
             ori = _rgb(mv, mt, r, S_PV, TX, u, v)
             if flags & F_TEX_ORIENT:
                 ori = (2.0 * ori[0] - 1.0, 2.0 * ori[1] - 1.0, 2.0 * ori[2] - 1.0)
-            a = _scalar(mv, mt, r, S_PA, TX, u, v)
-            if pk == ph.FIBER:
-                ph.bind_fiber(B, po, a, ori, ST.FT, ST.md_row[r])
-            elif flags & F_MATRIX:
-                s6 = ST.md_s6
-                ph.bind_sggx(B, po, (s6[r, 0], s6[r, 1], s6[r, 2], s6[r, 3], s6[r, 4], s6[r, 5]))
-            else:
-                ph.bind_sggx(B, po, ph.sggx_preset((flags & F_FLAKE) != 0, ori, a))
+            ph.bind(B, po, pk, a, ori, 1 if flags & F_FLAKE else 0, ST.FT, ST.md_row[r])
 
 
 @kernel

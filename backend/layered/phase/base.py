@@ -164,6 +164,12 @@ class Phase:
         phase_batch.scale_batch(self.rows(), self.table(), d, out)
         return out
 
+    @classmethod
+    def from_params(cls, settings: dict, **params) -> "Phase":
+        """The phase from its bound parameters (keyed as in backend/layered/phase_schema.py) and its
+        untexturable choices (``settings``)."""
+        return cls(**params)
+
     def take(self, idx) -> "Phase":
         raise NotImplementedError
 
@@ -178,6 +184,19 @@ def _pair_rows(a, b):
     b = np.asarray(b, dtype=np.float64).reshape(-1, 3)
     n = max(a.shape[0], b.shape[0])
     return (np.ascontiguousarray(np.broadcast_to(a, (n, 3))), np.ascontiguousarray(np.broadcast_to(b, (n, 3))))
+
+
+def slot_rows(type_name: str, a=0.0, v=(0.0, 0.0, 1.0), FT=_NO_TABLE) -> np.ndarray:
+    """Parameter rows of a kind bound from the medium row's slots (backend/layered/phase_schema.py:
+    the scalar ``a``, () or (n,), and the vector ``v``, (1 | n, 3)) by the same per-lane ``bind``
+    as the walk's stacks."""
+    from ...kernels.layered import phase_layout as kp
+    from ...kernels.layered.phase_batch import bind_rows
+    a = np.ascontiguousarray(np.asarray(a, dtype=np.float64).reshape(-1))
+    v = np.ascontiguousarray(vector_lanes(v))
+    P = np.zeros((max(a.size, v.shape[0]), kp.SIZE))
+    bind_rows(kp.KINDS[type_name], a, v, 0, FT, P)
+    return P
 
 
 def draw_seed(rng: np.random.Generator) -> np.uint64:

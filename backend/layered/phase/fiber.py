@@ -51,7 +51,7 @@ import numpy as np
 
 from ...kernels.layered import phase_layout as _kp
 from ...mathutil import dot
-from .base import Phase, lane_count, lanes, scalar_lanes, unit_or, vector_lanes
+from .base import Phase, lane_count, lanes, scalar_lanes, slot_rows, unit_or, vector_lanes
 
 S_MIN, S_MAX = _kp.S_MIN, _kp.S_MAX   # stddev range (clamped); Mitsuba's fiber table spans 4e-8 … 4
 MAX_ROUNDS = 128           # rejection cap per sample (rounds of the former NumPy sampler; the
@@ -262,12 +262,7 @@ class MicroflakeFiber(Phase):
         return lane_count(self.stddev, self.axis)
 
     def _bind_rows(self):
-        from ...kernels.layered.phase_batch import bind_fiber_rows
-        s = np.ascontiguousarray(self.stddev.reshape(-1))
-        m = max(s.size, self.axis.shape[0])
-        P = np.zeros((m, _kp.SIZE))
-        bind_fiber_rows(s, np.ascontiguousarray(self.axis), kernel_table(), P)
-        return P
+        return slot_rows(self.type_name, self.stddev, self.axis, kernel_table())
 
     def table(self) -> np.ndarray:
         return kernel_table()

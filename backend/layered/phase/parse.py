@@ -10,15 +10,16 @@ Vector parameters (``orientation``) are given as a list of 3 numbers in the laye
 """
 from __future__ import annotations
 
+import functools
 from typing import Callable
 
 import numpy as np
 
 from ...textures import Param
 from .base import Phase
-from .fiber import S_MAX, MicroflakeFiber
-from .sggx import SGGX, is_positive_definite, preset_matrix
-from .simple import HenyeyGreenstein, Isotropic, VonMisesFisher
+from . import fiber, simple  # noqa: F401 (their classes register by subclassing Phase)
+from ..phase_schema import BY_NAME, PHASES, PhaseKind, default_of
+from .sggx import SGGX, is_positive_definite
 
 
 class PhaseSpec:
@@ -55,64 +56,71 @@ def _normal_map_decode(v: np.ndarray) -> np.ndarray:
     return 2.0 * v - 1.0
 
 
-def _orientation(node, default) -> Param:
-    p = node.param("orientation", default, channels=3, lo=None, color=False)
+def _orientation(node, default, key: str = "orientation") -> Param:
+    p = node.param(key, default, channels=3, lo=None, color=False)
     if p.is_constant and not np.any(p.bind(None)):
-        raise node.fail("expected a non-zero vector", "orientation")
+        raise node.fail("expected a non-zero vector", key)
     return p
 
 
-def _isotropic(node) -> PhaseSpec:
-    return PhaseSpec("isotropic", Isotropic, {}, False)
+def _classes() -> dict:
+    """The Phase classes by scene-file type (every subclass defined in this package)."""
+    found, todo = {}, list(Phase.__subclasses__())
+    while todo:
+        cls = todo.pop()
+        todo.extend(cls.__subclasses__())
+        if cls.type_name:
+            found.setdefault(cls.type_name, cls)
+    return found
 
 
-def _hg(node) -> PhaseSpec:
-    g = node.param("g", lo=-1.0, hi=1.0)
-    return PhaseSpec("hg", HenyeyGreenstein, {"g": g}, False)
+def _parser(kind: PhaseKind):
+    """The scene-file parser of one schema row (schema.py): choices first (a default may depend on
+    them), then the texturable parameters with the row's ranges."""
+    def parse(node) -> PhaseSpec:
+        settings, params, decode = {}, {}, {}
+        for p in kind.params:
+            if p.kind == "choice":
+                settings[p.key] = node.string(p.key, p.default, choices=tuple(c[0] for c in p.choices))
+            elif p.kind == "axis":
+                params[p.key] = _orientation(node, list(default_of(p, settings)), p.key)
+                decode[p.key] = _normal_map_decode
+            else:
+                default = () if p.default is None else (p.default,)
+                params[p.key] = node.param(p.key, *default, lo=p.lo, hi=p.hi, lo_open=p.lo_open)
+        return _spec(kind, settings, params, decode)
+    return parse
 
 
-def _vmf(node) -> PhaseSpec:
-    kappa = node.param("kappa", lo=0.0)
-    return PhaseSpec("vmf", VonMisesFisher, {"kappa": kappa}, False)
+def _spec(kind: PhaseKind, settings: dict, params: dict, decode: dict) -> PhaseSpec:
+    cls = _classes()[kind.name]
+    return PhaseSpec(kind.name, functools.partial(cls.from_params, settings), params, kind.directional,
+                     decode, settings=settings)
 
 
-def _microflake(node) -> PhaseSpec:
-    stddev = node.param("stddev", lo=0.0, hi=S_MAX, lo_open=True)
-    orientation = _orientation(node, [1.0, 0.0, 0.0])
-    return PhaseSpec("microflake", MicroflakeFiber, {"stddev": stddev, "orientation": orientation},
-                     True, {"orientation": _normal_map_decode})
+def isotropic_spec() -> PhaseSpec:
+    """What a medium without a ``phase`` gets: the same as ``{"type": "isotropic"}``."""
+    return _spec(BY_NAME["isotropic"], {}, {}, {})
 
 
 def _sggx(node) -> PhaseSpec:
-    if node.has("matrix"):
-        m = node.vector("matrix", 6)
-        if not is_positive_definite(m):
-            raise node.fail("expected a positive-definite matrix [Sxx, Syy, Szz, Sxy, Sxz, Syz]",
-                            "matrix")
-        node.ignore("shape", "orientation", "roughness")
-        for key in ("shape", "orientation", "roughness"):
-            if node.has(key):
-                raise node.fail("not allowed together with \"matrix\"", key)
-        const = np.asarray(m, dtype=np.float64)
-        return PhaseSpec("sggx", lambda: SGGX(const), {}, True, settings={"matrix": const})
-    shape = node.string("shape", "fiber", choices=("fiber", "flake"))
-    orientation = _orientation(node, [1.0, 0.0, 0.0] if shape == "fiber" else [0.0, 0.0, 1.0])
-    roughness = node.param("roughness", lo=0.0, hi=1.0, lo_open=True)
-
-    def make(orientation, roughness):
-        return SGGX(preset_matrix(shape, orientation, roughness))
-
-    return PhaseSpec("sggx", make, {"orientation": orientation, "roughness": roughness}, True,
-                     {"orientation": _normal_map_decode}, settings={"shape": shape})
+    """SGGX takes either the schema's shape, orientation and roughness or an explicit matrix."""
+    if not node.has("matrix"):
+        return _parser(BY_NAME["sggx"])(node)
+    m = node.vector("matrix", 6)
+    if not is_positive_definite(m):
+        raise node.fail("expected a positive-definite matrix [Sxx, Syy, Szz, Sxy, Sxz, Syz]",
+                        "matrix")
+    node.ignore("shape", "orientation", "roughness")
+    for key in ("shape", "orientation", "roughness"):
+        if node.has(key):
+            raise node.fail("not allowed together with \"matrix\"", key)
+    const = np.asarray(m, dtype=np.float64)
+    return PhaseSpec("sggx", lambda: SGGX(const), {}, True, settings={"matrix": const})
 
 
-PARSERS = {
-    "isotropic": _isotropic,
-    "hg": _hg,
-    "vmf": _vmf,
-    "microflake": _microflake,
-    "sggx": _sggx,
-}
+PARSERS = {kind.name: _parser(kind) for kind in PHASES}
+PARSERS["sggx"] = _sggx
 
 
 def parse_phase(node) -> PhaseSpec:

@@ -84,6 +84,10 @@ class SGGX(Phase):
         self.b = cholesky(self.s6)
 
     @classmethod
+    def from_params(cls, settings: dict, orientation, roughness) -> "SGGX":
+        return cls(preset_matrix(settings["shape"], orientation, roughness))
+
+    @classmethod
     def fiber(cls, axis, roughness) -> "SGGX":
         return cls(preset_matrix("fiber", axis, roughness))
 

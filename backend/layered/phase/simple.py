@@ -14,25 +14,16 @@ from __future__ import annotations
 import numpy as np
 
 from ...kernels.layered import phase_layout as kp
-from .base import Phase, lane_count, lanes, scalar_lanes
+from .base import Phase, lane_count, lanes, scalar_lanes, slot_rows
 
 G_MAX = kp.G_MAX  # |g| clamp: pbrt-v4 issue #333 shows NaNs at g = ±1
-
-
-def _rows(values, bind):
-    v = np.ascontiguousarray(np.asarray(values, dtype=np.float64).reshape(-1))
-    P = np.zeros((v.size, kp.SIZE))
-    bind(v, P)
-    return P
 
 
 class Isotropic(Phase):
     type_name = "isotropic"
 
     def _bind_rows(self):
-        P = np.zeros((1, kp.SIZE))
-        P[0, kp.PK] = kp.ISOTROPIC
-        return P
+        return slot_rows(self.type_name)
 
     def mean_cosine(self):
         return np.zeros(())
@@ -58,8 +49,7 @@ class HenyeyGreenstein(Phase):
         return lane_count(self.g)
 
     def _bind_rows(self):
-        from ...kernels.layered.phase_batch import bind_hg_rows
-        return _rows(self.g, bind_hg_rows)
+        return slot_rows(self.type_name, self.g)
 
     def mean_cosine(self):
         return self.g
@@ -86,8 +76,7 @@ class VonMisesFisher(Phase):
         return lane_count(self.kappa)
 
     def _bind_rows(self):
-        from ...kernels.layered.phase_batch import bind_vmf_rows
-        return _rows(self.kappa, bind_vmf_rows)
+        return slot_rows(self.type_name, self.kappa)
 
     def mean_cosine(self):
         k = self.kappa
