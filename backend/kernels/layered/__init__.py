@@ -2,8 +2,8 @@
 stack to its own end.
 
 Modules (import them through ``backend.kernels``, which configures the kernel cache first):
-* ``phase``   phase functions of the slab media (isotropic, Henyey–Greenstein, von Mises–Fisher,
-              Guo's fiber microflakes with their projected-area table, SGGX), per lane;
+* ``phase``   phase functions of the slab media (the kinds of ``phase_layout.KINDS``, with Guo's
+              fiber microflakes' projected-area table), per lane;
 * ``iface``   the interfaces as the walk needs them: sample and eval with both sampling
               densities (importance transport), per-interface normal maps;
 * ``table``   the stack table's layout (one per scene), its assembly and ``bind`` (a lane's stack

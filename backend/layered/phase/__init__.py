@@ -23,15 +23,18 @@ Parameters are per lane or constant: scalars have shape () (constant) or (n,), v
 or (n, 3) (see ``materials.base.lanes``). A constant phase serves any number of lanes.
 ``rng`` is a ``numpy.random.Generator``.
 
-Reciprocity. Isotropic, HG and vMF satisfy p(a → b) = p(−b → −a). The microflake phases
-(fiber, SGGX) satisfy σ(a) p(a → b) = σ(b) p(−b → −a) instead (σ = sigma_scale): the reciprocal
-quantity is σs·p, which is what the position-free path contribution contains.
+Reciprocity. The phases of the scattering angle alone (simple.py) satisfy p(a → b) = p(−b → −a).
+The microflake phases (fiber, SGGX) satisfy σ(a) p(a → b) = σ(b) p(−b → −a) instead
+(σ = sigma_scale): the reciprocal quantity is σs·p, which is what the position-free path
+contribution contains.
 
 Classes
 -------
-``Isotropic()``, ``HenyeyGreenstein(g)`` (g clamped to ±0.999), ``VonMisesFisher(kappa)``,
-``MicroflakeFiber(stddev, orientation)`` (Guo et al.'s Gaussian fiber flakes; stddev clamped
-to [1e-3, 4]), ``SGGX(s6)`` / ``SGGX.fiber(axis, roughness)`` / ``SGGX.flake(normal, roughness)``.
+One per row of ``backend/layered/phase_schema.py`` (its ``type_name`` is the row's name; the
+parser finds it by that): the phases of the scattering angle in simple.py (``Isotropic()``,
+``HenyeyGreenstein(g)``, g clamped to ±0.999, …), ``MicroflakeFiber(stddev, orientation)`` in
+fiber.py (Guo et al.'s Gaussian fiber flakes; stddev clamped to [1e-3, 4]), ``SGGX(s6)`` /
+``SGGX.fiber(axis, roughness)`` / ``SGGX.flake(normal, roughness)`` in sggx.py.
 Scene parsing: ``parse_phase(node) -> PhaseSpec`` with ``spec.bind(uv) -> Phase``.
 """
 from .base import Phase, PhaseSample, SamplingStats
