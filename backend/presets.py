@@ -228,8 +228,6 @@ def _describe_medium(m: dict) -> str:
 
 # --------------------------------------------------------------------------- validation
 
-PHASE_PARAMS = {"hg": ("g",), "vmf": ("kappa",), "microflake": ("stddev", "orientation"),
-                "sggx": ("roughness", "orientation", "shape", "matrix")}
 TOP_LEVEL = ("format", "version", "name", "label", "category", "description", "tags", "source",
              "units", "material")
 

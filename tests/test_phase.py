@@ -14,6 +14,7 @@ from backend.errors import SceneError
 from backend.layered.phase import (SGGX, HenyeyGreenstein, Isotropic, MicroflakeFiber,
                                    VonMisesFisher, parse_phase)
 from backend.layered.phase import fiber as fiber_mod
+from backend.layered.phase.simple import Rayleigh
 from backend.scene.reader import LoadContext, Node
 
 P_MIN = 1e-3      # chi-square significance (fixed seeds: deterministic outcome)
@@ -48,6 +49,7 @@ def _cases():
         out.append((f"vmf{k:g}", VonMisesFisher(k), D_OBLIQUE, D_OBLIQUE,
                     cone_edges(None, (w / 10,) if w else ()), 24))
     out.append(("iso", Isotropic(), D_OBLIQUE, D_OBLIQUE, cone_edges(), 24))
+    out.append(("rayleigh", Rayleigh(), D_OBLIQUE, D_OBLIQUE, cone_edges(), 24))
     for s in (0.05, 0.3):
         for name, axis in (("z", [0, 0, 1]), ("oblique", [0.5, 0.5, 0.0]), ("tilted", [0.2, -0.6, 0.7])):
             t = unit(axis)
@@ -146,6 +148,21 @@ def test_vmf_mean_cosine(kappa):
     assert abs(c.mean() - exact) < 4 * c.std() / math.sqrt(c.size)
 
 
+def test_rayleigh_against_its_closed_form():
+    """3(1 + cos²θ)/16π at known angles, its mean cosine 0 and its second moment 2/5 by
+    quadrature (E[cos²θ] = ∫ μ² · 3(1 + μ²)/8 dμ = 3/8 (2/3 + 2/5) = 2/5)."""
+    ph = Rayleigh()
+    d_in = np.tile([0.0, 0.0, 1.0], (4, 1))
+    theta = np.array([0.0, 0.5, math.pi / 2, math.pi])
+    d_out = np.stack([np.sin(theta), np.zeros(4), np.cos(theta)], axis=1)
+    np.testing.assert_allclose(ph.eval(d_in, d_out), 3 * (1 + np.cos(theta) ** 2) / (16 * math.pi), rtol=1e-14)
+    f = lambda mu, k: 2 * math.pi * mu ** k * float(ph.eval(np.array([[0, 0, 1.0]]),
+                                                           np.array([[math.sqrt(1 - mu * mu), 0, mu]]))[0])
+    assert abs(integrate.quad(lambda m: f(m, 1), -1, 1)[0]) < 1e-12
+    assert integrate.quad(lambda m: f(m, 2), -1, 1)[0] == pytest.approx(0.4, rel=1e-10)
+    assert float(parse_phase(_node({"type": "rayleigh"})).bind(np.zeros((2, 2))).mean_cosine()) == 0.0
+
+
 def test_hg_g_zero_and_clamp():
     rng = np.random.default_rng(5)
     a, b = random_dirs(rng, 100), random_dirs(rng, 100)
@@ -163,7 +180,7 @@ def test_hg_g_zero_and_clamp():
     assert np.allclose(s.d_out[:, 2], 1 - 2 * u[:, 0], atol=1e-8)
 
 
-PHASES_SYMMETRIC = [Isotropic(), HenyeyGreenstein(0.7), HenyeyGreenstein(-0.95), VonMisesFisher(50.0)]
+PHASES_SYMMETRIC = [Isotropic(), Rayleigh(), HenyeyGreenstein(0.7), HenyeyGreenstein(-0.95), VonMisesFisher(50.0)]
 PHASES_FLAKE = [MicroflakeFiber(0.05, [0.5, 0.5, 0]), MicroflakeFiber(0.3, [0, 0, 1]),
                 SGGX.fiber([1, 0, 1], 0.2), SGGX.flake([0, 1, 1], 0.3), SGGX([1.0, 0.3, 0.6, 0.2, -0.1, 0.05])]
 
@@ -407,7 +424,8 @@ def test_parse_phase_types():
     ({"type": "sggx", "matrix": [1, 1, -1, 0, 0, 0]}, "phase.matrix: expected a positive-definite"),
     ({"type": "sggx", "matrix": [1, 1, 1, 0, 0, 0], "roughness": 0.1}, "phase.roughness: not allowed"),
     ({"type": "sggx", "shape": "tube", "roughness": 0.1}, "phase.shape: expected one of"),
-    ({"type": "rayleigh"}, "phase.type: unknown type 'rayleigh'"),
+    ({"type": "mie"}, "phase.type: unknown type 'mie'"),
+    ({"type": "rayleigh", "g": 0.5}, "phase.g: unknown field"),
 ])
 def test_parse_phase_errors(obj, msg):
     with pytest.raises(SceneError) as err:

@@ -80,6 +80,10 @@ STACKS = {
                                                 {"type": "dielectric", "ior": 2.1, "roughness": 0.81},
                                                 {"type": "diffuse", "color": [0.8, 0.6, 0.4]}],
                                  "media": [{"sigma_t": 0.0}, {"sigma_t": 0.0}]}, 0.015),
+    "rayleigh slab over a body": ({"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.45, "roughness": 0.2},
+                                                                 {"type": "diffuse", "color": [0.3, 0.5, 0.7]}],
+                                   "media": [{"sigma_t": 2.0, "albedo": [0.9, 0.7, 0.5], "phase": {"type": "rayleigh"}}]},
+                                  0.015),
     "fig. 2": ({"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.05, **BECKMANN},
                                                   _cu(0.05, **BECKMANN)],
                 "media": [{"sigma_t": 1.0, "albedo": [0.5, 0.7, 0.95], "phase": {"type": "hg", "g": 0.5}}]}, 0.03),
@@ -166,11 +170,12 @@ def test_slabs_against_prahls_adding_doubling():
     print(f"\nworst error / bound over Prahl's rows: {worst:.2f}")
 
 
-@pytest.mark.parametrize("g,tau", [(0.0, 0.5), (0.7, 2.0), (-0.4, 8.0)])
+@pytest.mark.parametrize("g,tau", [(0.0, 0.5), (0.7, 2.0), (-0.4, 8.0), ("rayleigh", 2.0)])
 def test_white_furnace(g, tau):
     """An albedo-1 slab over a white body under an index-matched top: everything comes back."""
+    phase = {"type": "rayleigh"} if g == "rayleigh" else {"type": "hg", "g": g}
     doc = {"type": "layered", "interfaces": [{"type": "null"}, {"type": "diffuse", "color": 1.0}],
-           "media": [{"sigma_t": tau, "albedo": 1.0, "phase": {"type": "hg", "g": g}}]}
+           "media": [{"sigma_t": tau, "albedo": 1.0, "phase": phase}]}
     b = table(doc).bind(CTX)
     for theta in (0.0, 40.0, 70.0, 85.0):
         a = _hemisphere_albedo(b, direction(theta))

@@ -92,6 +92,9 @@ PHASES: tuple[PhaseKind, ...] = (
                      slot="a", lo=0.0, hi=1.0, lo_open=True, ui_default=0.3,
                      ui={"min": 0.001, "max": 1.0, "subtype": "FACTOR"})),
               directional=True, summary="sggx"),
+    PhaseKind("rayleigh", "RAYLEIGH", 5, "Rayleigh",
+              "Particles much smaller than the wavelength: forward and backward alike, 3(1 + cos²θ)/16π",
+              summary="rayleigh"),
 )
 
 BY_NAME = {k.name: k for k in PHASES}

@@ -4,7 +4,7 @@ equations); backend/kernels/bsdf/tabulated.py evaluates and samples the table wi
 
 Which stacks (``plan``): untextured, opaque (the last interface a conductor or a diffuse body),
 isotropic (no ``roughness_v``, no normal or bump maps, media whose phase function depends only on
-the scattering angle: isotropic, HG, vMF), a dielectric or null top, inner interfaces null or
+the scattering angle: isotropic, HG, vMF, Rayleigh), a dielectric or null top, inner interfaces null or
 rough dielectrics, every rough element at least ``ALPHA_MIN`` rough (sharper lobes need more
 nodes than a table of bounded size holds), under ``"estimator": "auto"``. A stack with a closed
 form (layered/coated_diffuse.py) takes that instead; everything else keeps the walk.
@@ -55,7 +55,7 @@ BANDWIDTH = 8.0             # a sampled interface keeps its first 8/α azimuthal
 POLE_REFINE = 0.5           # node spacing at the pole: 1 − POLE_REFINE times the uniform one
 S_I, S_O, S_B = 32, 48, 64  # the sampler's nodes in θi, cells in θo, bins in Δφ
 TRUNCATE = 1e-4             # a node pair's orders below this share of its order 0 are left out
-PHASES = ("isotropic", "hg", "vmf")
+PHASES = ("isotropic", "hg", "vmf", "rayleigh")
 
 
 # ----------------------------------------------------------------------------- which stacks

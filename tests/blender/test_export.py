@@ -11,7 +11,7 @@ from bpy_harness import backend_renders, requires_bpy, result_of, run_cases
 
 pytestmark = [pytest.mark.blender, requires_bpy]
 
-CASES = ["reference_stack", "full_scene", "mesh_arrays", "node_materials", "million_triangles"]
+CASES = ["reference_stack", "every_phase_kind", "full_scene", "mesh_arrays", "node_materials", "million_triangles"]
 
 TOP_LEVEL = {"format", "version", "film", "camera", "render", "materials", "meshes", "objects", "lights", "world"}
 LIGHT_FIELDS = {
@@ -56,6 +56,21 @@ def check_document(doc: dict, folder: Path) -> None:
         assert LIGHT_FIELDS[kind] <= set(light), light
         assert len(light["color"]) == 3 and np.array(light["to_world"]).shape == (4, 4)
     assert doc["world"]["type"] in ("none", "constant", "environment")
+
+
+def test_every_phase_kind_exports_what_the_loader_reads(results):
+    """Every phase function of the schema (backend/layered/phase_schema.py) is in the panel's
+    enum, and its default export loads as that kind."""
+    from backend.layered.phase import parse_phase
+    from backend.layered.phase_schema import PHASES
+    from backend.scene.reader import LoadContext, Node
+    got = result_of(results, "every_phase_kind")
+    assert sorted(got) == sorted(k.enum for k in PHASES)
+    for kind in PHASES:
+        doc = got[kind.enum]
+        assert doc["type"] == kind.name and set(doc) == {"type", *(p.key for p in kind.params)}
+        spec = parse_phase(Node(doc, "media[0].phase", LoadContext("scene.json")))
+        assert spec.type_name == kind.name and spec.directional == kind.directional
 
 
 def test_reference_stack_is_exported_as_written(results):

@@ -35,7 +35,7 @@ from ..turns import cos_sin_turns
 from .phase_layout import (  # noqa: F401 (the layout, re-exported for the kernels' callers)
     COLS, FB_AXIS, FB_CI, FB_E1, FB_E2, FB_INV_S, FB_LNNORM, FB_QSCALE, FB_ROW, FB_S, FB_W, FIBER,
     FIRST_MEDIUM_ROW, G_MAX, H_S, HG, HG_G, ISOTROPIC, KINDS, LN_ROW, LN_S0,
-    MAX_CANDIDATES, PK, ROWS, S_MAX, S_MIN, SG_B, SG_DET, SGGX, SGGX_ROUGHNESS_MIN, SIZE,
+    MAX_CANDIDATES, PK, RAYLEIGH, ROWS, S_MAX, S_MIN, SG_B, SG_DET, SGGX, SGGX_ROUGHNESS_MIN, SIZE,
     UNIFORM_ABOVE, VMF, VMF_K, VMF_NORM)
 
 
@@ -355,6 +355,13 @@ def _sggx_d4(P, o, h):
 
 
 # ----------------------------------------------------------------------------- dispatch
+#: The family's kinds: code → name, and which dispatcher answers which kinds (every dispatcher
+#: below has a branch for exactly these: tests/test_kind_dispatch.py).
+KIND_NAMES = {code: name for name, code in KINDS.items()}
+ANSWERS = {"bind": tuple(KIND_NAMES), "directional": (FIBER, SGGX), "sigma_scale": (FIBER, SGGX),
+           "connect": tuple(KIND_NAMES), "sample": tuple(KIND_NAMES)}
+
+
 @kernel(error_model="numpy")
 def bind(P, o, kind, a, v, choice, FT, row):
     """Kind ``kind``'s block at P[o:] from a medium row's slots (backend/layered/phase_schema.py):
@@ -368,7 +375,7 @@ def bind(P, o, kind, a, v, choice, FT, row):
         bind_fiber(P, o, a, v, FT, row)
     elif kind == SGGX:
         bind_sggx(P, o, sggx_preset(choice == 1, v, a))
-    else:
+    elif kind == ISOTROPIC or kind == RAYLEIGH:      # no parameters
         P[o + PK] = kind
 
 
@@ -401,6 +408,23 @@ def _hg_value(g, omc, opc):
 
 
 @kernel(error_model="numpy")
+def _rayleigh_value(cos_t):
+    """Rayleigh scattering (particles much smaller than the wavelength, unpolarised light):
+    3 (1 + cos²θ) / (16π)."""
+    return 3.0 * (1.0 + cos_t * cos_t) * (INV_4PI * 0.25)
+
+
+@kernel(error_model="numpy")
+def _rayleigh_cos(u):
+    """The exact inverse of the Rayleigh CDF in μ = cos θ, F(μ) = (μ³ + 3μ + 4)/8: with
+    z = 4u − 2 the depressed cubic μ³ + 3μ − 2z = 0 has the one real root A − 1/A,
+    A = ∛(z + √(z² + 1)) (Cardano; A > 0, and A − 1/A is monotonic in z)."""
+    z = 4.0 * u - 2.0
+    A = math.pow(z + math.sqrt(z * z + 1.0), 1.0 / 3.0)
+    return min(max(A - 1.0 / A, -1.0), 1.0)
+
+
+@kernel(error_model="numpy")
 def connect(P, o, FT, a, b, s_a, s_b):
     """(p(−a → b), p(−b → a)) for a, b pointing away from the scattering point. ``s_a``, ``s_b``:
     sigma_scale of a and b (read only by microflake phases)."""
@@ -420,6 +444,9 @@ def connect(P, o, FT, a, b, s_a, s_b):
         omc = 0.5 * (hx * hx + hy * hy + hz * hz)
         v = P[o + VMF_NORM] * math.exp(-P[o + VMF_K] * omc)
         return v, v
+    if kind == RAYLEIGH:
+        v = _rayleigh_value(1.0 - 0.5 * (hx * hx + hy * hy + hz * hz))
+        return v, v
     if kind == FIBER:
         l2 = hx * hx + hy * hy + hz * hz
         if not l2 > 1e-24:
@@ -428,8 +455,10 @@ def connect(P, o, FT, a, b, s_a, s_b):
         s = P[o + FB_S]
         d = math.exp(-(x * x) / (l2 * (2.0 * s * s)) - P[o + FB_LNNORM]) * INV_2PI
         return d / max(s_a, 1e-300), d / max(s_b, 1e-300)
-    d = _sggx_d4(P, o, (hx, hy, hz))
-    return d / max(s_a, 1e-300), d / max(s_b, 1e-300)
+    if kind == SGGX:
+        d = _sggx_d4(P, o, (hx, hy, hz))
+        return d / max(s_a, 1e-300), d / max(s_b, 1e-300)
+    return 0.0, 0.0
 
 
 @kernel(error_model="numpy")
@@ -438,7 +467,7 @@ def evaluate(P, o, FT, d_in, d_out):
     a = (-d_in[0], -d_in[1], -d_in[2])
     kind = P[o + PK]
     s_a = 1.0
-    if kind == FIBER or kind == SGGX:
+    if directional(kind):
         s_a = sigma_scale(P, o, FT, a)
     return connect(P, o, FT, a, d_out, s_a, 1.0)[0]
 
@@ -480,21 +509,28 @@ def sample(P, o, FT, d_in, s_in, R, max_candidates):
         d = around(d_in, 1.0 - omc, math.sqrt(omc * (2.0 - omc)), rnd(R))
         v = evaluate(P, o, FT, d_in, d)
         return d, 1.0, v, v, 1.0, 1
+    if kind == RAYLEIGH:
+        cos_t = _rayleigh_cos(rnd(R))
+        d = around(d_in, cos_t, math.sqrt(max(0.0, (1.0 - cos_t) * (1.0 + cos_t))), rnd(R))
+        v = _rayleigh_value(cos_t)
+        return d, 1.0, v, v, 1.0, 1
     if kind == FIBER:
         return _fiber_sample(P, o, FT, d_in, s_in, R, max_candidates)
-    # SGGX visible normals: u cosine-distributed about normalise(Bᵀωi), m = normalise(B u).
-    wi = (-d_in[0], -d_in[1], -d_in[2])
-    ax = unit_or(_sggx_bt(P, o, wi), (0.0, 0.0, 1.0))
-    u0 = rnd(R)
-    v = around(ax, math.sqrt(1.0 - u0), math.sqrt(u0), rnd(R))
-    m = unit_or(_sggx_b(P, o, v), (0.0, 0.0, 1.0))
-    c2 = 2.0 * (wi[0] * m[0] + wi[1] * m[1] + wi[2] * m[2])
-    d_out = (c2 * m[0] - wi[0], c2 * m[1] - wi[1], c2 * m[2] - wi[2])
-    h = (d_out[0] - d_in[0], d_out[1] - d_in[1], d_out[2] - d_in[2])
-    ln = math.sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2])
-    s_out = _sggx_scale(P, o, d_out)
-    if not ln > 1e-12:
-        return d_out, 1.0, 0.0, 0.0, s_out, 1
-    dd = sggx_distribution(P, o, (h[0] / ln, h[1] / ln, h[2] / ln)) * 0.25
-    s_i = s_in if s_in > 0.0 else _sggx_scale(P, o, d_in)
-    return d_out, 1.0, dd / max(s_i, 1e-300), dd / max(s_out, 1e-300), s_out, 1
+    if kind == SGGX:
+        # SGGX visible normals: u cosine-distributed about normalise(Bᵀωi), m = normalise(B u).
+        wi = (-d_in[0], -d_in[1], -d_in[2])
+        ax = unit_or(_sggx_bt(P, o, wi), (0.0, 0.0, 1.0))
+        u0 = rnd(R)
+        v = around(ax, math.sqrt(1.0 - u0), math.sqrt(u0), rnd(R))
+        m = unit_or(_sggx_b(P, o, v), (0.0, 0.0, 1.0))
+        c2 = 2.0 * (wi[0] * m[0] + wi[1] * m[1] + wi[2] * m[2])
+        d_out = (c2 * m[0] - wi[0], c2 * m[1] - wi[1], c2 * m[2] - wi[2])
+        h = (d_out[0] - d_in[0], d_out[1] - d_in[1], d_out[2] - d_in[2])
+        ln = math.sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2])
+        s_out = _sggx_scale(P, o, d_out)
+        if not ln > 1e-12:
+            return d_out, 1.0, 0.0, 0.0, s_out, 1
+        dd = sggx_distribution(P, o, (h[0] / ln, h[1] / ln, h[2] / ln)) * 0.25
+        s_i = s_in if s_in > 0.0 else _sggx_scale(P, o, d_in)
+        return d_out, 1.0, dd / max(s_i, 1e-300), dd / max(s_out, 1e-300), s_out, 1
+    return d_in, 0.0, 0.0, 0.0, 1.0, 1

@@ -3,8 +3,8 @@ per-lane code (kernels/layered/phase.py) and the NumPy phase classes (backend/la
 which parse without Numba (kernels/lazy.py says why)."""
 import math
 
-ISOTROPIC, HG, VMF, FIBER, SGGX = 0, 1, 2, 3, 4
-KINDS = {"isotropic": ISOTROPIC, "hg": HG, "vmf": VMF, "microflake": FIBER, "sggx": SGGX}
+ISOTROPIC, HG, VMF, FIBER, SGGX, RAYLEIGH = 0, 1, 2, 3, 4, 5
+KINDS = {"isotropic": ISOTROPIC, "hg": HG, "vmf": VMF, "microflake": FIBER, "sggx": SGGX, "rayleigh": RAYLEIGH}
 
 # Parameter block (offsets from o)
 PK = 0                    # kind

@@ -1,6 +1,7 @@
-"""Phase functions of the angle between d_in and d_out: isotropic, Henyey–Greenstein, von Mises–Fisher.
+"""Phase functions of the angle between d_in and d_out: isotropic, Henyey–Greenstein, von Mises–Fisher,
+Rayleigh.
 
-All three are symmetric in (d_in, d_out) and depend only on cos θ = d_in·d_out, so they are
+All four are symmetric in (d_in, d_out) and depend only on cos θ = d_in·d_out, so they are
 reciprocal, sampled exactly (weight 1) and have ``sigma_scale`` = 1. The per-lane maths is
 compiled (backend/kernels/layered/phase.py); these classes hold the (per-lane or constant)
 parameters.
@@ -88,3 +89,19 @@ class VonMisesFisher(Phase):
 
     def take(self, idx):
         return self._child(VonMisesFisher(lanes(self.kappa, idx)))
+
+
+class Rayleigh(Phase):
+    """p(cos θ) = 3 (1 + cos²θ) / (16π): scattering by particles much smaller than the
+    wavelength (unpolarised light); symmetric forward/backward, mean cosine 0."""
+
+    type_name = "rayleigh"
+
+    def _bind_rows(self):
+        return slot_rows(self.type_name)
+
+    def mean_cosine(self):
+        return np.zeros(())
+
+    def take(self, idx):
+        return self._child(Rayleigh())

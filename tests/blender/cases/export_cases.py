@@ -37,6 +37,19 @@ def reference_stack(tmp):
             "default_pdf_mode": type(sc.lamina).bl_rna.properties["pdf_mode"].default, "layered_pdf": pdf}
 
 
+def every_phase_kind(tmp):
+    """Each phase function of the layer's enum, with the panel's defaults, as the export writes it."""
+    from lamina.addon.export.stack import medium_json
+    build.scene()
+    mat = build.reference_stack(bpy.data.materials.new("Phases"))
+    layer = mat.lamina.layers[0]
+    out = {}
+    for item in layer.bl_rna.properties["phase"].enum_items:
+        layer.phase = item.identifier
+        out[item.identifier] = medium_json(layer, None)["phase"]
+    return out
+
+
 def full_scene(tmp):
     """Plane + sphere (3-layer stack) + every light type + world; instances, hidden, holdout."""
     sc = build.scene()
