@@ -28,7 +28,7 @@ import uuid
 
 from .errors import LaminaError
 from .limits import MAX_WORKERS
-from .work_items import Failed, Stopped, failure_text, render_item, setup_local
+from .work_items import Failed, Stopped, failure_text, render_item, setup_local, wait_for
 
 DISTRIBUTED_PIN = "distributed==2026.8.0"        # the version tested (requirements-dev.txt)
 CONNECT_TIMEOUT = 10.0        # s: reaching the scheduler, and waiting for its first worker
@@ -322,13 +322,9 @@ class ClusterItems:
 
     def _wait(self, future, should_stop):
         lost_since = None
-        while True:
-            if should_stop():
-                raise Stopped
-            try:
-                return future.result(timeout=0.2)
-            except TimeoutError:
-                pass
+
+        def check_connection():
+            nonlocal lost_since
             if self.client.status != "running":
                 lost_since = lost_since or time.perf_counter()
                 if time.perf_counter() - lost_since > self.grace:
@@ -336,6 +332,7 @@ class ClusterItems:
             else:
                 lost_since = None
                 self._check_workers()
+        return wait_for(future, should_stop, check_connection)
 
     def _scheduler_lost(self) -> str:
         return f"lost the connection to the Dask scheduler at {self.address}; the render stopped"

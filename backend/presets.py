@@ -183,7 +183,7 @@ def describe_stack(material: dict) -> str:
     return " / ".join(parts)
 
 
-def _short(v) -> str:
+def _number_text(v) -> str:
     if isinstance(v, dict):
         return "tex"
     if isinstance(v, list):
@@ -201,14 +201,14 @@ def _describe_interface(m: dict) -> str:
     if kind == "conductor":
         bits.append(str(m.get("metal", "eta/k" if "eta" in m else "Cu")))
     if kind == "dielectric":
-        bits.append(f"η{_short(m.get('ior', 1.5))}")
+        bits.append(f"η{_number_text(m.get('ior', 1.5))}")
     if "roughness" in m:
-        r = f"α{_short(m['roughness'])}"
+        r = f"α{_number_text(m['roughness'])}"
         if "roughness_v" in m:
-            r += f"×{_short(m['roughness_v'])}"
+            r += f"×{_number_text(m['roughness_v'])}"
         bits.append(r)
     if kind == "diffuse" and "color" in m:
-        bits.append(_short(m["color"]))
+        bits.append(_number_text(m["color"]))
     return " ".join(bits)
 
 
@@ -222,8 +222,8 @@ def _describe_medium(m: dict) -> str:
     kind = phase.get("type", "?") if isinstance(phase, dict) else "?"
     if m.get("albedo", 1.0) in (0, [0, 0, 0]):
         kind = "absorbing"
-    thick = "" if m.get("thickness", 1.0) == 1.0 else f"×{_short(m.get('thickness'))}"
-    return f"{kind} σt{_short(sigma)}{thick}"
+    thick = "" if m.get("thickness", 1.0) == 1.0 else f"×{_number_text(m.get('thickness'))}"
+    return f"{kind} σt{_number_text(sigma)}{thick}"
 
 
 # --------------------------------------------------------------------------- validation
@@ -303,6 +303,14 @@ def close_preset_names(name: str, names: list[str], most: int = 5) -> list[str]:
     # Substring matches first, then by similarity of the whole name.
     out.sort(key=lambda n: (not (key in n or n in key), -difflib.SequenceMatcher(None, key, n).ratio()))
     return out[:most]
+
+
+def require_preset(name: str) -> Path:
+    """The file of the preset called ``name`` (find_preset), or LaminaError naming the near misses."""
+    path = find_preset(name)
+    if path is None:
+        raise LaminaError(unknown_preset_message(name))
+    return path
 
 
 def unknown_preset_message(name: str) -> str:
@@ -469,10 +477,7 @@ def load_user_preset(name: str, folder: str | Path | None = None) -> dict:
         if not target.is_file():
             raise LaminaError(f"{target}: no such preset")
         return load_preset_document(target)
-    path = find_preset(name)
-    if path is None:
-        raise LaminaError(unknown_preset_message(name))
-    return load_preset_document(path)
+    return load_preset_document(require_preset(name))
 
 
 def list_user_presets(folder: str | Path) -> list[PresetInfo]:

@@ -59,7 +59,7 @@ from .errors import LaminaError
 from .film import FilmAccumulator
 from .limits import MAX_WORKER_LOSSES, MAX_WORKERS
 from .mathutil import LUMINANCE
-from .work_items import WORKER, Failed, Stopped, failure_text, render_item, setup_local
+from .work_items import WORKER, Failed, Stopped, failure_text, render_item, setup_local, wait_for
 
 #: Paths per work item. An item's fixed cost is ~0.1 ms (its bounce loop is one compiled call,
 #: backend/kernels/item_loop.py) against ~25 ms of tracing at this size, and a render of a
@@ -145,17 +145,6 @@ class RenderResult:
     error: str | None = None       # why the render stopped early (the film holds what was merged)
 
 
-def _wait(future, should_stop):
-    """The future's result, checking for a stop request every 0.2 s."""
-    while True:
-        if should_stop():
-            raise Stopped
-        try:
-            return future.result(timeout=0.2)
-        except FutureTimeout:
-            continue
-
-
 class _SerialItems:
     """Items rendered one after the other in this thread."""
 
@@ -193,7 +182,7 @@ class _ThreadItems:
                     return
                 f = futures.popleft()
                 try:
-                    result = _wait(f, should_stop)
+                    result = wait_for(f, should_stop)
                 except (Stopped, FutureTimeout):
                     raise
                 except Exception as exc:  # noqa: BLE001

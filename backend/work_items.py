@@ -110,3 +110,16 @@ def failure_text(exc: BaseException) -> str:
     message = str(exc).strip().splitlines()[0][:200] if str(exc).strip() else ""
     return (f"a render worker failed ({type(exc).__name__}{': ' + message if message else ''}{where}); "
             f"this is a bug in Lamina, please report it with the scene")
+
+
+def wait_for(future, should_stop, every=None):
+    """The future's result, checking for a stop request (and calling ``every``, if given) every
+    0.2 s while it is not done."""
+    while True:
+        if should_stop():
+            raise Stopped
+        try:
+            return future.result(timeout=0.2)
+        except TimeoutError:       # concurrent.futures and Dask raise the built-in one
+            if every is not None:
+                every()

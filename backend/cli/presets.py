@@ -56,16 +56,13 @@ def register(sub) -> None:
 
 
 def _info(name_or_path: str):
-    from ..presets import find_preset, read_preset, unknown_preset_message
+    from ..presets import read_preset, require_preset
     p = Path(name_or_path)
     if p.suffix.lower() == ".json" or "/" in name_or_path:
         if not p.is_file():
             raise LaminaError(f"{name_or_path}: preset file not found")
         return read_preset(p)
-    path = find_preset(name_or_path)
-    if path is None:
-        raise LaminaError(unknown_preset_message(name_or_path))
-    return read_preset(path)
+    return read_preset(require_preset(name_or_path))
 
 
 def cmd_list(args) -> int:

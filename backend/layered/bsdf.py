@@ -20,6 +20,7 @@ import numpy as np
 
 from .. import stats as global_stats
 from ..materials.base import BSDF, IMPORTANCE, RADIANCE, BSDFSample
+from ..materials.common import taken
 from .phase.base import draw_seed
 
 
@@ -125,6 +126,6 @@ class LayeredBSDF(BSDF):
 
     def take(self, idx) -> "LayeredBSDF":
         idx = np.asarray(idx)
-        n = int(idx.sum()) if idx.dtype == bool else idx.size
+        n = taken(idx)
         uv = self.uv if self.uv.shape[0] == 1 else self.uv[idx]
         return LayeredBSDF(self.material, uv, n, self.stats)

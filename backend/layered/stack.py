@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..materials.base import BSDF, BSDFSample, Material, ShadingContext
+from ..materials.common import taken
 
 
 class NullBSDF(BSDF):
@@ -37,8 +38,7 @@ class NullBSDF(BSDF):
         return np.ones((1, 3))
 
     def take(self, idx):
-        idx = np.asarray(idx)
-        return NullBSDF(int(idx.sum()) if idx.dtype == bool else idx.size)
+        return NullBSDF(taken(idx))
 
 
 class NullMaterial(Material):

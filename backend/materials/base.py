@@ -185,9 +185,13 @@ class Material:
         table builder."""
         raise NotImplementedError
 
+    #: The attributes holding this material's texturable parameters (``backend.textures.Param``).
+    textured_params: ClassVar[tuple[str, ...]] = ()
+
     @property
     def uses_textures(self) -> bool:
-        return False
+        return any(p is not None and not p.is_constant
+                   for p in (getattr(self, name) for name in self.textured_params))
 
 
 def zeros3(n: int) -> np.ndarray:

@@ -33,8 +33,10 @@ def col(x) -> np.ndarray:
     return np.asarray(x)[..., None]
 
 
-def any_textured(*params) -> bool:
-    return any(p is not None and not p.is_constant for p in params)
+def taken(idx) -> int:
+    """How many lanes ``take(idx)`` keeps (a boolean mask or an index array)."""
+    idx = np.asarray(idx)
+    return int(idx.sum()) if idx.dtype == bool else idx.size
 
 
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:

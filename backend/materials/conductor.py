@@ -19,7 +19,7 @@ from ..kernels.microfacet_codes import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CO
 from ..limits import short as _short
 from . import register
 from .base import RADIANCE, ClosedFormBSDF, Material, ShadingContext, lanes, rows1, rows3
-from .common import any_textured, as_param, delta_lanes, parse_microfacet_kind, parse_roughness
+from .common import as_param, delta_lanes, parse_microfacet_kind, parse_roughness, taken
 from .emission import parse_emission
 from .metals import METALS, metal_ior
 from .microfacet import GGX, HEIGHT_CORRELATED
@@ -66,7 +66,7 @@ class ConductorBSDF(ClosedFormBSDF):
 
     def take(self, idx):
         idx = np.asarray(idx)
-        n = int(idx.sum()) if idx.dtype == bool else idx.size
+        n = taken(idx)
         return ConductorBSDF(n, lanes(self.eta, idx), lanes(self.k, idx), lanes(self.tint, idx),
                              lanes(self.alpha_u, idx), lanes(self.alpha_v, idx),
                              self.distribution, self.masking)
@@ -74,6 +74,7 @@ class ConductorBSDF(ClosedFormBSDF):
 
 class ConductorMaterial(Material):
     type_name = "conductor"
+    textured_params = ("eta", "k", "roughness", "roughness_v", "tint")
     two_sided = True
 
     def __init__(self, eta, k, roughness=0.1, roughness_v=None, distribution=GGX,
@@ -110,9 +111,6 @@ class ConductorMaterial(Material):
         row.set(km.AV, self.roughness_v, 1)
         row.microfacet(self.distribution, self.masking)
 
-    @property
-    def uses_textures(self) -> bool:
-        return any_textured(self.eta, self.k, self.roughness, self.roughness_v, self.tint)
 
 
 @register("conductor")

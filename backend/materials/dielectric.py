@@ -25,7 +25,7 @@ from ..kernels.lazy import lazy
 from ..kernels.microfacet_codes import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from . import register
 from .base import ClosedFormBSDF, Material, ShadingContext, lanes, rows1, rows3
-from .common import any_textured, as_param, delta_lanes, parse_microfacet_kind, parse_roughness
+from .common import as_param, delta_lanes, parse_microfacet_kind, parse_roughness, taken
 from .emission import parse_emission
 from .microfacet import GGX, HEIGHT_CORRELATED
 
@@ -72,7 +72,7 @@ class DielectricBSDF(ClosedFormBSDF):
 
     def take(self, idx):
         idx = np.asarray(idx)
-        n = int(idx.sum()) if idx.dtype == bool else idx.size
+        n = taken(idx)
         return DielectricBSDF(n, lanes(self.eta, idx), lanes(self.tint, idx),
                               lanes(self.alpha_u, idx), lanes(self.alpha_v, idx),
                               self.distribution, self.masking)
@@ -80,6 +80,7 @@ class DielectricBSDF(ClosedFormBSDF):
 
 class DielectricMaterial(Material):
     type_name = "dielectric"
+    textured_params = ("ior", "roughness", "roughness_v", "transmission_color")
     two_sided = False
 
     def __init__(self, ior=1.5, ior_above=1.0, roughness=0.0, roughness_v=None,
@@ -108,9 +109,6 @@ class DielectricMaterial(Material):
         row.set(km.D_AV, self.roughness_v, 1)
         row.microfacet(self.distribution, self.masking)
 
-    @property
-    def uses_textures(self) -> bool:
-        return any_textured(self.ior, self.roughness, self.roughness_v, self.transmission_color)
 
 
 #: Indices of refraction that real materials span, with margin (germanium's 4.0 is the highest

@@ -6,7 +6,7 @@ import numpy as np
 from ..kernels.lazy import lazy
 from . import register
 from .base import RADIANCE, ClosedFormBSDF, Material, ShadingContext, lanes, rows3
-from .common import any_textured, as_param
+from .common import as_param, taken
 from .emission import parse_emission
 
 
@@ -37,12 +37,13 @@ class DiffuseBSDF(ClosedFormBSDF):
 
     def take(self, idx):
         idx = np.asarray(idx)
-        n = int(idx.sum()) if idx.dtype == bool else idx.size
+        n = taken(idx)
         return DiffuseBSDF(n, lanes(self.color, idx))
 
 
 class DiffuseMaterial(Material):
     type_name = "diffuse"
+    textured_params = ("color",)
     two_sided = True
 
     def __init__(self, color=0.8, emission=None):
@@ -57,9 +58,6 @@ class DiffuseMaterial(Material):
         row.kind = km.DIFFUSE
         row.set(km.COLOR, self.color, 3)
 
-    @property
-    def uses_textures(self) -> bool:
-        return any_textured(self.color)
 
 
 @register("diffuse")

@@ -13,7 +13,7 @@ import numpy as np
 from ..textures import ConstantParam, Param
 from . import register
 from .base import BSDF, BSDFSample, Material, ShadingContext
-from .common import any_textured, as_param
+from .common import as_param, taken
 
 
 class ScaledParam(Param):
@@ -87,12 +87,12 @@ class BlackBSDF(BSDF):
         return np.zeros((1, 3))
 
     def take(self, idx):
-        idx = np.asarray(idx)
-        return BlackBSDF(int(idx.sum()) if idx.dtype == bool else idx.size)
+        return BlackBSDF(taken(idx))
 
 
 class EmissionMaterial(Material):
     type_name = "emission"
+    textured_params = ("color",)
     two_sided = True
 
     def __init__(self, color=1.0, strength: float = 1.0):
@@ -108,9 +108,6 @@ class EmissionMaterial(Material):
         from ..kernels import materials as km
         row.kind = km.BLACK
 
-    @property
-    def uses_textures(self) -> bool:
-        return any_textured(self.color)
 
 
 @register("emission")

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..kernels.lazy import lazy
 from .base import ClosedFormBSDF, rows3
+from .common import taken
 
 _batch = lazy("bsdf.batch")     # compiled on first use (kernels/lazy.py)
 
@@ -69,5 +70,5 @@ class RowBSDF(ClosedFormBSDF):
 
     def take(self, idx):
         idx = np.asarray(idx)
-        n = int(idx.sum()) if idx.dtype == bool else idx.size
+        n = taken(idx)
         return RowBSDF(self.material, self.uv if self.uv.shape[0] == 1 else self.uv[idx], n)

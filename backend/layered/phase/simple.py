@@ -20,8 +20,8 @@ from .base import Phase, lane_count, lanes, scalar_lanes, slot_rows
 G_MAX = kp.G_MAX  # |g| clamp: pbrt-v4 issue #333 shows NaNs at g = ±1
 
 
-class Isotropic(Phase):
-    type_name = "isotropic"
+class _Unparameterised(Phase):
+    """A phase function without parameters, symmetric about 90° (mean cosine 0)."""
 
     def _bind_rows(self):
         return slot_rows(self.type_name)
@@ -30,7 +30,11 @@ class Isotropic(Phase):
         return np.zeros(())
 
     def take(self, idx):
-        return self._child(Isotropic())
+        return self._child(type(self)())
+
+
+class Isotropic(_Unparameterised):
+    type_name = "isotropic"
 
 
 class HenyeyGreenstein(Phase):
@@ -91,17 +95,8 @@ class VonMisesFisher(Phase):
         return self._child(VonMisesFisher(lanes(self.kappa, idx)))
 
 
-class Rayleigh(Phase):
+class Rayleigh(_Unparameterised):
     """p(cos θ) = 3 (1 + cos²θ) / (16π): scattering by particles much smaller than the
     wavelength (unpolarised light); symmetric forward/backward, mean cosine 0."""
 
     type_name = "rayleigh"
-
-    def _bind_rows(self):
-        return slot_rows(self.type_name)
-
-    def mean_cosine(self):
-        return np.zeros(())
-
-    def take(self, idx):
-        return self._child(Rayleigh())
