@@ -19,8 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import stats as global_stats
-from ..materials.base import BSDF, IMPORTANCE, RADIANCE, BSDFSample
-from ..materials.common import taken
+from ..materials.base import BSDF, IMPORTANCE, RADIANCE, BSDFSample, taken
 from .phase.base import draw_seed
 
 

@@ -8,25 +8,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..materials.base import BSDF, BSDFSample, Material, ShadingContext
-from ..materials.common import taken
+from ..materials.base import BSDFSample, Material, NothingButDeltaBSDF, ShadingContext
 
 
-class NullBSDF(BSDF):
+class NullBSDF(NothingButDeltaBSDF):
     """Index-matched pass-through interface: a delta transmission with weight 1."""
 
     transmissive = True
-    delta_only = True
     has_delta = True
-
-    def __init__(self, n: int):
-        self.n = n
-
-    def eval(self, wi, wo, rng=None, mode=0):
-        return np.zeros((wi.shape[0], 3))
-
-    def pdf(self, wi, wo, rng=None, mode=0):
-        return np.zeros(wi.shape[0])
 
     def sample(self, wi, rng, mode=0):
         m = wi.shape[0]
@@ -36,9 +25,6 @@ class NullBSDF(BSDF):
 
     def albedo(self):
         return np.ones((1, 3))
-
-    def take(self, idx):
-        return NullBSDF(taken(idx))
 
 
 class NullMaterial(Material):

@@ -66,6 +66,12 @@ def sample_arrays(n: int):
     return np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n, dtype=bool)
 
 
+def taken(idx) -> int:
+    """How many lanes ``take(idx)`` keeps (a boolean mask or an index array)."""
+    idx = np.asarray(idx)
+    return int(idx.sum()) if idx.dtype == bool else idx.size
+
+
 def lanes(value: np.ndarray, idx) -> np.ndarray:
     """Subset a bound parameter: constants (ndim 0, or leading dimension 1) stay as they are."""
     value = np.asarray(value)
@@ -159,6 +165,25 @@ class ClosedFormBSDF(BSDF):
 
     def pdf(self, wi, wo, rng=None, mode=RADIANCE, **_):
         return self._eval_pdf(wi, wo, mode)[1]
+
+
+class NothingButDeltaBSDF(BSDF):
+    """A BSDF without parameters and without a lobe to evaluate (a pass-through interface, a black
+    surface): eval and pdf are 0, ``sample`` says what it does; its lanes are only a count."""
+
+    delta_only = True
+
+    def __init__(self, n: int):
+        self.n = n
+
+    def eval(self, wi, wo, rng=None, mode=0):
+        return np.zeros((wi.shape[0], 3))
+
+    def pdf(self, wi, wo, rng=None, mode=0):
+        return np.zeros(wi.shape[0])
+
+    def take(self, idx):
+        return type(self)(taken(idx))
 
 
 class Material:

@@ -33,12 +33,6 @@ def col(x) -> np.ndarray:
     return np.asarray(x)[..., None]
 
 
-def taken(idx) -> int:
-    """How many lanes ``take(idx)`` keeps (a boolean mask or an index array)."""
-    idx = np.asarray(idx)
-    return int(idx.sum()) if idx.dtype == bool else idx.size
-
-
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", a, b)
 

@@ -18,8 +18,8 @@ from ..kernels.lazy import lazy
 from ..kernels.microfacet_codes import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from ..limits import short as _short
 from . import register
-from .base import RADIANCE, ClosedFormBSDF, Material, ShadingContext, lanes, rows1, rows3
-from .common import as_param, delta_lanes, parse_microfacet_kind, parse_roughness, taken
+from .base import RADIANCE, ClosedFormBSDF, Material, ShadingContext, lanes, rows1, rows3, taken
+from .common import as_param, delta_lanes, parse_microfacet_kind, parse_roughness
 from .emission import parse_emission
 from .metals import METALS, metal_ior
 from .microfacet import GGX, HEIGHT_CORRELATED

@@ -24,8 +24,8 @@ import numpy as np
 from ..kernels.lazy import lazy
 from ..kernels.microfacet_codes import ALPHA_MIN, DISTRIBUTION_CODES, MASKING_CODES
 from . import register
-from .base import ClosedFormBSDF, Material, ShadingContext, lanes, rows1, rows3
-from .common import as_param, delta_lanes, parse_microfacet_kind, parse_roughness, taken
+from .base import ClosedFormBSDF, Material, ShadingContext, lanes, rows1, rows3, taken
+from .common import as_param, delta_lanes, parse_microfacet_kind, parse_roughness
 from .emission import parse_emission
 from .microfacet import GGX, HEIGHT_CORRELATED
 

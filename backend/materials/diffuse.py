@@ -5,8 +5,8 @@ import numpy as np
 
 from ..kernels.lazy import lazy
 from . import register
-from .base import RADIANCE, ClosedFormBSDF, Material, ShadingContext, lanes, rows3
-from .common import as_param, taken
+from .base import RADIANCE, ClosedFormBSDF, Material, ShadingContext, lanes, rows3, taken
+from .common import as_param
 from .emission import parse_emission
 
 

@@ -12,8 +12,8 @@ import numpy as np
 
 from ..textures import ConstantParam, Param
 from . import register
-from .base import BSDF, BSDFSample, Material, ShadingContext
-from .common import as_param, taken
+from .base import BSDF, BSDFSample, Material, NothingButDeltaBSDF, ShadingContext
+from .common import as_param
 
 
 class ScaledParam(Param):
@@ -60,22 +60,12 @@ def parse_emission(node) -> Param | None:
     return p if emits(p) else None
 
 
-class BlackBSDF(BSDF):
+class BlackBSDF(NothingButDeltaBSDF):
     """Reflects and transmits nothing. Every query returns zeros; sample() ends the path."""
 
     # No lobes at all: "every lobe is a delta" holds vacuously, which makes the integrator skip
     # next-event estimation for these lanes (it would only multiply by 0).
-    delta_only = True
     has_delta = False
-
-    def __init__(self, n: int):
-        self.n = n
-
-    def eval(self, wi, wo, rng, mode=0):
-        return np.zeros((wi.shape[0], 3))
-
-    def pdf(self, wi, wo, rng, mode=0):
-        return np.zeros(wi.shape[0])
 
     def sample(self, wi, rng, mode=0):
         n = wi.shape[0]
@@ -85,9 +75,6 @@ class BlackBSDF(BSDF):
 
     def albedo(self):
         return np.zeros((1, 3))
-
-    def take(self, idx):
-        return BlackBSDF(taken(idx))
 
 
 class EmissionMaterial(Material):

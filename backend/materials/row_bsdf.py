@@ -7,8 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.lazy import lazy
-from .base import ClosedFormBSDF, rows3
-from .common import taken
+from .base import ClosedFormBSDF, rows3, taken
 
 _batch = lazy("bsdf.batch")     # compiled on first use (kernels/lazy.py)
 

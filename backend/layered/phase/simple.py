@@ -33,37 +33,45 @@ class _Unparameterised(Phase):
         return self._child(type(self)())
 
 
+class _OneScalar(Phase):
+    """A phase function of one scalar parameter (the schema's slot ``a``), held in the attribute
+    ``param`` names: () constant or (n,) per lane."""
+
+    param = ""
+
+    @property
+    def n(self):
+        return lane_count(getattr(self, self.param))
+
+    def _bind_rows(self):
+        return slot_rows(self.type_name, getattr(self, self.param))
+
+    def take(self, idx):
+        return self._child(type(self)(lanes(getattr(self, self.param), idx)))
+
+
 class Isotropic(_Unparameterised):
     type_name = "isotropic"
 
 
-class HenyeyGreenstein(Phase):
+class HenyeyGreenstein(_OneScalar):
     """p(cos θ) = (1 − g²) / (4π (1 + g² − 2g cos θ)^{3/2}); g > 0 scatters forward.
 
     ``g`` has shape () (constant) or (n,) (per lane); it is clamped to [−0.999, 0.999].
     """
 
     type_name = "hg"
+    param = "g"
 
     def __init__(self, g):
         super().__init__()
         self.g = np.clip(scalar_lanes(g), -G_MAX, G_MAX)
 
-    @property
-    def n(self):
-        return lane_count(self.g)
-
-    def _bind_rows(self):
-        return slot_rows(self.type_name, self.g)
-
     def mean_cosine(self):
         return self.g
 
-    def take(self, idx):
-        return self._child(HenyeyGreenstein(lanes(self.g, idx)))
 
-
-class VonMisesFisher(Phase):
+class VonMisesFisher(_OneScalar):
     """p(cos θ) = κ exp(κ (cos θ − 1)) / (2π (1 − e^{−2κ})), centred on the forward direction.
 
     ``kappa`` ≥ 0 has shape () or (n,); κ = 0 is isotropic. Written with e^{κ(cos θ − 1)} so that
@@ -71,17 +79,11 @@ class VonMisesFisher(Phase):
     """
 
     type_name = "vmf"
+    param = "kappa"
 
     def __init__(self, kappa):
         super().__init__()
         self.kappa = np.maximum(scalar_lanes(kappa), 0.0)
-
-    @property
-    def n(self):
-        return lane_count(self.kappa)
-
-    def _bind_rows(self):
-        return slot_rows(self.type_name, self.kappa)
 
     def mean_cosine(self):
         k = self.kappa
@@ -90,9 +92,6 @@ class VonMisesFisher(Phase):
         # coth κ − 1/κ, with coth κ = (1 + e^{−2κ}) / (1 − e^{−2κ}); series κ/3 near 0.
         coth = (1.0 + np.exp(-2.0 * ks)) / -np.expm1(-2.0 * ks)
         return np.where(small, k / 3.0, coth - 1.0 / ks)
-
-    def take(self, idx):
-        return self._child(VonMisesFisher(lanes(self.kappa, idx)))
 
 
 class Rayleigh(_Unparameterised):
