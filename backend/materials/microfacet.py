@@ -51,30 +51,25 @@ class Microfacet:
     def _out(self, v):
         return np.empty(np.asarray(v).shape[0])
 
-    def D(self, m):
-        m = _rows(m)
-        out = self._out(m)
-        _b.D(self.dist_code, self._au, self._av, m, out)
+    def _query(self, batch, *directions):
+        """``batch(dist, αu, αv, *directions, out)`` over rows of unit vectors broadcast together."""
+        rows = [np.ascontiguousarray(x) for x in np.broadcast_arrays(*map(_rows, directions))]
+        out = self._out(rows[0])
+        batch(self.dist_code, self._au, self._av, *rows, out)
         return out
+
+    def D(self, m):
+        return self._query(_b.D, m)
 
     def smith_lambda(self, w):
-        w = _rows(w)
-        out = self._out(w)
-        _b.smith_lambda(self.dist_code, self._au, self._av, w, out)
-        return out
+        return self._query(_b.smith_lambda, w)
 
     def G1(self, w, m):
-        w, m = np.broadcast_arrays(_rows(w), _rows(m))
-        out = self._out(w)
-        _b.G1(self.dist_code, self._au, self._av, np.ascontiguousarray(w), np.ascontiguousarray(m), out)
-        return out
+        return self._query(_b.G1, w, m)
 
     def _G1_separable(self, w, m):
         """G1 of the separable form (Walter et al.'s rational fit for Beckmann)."""
-        w, m = (np.ascontiguousarray(x) for x in np.broadcast_arrays(_rows(w), _rows(m)))
-        out = self._out(w)
-        _b.G1_separable(self.dist_code, self._au, self._av, w, m, out)
-        return out
+        return self._query(_b.G1_separable, w, m)
 
     def G(self, wi, wo, m):
         wi, wo, m = (np.ascontiguousarray(x) for x in np.broadcast_arrays(_rows(wi), _rows(wo), _rows(m)))
@@ -89,10 +84,7 @@ class Microfacet:
         return out
 
     def pdf_ndf(self, m):
-        m = _rows(m)
-        out = self._out(m)
-        _b.pdf_ndf(self.dist_code, self._au, self._av, m, out)
-        return out
+        return self._query(_b.pdf_ndf, m)
 
     def sample_visible(self, wi, u):
         """m ∝ G1(wi, m) max(0, wi·m) D(m)/wi.z for wi in the upper hemisphere (wi.z ≥ 0)."""
@@ -103,7 +95,4 @@ class Microfacet:
         return out
 
     def pdf_visible(self, wi, m):
-        wi, m = (np.ascontiguousarray(x) for x in np.broadcast_arrays(_rows(wi), _rows(m)))
-        out = self._out(wi)
-        _b.pdf_visible(self.dist_code, self._au, self._av, wi, m, out)
-        return out
+        return self._query(_b.pdf_visible, wi, m)

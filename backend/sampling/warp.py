@@ -17,20 +17,22 @@ def _u(u):
     return np.ascontiguousarray(u, dtype=np.float64).reshape(-1, 2)
 
 
+def _mapped(batch, u, width: int, *args) -> np.ndarray:
+    """``batch(u, *args, out)`` over the (N, 2) numbers u into a new (N, width) array."""
+    u = _u(u)
+    out = np.empty((u.shape[0], width))
+    batch(u, *args, out)
+    return out
+
+
 def square_to_disk_concentric(u: np.ndarray) -> np.ndarray:
     """Shirley–Chiu concentric map to the unit disk; returns (N, 2)."""
-    u = _u(u)
-    out = np.empty((u.shape[0], 2))
-    _b.disk_concentric(u, out)
-    return out
+    return _mapped(_b.disk_concentric, u, 2)
 
 
 def square_to_cosine_hemisphere(u: np.ndarray) -> np.ndarray:
     """Malley's method with the polar disk map (r = √u0, φ = 2π·u1), z = √(1 − u0); pdf cos θ/π."""
-    u = _u(u)
-    out = np.empty((u.shape[0], 3))
-    _b.cosine_hemisphere(u, out)
-    return out
+    return _mapped(_b.cosine_hemisphere, u, 3)
 
 
 def cosine_hemisphere_pdf(w: np.ndarray) -> np.ndarray:
@@ -38,10 +40,7 @@ def cosine_hemisphere_pdf(w: np.ndarray) -> np.ndarray:
 
 
 def square_to_uniform_sphere(u: np.ndarray) -> np.ndarray:
-    u = _u(u)
-    out = np.empty((u.shape[0], 3))
-    _b.uniform_sphere(u, out)
-    return out
+    return _mapped(_b.uniform_sphere, u, 3)
 
 
 def uniform_sphere_pdf(w: np.ndarray) -> np.ndarray:
@@ -50,10 +49,7 @@ def uniform_sphere_pdf(w: np.ndarray) -> np.ndarray:
 
 def square_to_uniform_cone(u: np.ndarray, cos_max: float) -> np.ndarray:
     """Uniform directions within angle acos(cos_max) of +z."""
-    u = _u(u)
-    out = np.empty((u.shape[0], 3))
-    _b.uniform_cone(u, 1.0 - float(cos_max), out)
-    return out
+    return _mapped(_b.uniform_cone, u, 3, 1.0 - float(cos_max))
 
 
 def uniform_cone_pdf(cos_max: np.ndarray | float) -> np.ndarray | float:
@@ -63,7 +59,4 @@ def uniform_cone_pdf(cos_max: np.ndarray | float) -> np.ndarray | float:
 def square_to_triangle_barycentric(u: np.ndarray) -> np.ndarray:
     """Uniform barycentrics (b0, b1), b0 + b1 ≤ 1, on a triangle (Heitz 2019 low-distortion map),
     shape (N, 2)."""
-    u = _u(u)
-    out = np.empty((u.shape[0], 2))
-    _b.triangle_barycentric(u, out)
-    return out
+    return _mapped(_b.triangle_barycentric, u, 2)
