@@ -7,16 +7,20 @@ from .jit import kernel
 from .lanes import at, row3
 
 
-@kernel
-def D(dist, au, av, m, out):
-    for i in range(out.shape[0]):
-        out[i] = mf.D(dist, at(au, i), at(av, i), row3(m, i))
+D_OF, LAMBDA_OF, PDF_NDF_OF = 0, 1, 2     # the queries of one direction (``of_direction``)
 
 
 @kernel
-def smith_lambda(dist, au, av, w, out):
+def of_direction(query, dist, au, av, w, out):
+    """Per lane, D(w), Λ(w) or the density of ``sample_ndf`` at w, as ``query`` says."""
     for i in range(out.shape[0]):
-        out[i] = mf.smith_lambda(dist, at(au, i), at(av, i), row3(w, i))
+        a, b, v = at(au, i), at(av, i), row3(w, i)
+        if query == D_OF:
+            out[i] = mf.D(dist, a, b, v)
+        elif query == LAMBDA_OF:
+            out[i] = mf.smith_lambda(dist, a, b, v)
+        else:
+            out[i] = mf.pdf_ndf(dist, a, b, v)
 
 
 @kernel
@@ -35,12 +39,6 @@ def G(dist, masking, au, av, wi, wo, m, out):
 def sample_ndf(dist, au, av, u, out):
     for i in range(out.shape[0]):
         out[i, 0], out[i, 1], out[i, 2] = mf.sample_ndf(dist, at(au, i), at(av, i), u[i, 0], u[i, 1])
-
-
-@kernel
-def pdf_ndf(dist, au, av, m, out):
-    for i in range(out.shape[0]):
-        out[i] = mf.pdf_ndf(dist, at(au, i), at(av, i), row3(m, i))
 
 
 @kernel

@@ -51,18 +51,19 @@ class Microfacet:
     def _out(self, v):
         return np.empty(np.asarray(v).shape[0])
 
-    def _query(self, batch, *directions):
-        """``batch(dist, αu, αv, *directions, out)`` over rows of unit vectors broadcast together."""
+    def _query(self, batch, *directions, lead=()):
+        """``batch(*lead, dist, αu, αv, *directions, out)`` over rows of unit vectors broadcast
+        together."""
         rows = [np.ascontiguousarray(x) for x in np.broadcast_arrays(*map(_rows, directions))]
         out = self._out(rows[0])
-        batch(self.dist_code, self._au, self._av, *rows, out)
+        batch(*lead, self.dist_code, self._au, self._av, *rows, out)
         return out
 
     def D(self, m):
-        return self._query(_b.D, m)
+        return self._query(_b.of_direction, m, lead=(_b.D_OF,))
 
     def smith_lambda(self, w):
-        return self._query(_b.smith_lambda, w)
+        return self._query(_b.of_direction, w, lead=(_b.LAMBDA_OF,))
 
     def G1(self, w, m):
         return self._query(_b.G1, w, m)
@@ -84,7 +85,7 @@ class Microfacet:
         return out
 
     def pdf_ndf(self, m):
-        return self._query(_b.pdf_ndf, m)
+        return self._query(_b.of_direction, m, lead=(_b.PDF_NDF_OF,))
 
     def sample_visible(self, wi, u):
         """m ∝ G1(wi, m) max(0, wi·m) D(m)/wi.z for wi in the upper hemisphere (wi.z ≥ 0)."""

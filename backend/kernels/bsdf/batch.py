@@ -13,41 +13,49 @@ from ..lanes import at, rgb_at, row3
 
 
 @kernel
+def _put_eval(i, result, f, pdf):
+    """Lane i's (value, pdf) into the output arrays."""
+    f[i, 0], f[i, 1], f[i, 2] = result[0]
+    pdf[i] = result[1]
+
+
+@kernel
+def _put_sample(i, result, wo, weight, pdf, delta):
+    """Lane i's (direction, weight, pdf, is_delta) into the output arrays."""
+    wo[i, 0], wo[i, 1], wo[i, 2] = result[0]
+    weight[i, 0], weight[i, 1], weight[i, 2] = result[1]
+    pdf[i] = result[2]
+    delta[i] = result[3]
+
+
+@kernel
 def diffuse_eval_pdf(color, wi, wo, f, pdf):
     for i in range(wi.shape[0]):
-        v, p = diffuse.eval_pdf(rgb_at(color, i), row3(wi, i), row3(wo, i))
-        f[i, 0], f[i, 1], f[i, 2] = v
-        pdf[i] = p
+        res = diffuse.eval_pdf(rgb_at(color, i), row3(wi, i), row3(wo, i))
+        _put_eval(i, res, f, pdf)
 
 
 @kernel
 def diffuse_sample(color, wi, u, wo, weight, pdf, delta):
     for i in range(wi.shape[0]):
-        w, v, p, d = diffuse.sample(rgb_at(color, i), row3(wi, i), u[i, 0], u[i, 1])
-        wo[i, 0], wo[i, 1], wo[i, 2] = w
-        weight[i, 0], weight[i, 1], weight[i, 2] = v
-        pdf[i] = p
-        delta[i] = d
+        res = diffuse.sample(rgb_at(color, i), row3(wi, i), u[i, 0], u[i, 1])
+        _put_sample(i, res, wo, weight, pdf, delta)
 
 
 @kernel
 def conductor_eval_pdf(eta, k, tint, au, av, smooth, dist, masking, wi, wo, f, pdf):
     for i in range(wi.shape[0]):
-        v, p = conductor.eval_pdf(rgb_at(eta, i), rgb_at(k, i), rgb_at(tint, i), at(au, i), at(av, i),
-                                  at(smooth, i), dist, masking, row3(wi, i), row3(wo, i))
-        f[i, 0], f[i, 1], f[i, 2] = v
-        pdf[i] = p
+        res = conductor.eval_pdf(rgb_at(eta, i), rgb_at(k, i), rgb_at(tint, i), at(au, i), at(av, i),
+                                 at(smooth, i), dist, masking, row3(wi, i), row3(wo, i))
+        _put_eval(i, res, f, pdf)
 
 
 @kernel
 def conductor_sample(eta, k, tint, au, av, smooth, dist, masking, wi, u, wo, weight, pdf, delta):
     for i in range(wi.shape[0]):
-        w, v, p, d = conductor.sample(rgb_at(eta, i), rgb_at(k, i), rgb_at(tint, i), at(au, i), at(av, i),
-                                      at(smooth, i), dist, masking, row3(wi, i), u[i, 0], u[i, 1])
-        wo[i, 0], wo[i, 1], wo[i, 2] = w
-        weight[i, 0], weight[i, 1], weight[i, 2] = v
-        pdf[i] = p
-        delta[i] = d
+        res = conductor.sample(rgb_at(eta, i), rgb_at(k, i), rgb_at(tint, i), at(au, i), at(av, i),
+                               at(smooth, i), dist, masking, row3(wi, i), u[i, 0], u[i, 1])
+        _put_sample(i, res, wo, weight, pdf, delta)
 
 
 @kernel
@@ -59,21 +67,17 @@ def conductor_albedo(eta, k, tint, out):
 @kernel
 def dielectric_eval_pdf(eta, tint, au, av, smooth, dist, masking, mode, wi, wo, f, pdf):
     for i in range(wi.shape[0]):
-        v, p = dielectric.eval_pdf(at(eta, i), rgb_at(tint, i), at(au, i), at(av, i), at(smooth, i),
-                                   dist, masking, mode, row3(wi, i), row3(wo, i))
-        f[i, 0], f[i, 1], f[i, 2] = v
-        pdf[i] = p
+        res = dielectric.eval_pdf(at(eta, i), rgb_at(tint, i), at(au, i), at(av, i), at(smooth, i),
+                                  dist, masking, mode, row3(wi, i), row3(wo, i))
+        _put_eval(i, res, f, pdf)
 
 
 @kernel
 def dielectric_sample(eta, tint, au, av, smooth, dist, masking, mode, wi, u, wo, weight, pdf, delta):
     for i in range(wi.shape[0]):
-        w, v, p, d = dielectric.sample(at(eta, i), rgb_at(tint, i), at(au, i), at(av, i), at(smooth, i),
-                                       dist, masking, mode, row3(wi, i), u[i, 0], u[i, 1], u[i, 2])
-        wo[i, 0], wo[i, 1], wo[i, 2] = w
-        weight[i, 0], weight[i, 1], weight[i, 2] = v
-        pdf[i] = p
-        delta[i] = d
+        res = dielectric.sample(at(eta, i), rgb_at(tint, i), at(au, i), at(av, i), at(smooth, i),
+                                dist, masking, mode, row3(wi, i), u[i, 0], u[i, 1], u[i, 2])
+        _put_sample(i, res, wo, weight, pdf, delta)
 
 
 # ----------------------------------------------------------------------------- any material row
@@ -90,9 +94,8 @@ def row_eval_pdf(MT, TX, m, uv, mode, wi, wo, f, pdf):
     for i in range(wi.shape[0]):
         u, v = _uv(uv, i)
         p = km.bind(MT, TX, m, u, v)
-        val, q = km.eval_pdf(MT.tables, MT.kind[m], MT.dist[m], MT.masking[m], p, mode, row3(wi, i), row3(wo, i))
-        f[i, 0], f[i, 1], f[i, 2] = val
-        pdf[i] = q
+        res = km.eval_pdf(MT.tables, MT.kind[m], MT.dist[m], MT.masking[m], p, mode, row3(wi, i), row3(wo, i))
+        _put_eval(i, res, f, pdf)
 
 
 @kernel
@@ -100,12 +103,9 @@ def row_sample(MT, TX, m, uv, mode, wi, u, wo, weight, pdf, delta):
     for i in range(wi.shape[0]):
         a, b = _uv(uv, i)
         p = km.bind(MT, TX, m, a, b)
-        w, v, q, d = km.sample(MT.tables, MT.kind[m], MT.dist[m], MT.masking[m], p, mode, row3(wi, i),
-                               u[i, 0], u[i, 1], u[i, 2])
-        wo[i, 0], wo[i, 1], wo[i, 2] = w
-        weight[i, 0], weight[i, 1], weight[i, 2] = v
-        pdf[i] = q
-        delta[i] = d
+        res = km.sample(MT.tables, MT.kind[m], MT.dist[m], MT.masking[m], p, mode, row3(wi, i),
+                        u[i, 0], u[i, 1], u[i, 2])
+        _put_sample(i, res, wo, weight, pdf, delta)
 
 
 @kernel
