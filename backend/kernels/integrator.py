@@ -129,6 +129,17 @@ VIA_ALL_LIGHTS = 2   # a non-delta BSDF sample; next-event estimation sampled ev
 VIA_SPLIT = 4        # (added to 0 or 2) next-event estimation took S.glossy_light_samples samples, not one
 VIA_TABLE = 8        # (added to VIA_SPLIT) ... times TABLE_NEE (a tabulated stack)
 
+#: The vertex a ray left, as MIS against light sampling needs it: its position, the pdf the ray's
+#: direction was sampled with (< 0: deferred, ``S.defer_pdf``) and how light sampling competed
+#: there (VIA_*).
+CameFrom = namedtuple("CameFrom", ["o", "pdf", "via"])
+#: A light sample for next-event estimation (``_light_sample``): world direction, distance to the
+#: light, radiance over the solid-angle pdf, that pdf, and whether the light is a delta.
+LightSample = namedtuple("LightSample", ["wi", "dist", "value", "pdf", "is_delta"])
+#: A sampled continuation: world direction, its z in the shading frame, weight f·cos/pdf, pdf
+#: and the VIA_* code a light this ray hits will be weighed with.
+Continuation = namedtuple("Continuation", ["d", "wo_z", "weight", "pdf", "via"])
+
 # A ray's deferred MIS pdf (``S.defer_pdf``): one float64 row per queued ray, written where a
 # layered continuation leaves its pdf for later (the queue's pdf is then −1).
 DFR_STACK, DFR_UV, DFR_DUV, DFR_WI, DFR_WO = 0, 1, 3, 9, 12
@@ -154,13 +165,16 @@ def _light_density(LT, S, li, pdf_light, via, o):
 
 
 @inlined
-def _light_hit(LT, S, li, pdf_light, prev_pdf, via, o, c, segment, i, sl, target, L, sh_c, PD, PC, counts):
+def _light_hit(LT, S, li, pdf_light, came, c, segment, i, sl, target, L, sh_c, queued, counts):
     """Emission ``c`` (throughput × radiance) found by BSDF sampling, weighted by MIS against
     light sampling from o (the power heuristic with sample counts; weight 1 where light
     sampling cannot produce the ray), clamped, added to L (``target`` −1) or written to shadow
     ray ``target``. Where the ray left a layered vertex whose pdf is deferred (< 0,
     ``S.defer_pdf``) and light sampling competes, it is queued instead (a row of PD, PC):
-    ``shade`` estimates that pdf after its lane loop and weighs the queue then."""
+    ``shade`` estimates that pdf after its lane loop and weighs the queue then. ``came``: the
+    vertex the ray left (CameFrom)."""
+    o, prev_pdf, via = came
+    PD, PC = queued
     dl = _light_density(LT, S, li, pdf_light, via, o)
     if dl > 0.0 and prev_pdf < 0.0:
         k = counts[4]
@@ -463,10 +477,10 @@ def _push_ray(S, segment, slot, origin, wi_w, dist, c, mask, shadows, counts):
 
 
 @inlined
-def _nee(S, segment, slot, beta, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p, f, bsdf_pdf,
-         mask, shadows, counts):
-    """Light-sample contribution: MIS (power heuristic) against BSDF sampling, divided by the
-    selection probability; a shadow ray if it carries anything."""
+def _nee(S, segment, slot, beta, p, ng, ls, sel_p, f, bsdf_pdf, mask, shadows, counts):
+    """Light-sample contribution of ``ls`` (a LightSample): MIS (power heuristic) against BSDF
+    sampling, divided by the selection probability; a shadow ray if it carries anything."""
+    wi_w, dist, value, lpdf, is_delta = ls
     w = 1.0 if is_delta else power_heuristic(sel_p * lpdf, bsdf_pdf)
     w /= sel_p
     c = (w * beta[0] * f[0] * value[0], w * beta[1] * f[1] * value[1], w * beta[2] * f[2] * value[2])
@@ -498,9 +512,11 @@ def _roulette(MT, TX, m, u, v, wi, ng, beta):
 
 
 @inlined
-def _continue(S, segment, slot, key, beta, p, ng, d_world, wo_z, weight, pdf, via, rtype, recv, nxt, counts):
-    """The next ray: leak guard, compaction into the next-ray queue ``nxt`` (a RayQueue; Russian
-    roulette is decided at the surface the ray reaches, ``_roulette``)."""
+def _continue(S, segment, slot, key, beta, p, ng, cont, rtype, recv, nxt, counts):
+    """The next ray ``cont`` (a Continuation): leak guard, compaction into the next-ray queue
+    ``nxt`` (a RayQueue; Russian roulette is decided at the surface the ray reaches,
+    ``_roulette``)."""
+    d_world, wo_z, weight, pdf, via = cont
     # The sampled side must agree for the shading and the geometric normal.
     if not (_dot(d_world, ng) * wo_z > 0.0):
         return
@@ -606,8 +622,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
         ro = (o[i, 0], o[i, 1], o[i, 2])
         rd = (d[i, 0], d[i, 1], d[i, 2])
         bt = (beta[i, 0], beta[i, 1], beta[i, 2])
-        pp = prev_pdf[i]
-        pd = prev_delta[i]
+        came = CameFrom(ro, prev_pdf[i], prev_delta[i])
         pr = prim[i]
         t_surf = np.float64(t32[i]) if pr >= 0 else INF
         t_limit = min(t_surf, np.float64(tmax32[i]))
@@ -632,7 +647,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                 c = (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2])
                 k = counts[1]
                 _push_ray(S, segment, sl, ro, rd, tl, c, S.light_shadow[li], shadows, counts)
-                _light_hit(LT, S, li, pdf_l, pp, pd, ro, c, segment, i, sl, k, L, sh_c, PD, PC, counts)
+                _light_hit(LT, S, li, pdf_l, came, c, segment, i, sl, k, L, sh_c, queued, counts)
         # 1. lights passed on the way (transparent, as in Cycles)
         for j in range(nh):
             li = S.hittable[j]
@@ -644,8 +659,8 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
             tl = ld.intersect(LT, li, ro, rd, t_limit)
             if tl < INF:
                 le = ld.eval_hit(LT, li, ro, rd, tl)
-                _light_hit(LT, S, li, ld.pdf_hit(LT, li, ro, rd, tl), pp, pd, ro,
-                           (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2]), segment, i, sl, -1, L, sh_c, PD, PC,
+                _light_hit(LT, S, li, ld.pdf_hit(LT, li, ro, rd, tl), came,
+                           (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2]), segment, i, sl, -1, L, sh_c, queued,
                            counts)
         if pr < 0:
             if not (camera and S.transparent):
@@ -658,9 +673,9 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                         continue
                     le = ld.eval_escaped(LT, li, rd)
                     if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
-                        _light_hit(LT, S, li, ld.pdf_escaped(LT, li, rd), pp, pd, ro,
+                        _light_hit(LT, S, li, ld.pdf_escaped(LT, li, rd), came,
                                    (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2]), segment, i, sl, -1, L, sh_c,
-                                   PD, PC, counts)
+                                   queued, counts)
             continue
         if camera:
             # Holdouts are black, transparent holes for camera rays (as in Cycles); they still
@@ -715,7 +730,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
             if S.mesh_light >= 0:
                 local = G.irows[pr, ROW_EMIT]
                 pdf_l = ld.mesh_pdf_hit(LT, S.mesh_light, ro, rd, t_surf, local) if local >= 0 else 0.0
-                _light_hit(LT, S, S.mesh_light, pdf_l, pp, pd, ro, c, segment, i, sl, -1, L, sh_c, PD, PC, counts)
+                _light_hit(LT, S, S.mesh_light, pdf_l, came, c, segment, i, sl, -1, L, sh_c, queued, counts)
             else:
                 _weighted_to(c, 1.0, S, segment, sl, -1, L, sh_c)
         # Russian roulette at this surface, after the emission the ray found (see _roulette)
@@ -800,13 +815,14 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
             if camera:
                 albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = alb
             if live:
-                _nee(S, segment, sl, bt, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p, f, bpdf,
+                _nee(S, segment, sl, bt, p, ng, LightSample(wi_w, dist, value, lpdf, is_delta), sel_p, f, bpdf,
                      S.light_shadow[li], shadows, counts)
             if not last and (weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0):
                 nrt = _lobe_class(S, kind, m, wi_l[2] * wo[2] > 0.0) if S.track else 0
                 k0 = counts[0]
-                _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
-                          spdf, VIA_DELTA if sdelta else VIA_SAMPLED, nrt, rs, nxt, counts)
+                _continue(S, segment, sl, key[i], bt, p, ng,
+                          Continuation(_world(fs, ft, ns, wo), wo[2], weight, spdf,
+                                       VIA_DELTA if sdelta else VIA_SAMPLED), nrt, rs, nxt, counts)
                 if spdf < 0.0 and counts[0] > k0:
                     _defer_row(nxt.dfr[k0], sid, u, v, duv, wi_l, wo)
             continue
@@ -846,7 +862,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                     live_k = _allowed(S, lk, etri, rs, _lobe_class(S, kind, m, wi_l[2] * wok[2] > 0.0))
                 if live_k:
                     f, bpdf = km.eval_pdf(MT.tables, kind, dist_code, mask_code, prm, 0, wi_l, wok)
-                    _nee(S, segment, sl, bt, p, ng, wk, dk, vk, pk, dlk, float(reps), f, bpdf,
+                    _nee(S, segment, sl, bt, p, ng, LightSample(wk, dk, vk, pk, dlk), float(reps), f, bpdf,
                          S.light_shadow[lk], shadows, counts)
         elif can_nee and not delta_only:
             for r in range(reps):
@@ -863,8 +879,8 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                             live = _allowed(S, li, etri, rs, _lobe_class(S, kind, m, wi_l[2] * wo_n[2] > 0.0))
                 if live:
                     f, bpdf = km.eval_pdf(MT.tables, kind, dist_code, mask_code, prm, 0, wi_l, wo_n)
-                    _nee(S, segment, sl, bt, p, ng, wi_w, dist, value, lpdf, is_delta, sel_p * reps, f, bpdf,
-                         S.light_shadow[li], shadows, counts)
+                    _nee(S, segment, sl, bt, p, ng, LightSample(wi_w, dist, value, lpdf, is_delta), sel_p * reps,
+                         f, bpdf, S.light_shadow[li], shadows, counts)
         # 5. continuation
         if not last:
             ub0, ub1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_BSDF))
@@ -876,8 +892,8 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                                                 + (VIA_SPLIT if reps > 1 or kind == km.TABULATED else 0)
                                                 + (VIA_TABLE if more else 0))
                 nrt = _lobe_class(S, kind, m, wi_l[2] * wo[2] > 0.0) if S.track else 0
-                _continue(S, segment, sl, key[i], bt, p, ng, _world(fs, ft, ns, wo), wo[2], weight,
-                          spdf, via, nrt, rs, nxt, counts)
+                cont = Continuation(_world(fs, ft, ns, wo), wo[2], weight, spdf, via)
+                _continue(S, segment, sl, key[i], bt, p, ng, cont, nrt, rs, nxt, counts)
     # Emission queued behind a deferred layered pdf (``_light_hit``): each lane's pdf estimated
     # once, its rows weighed. After the lane loop, so that compiling this kernel reaches the
     # layered lane (compiled by another process, kernels/cache.py) after everything else.

@@ -13,14 +13,14 @@ from . import estimators as es
 from . import iface as ki
 from . import phase as ph
 from . import walk as wk
-from .table import HEAD, M_DIR, M_PH, MED0, MSTRIDE, UNIT_DUV, bind_iface, bind_into
+from .table import HEAD, M_DIR, M_PH, MED0, MSTRIDE, UNIT_DUV, IfaceRow, bind_iface, bind_into
 
 
 @kernel
 def bind_iface_rows(kind, dist, mask, values, tex, nmode, nval, ntex, TX, uv, B):
     for i in range(B.shape[0]):
-        bind_iface(kind, dist, mask, values, tex, 0, nmode, (nval[0], nval[1], nval[2]), ntex, False,
-                   TX, uv[i, 0], uv[i, 1], UNIT_DUV, B[i], 0)
+        row = IfaceRow(kind, dist, mask, values, tex, 0, nmode, (nval[0], nval[1], nval[2]), ntex, False)
+        bind_iface(row, TX, uv[i, 0], uv[i, 1], UNIT_DUV, B[i], 0)
 
 
 @kernel

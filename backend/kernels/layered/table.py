@@ -133,10 +133,18 @@ def _iface_params(values, tex, kind, r, TX, u, v):
                              _scalar(values, tex, r, dielectric.AV, TX, u, v))
 
 
+#: One interface as ``bind_iface`` reads it: its kind, microfacet distribution and masking, row
+#: ``row`` of the slot arrays ``values``/``tex`` (constants, texture ids), and its normal: mode
+#: (0 none, 1 constant ``nval``, 2 the normal-map texture ``ntex``) and whether it has a bump map.
+IfaceRow = namedtuple("IfaceRow", ["kind", "dist", "mask", "values", "tex", "row", "nmode", "nval", "ntex",
+                                   "bump"])
+
+
 @kernel
-def bind_iface(kind, dist, mask, iv, it, r, mode, nval, ntex, bump, TX, u, v, duv, B, o):
-    """Interface row r of the slot arrays (iv, it) at (u, v) into B[o:o + iface.STRIDE]; ``duv``
-    the surface's dP/du, dP/dv in the lane's frame (for a bump map)."""
+def bind_iface(R, TX, u, v, duv, B, o):
+    """Interface ``R`` (an IfaceRow) at (u, v) into B[o:o + iface.STRIDE]; ``duv`` the surface's
+    dP/du, dP/dv in the lane's frame (for a bump map)."""
+    kind, dist, mask, iv, it, r, mode, nval, ntex, bump = R
     B[o + ki.IF_KIND] = kind
     B[o + ki.IF_DIST] = dist
     B[o + ki.IF_MASK] = mask
@@ -206,9 +214,9 @@ def bind_into(ST, TX, s, u, v, duv, B):
     m0 = int(ST.head[s, H_MD0])
     for l in range(N):
         r = f0 + l
-        bind_iface(ST.if_kind[r], ST.if_dist[r], ST.if_mask[r], ST.if_values, ST.if_tex, r,
-                   ST.if_nmode[r], (ST.if_nval[r, 0], ST.if_nval[r, 1], ST.if_nval[r, 2]),
-                   ST.if_ntex[r], ST.if_bump[r], TX, u, v, duv, B, HEAD + l * ki.STRIDE)
+        row = IfaceRow(ST.if_kind[r], ST.if_dist[r], ST.if_mask[r], ST.if_values, ST.if_tex, r, ST.if_nmode[r],
+                       (ST.if_nval[r, 0], ST.if_nval[r, 1], ST.if_nval[r, 2]), ST.if_ntex[r], ST.if_bump[r])
+        bind_iface(row, TX, u, v, duv, B, HEAD + l * ki.STRIDE)
     mv, mt = ST.md_values, ST.md_tex
     for k in range(N - 1):
         r = m0 + k
