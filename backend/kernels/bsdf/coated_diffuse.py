@@ -187,6 +187,28 @@ def reflected_visible(dist, au, av, wi, u0, u1):
     return (2.0 * c * m[0] - wi[0], 2.0 * c * m[1] - wi[1], 2.0 * c * m[2] - wi[2])
 
 
+TOP_DELTA, TOP_LOBE, BODY = 0, 1, 2     # what ``top_or_body`` chose
+
+
+@kernel
+def top_or_body(eta, smooth, dist, au, av, w_s, wi, u0, u1, u2):
+    """The split every coated sampler makes (this module's and the tables',
+    kernels/bsdf/tabulated.py): with probability w_s the top interface's reflection, else the
+    body's own sampler. Returns (choice, wo, F, a, b, c): TOP_DELTA for a smooth top (its weight
+    F/w_s, already divided), TOP_LOBE with wo above the surface, or BODY, whose sampler takes the
+    three numbers (a, b, c) — u2 rescaled past w_s, or, where the top's reflection fell below
+    the surface, three numbers split from u2/w_s (uniform, independent of the normal)."""
+    if u2 < w_s:
+        if smooth:
+            return TOP_DELTA, (-wi[0], -wi[1], wi[2]), fresnel(wi[2], eta)[0] / w_s, u0, u1, u2
+        wo = reflected_visible(dist, au, av, wi, u0, u1)
+        if wo[2] > 0.0:
+            return TOP_LOBE, wo, 0.0, u0, u1, u2
+        a, b, c = three_from_one(u2 / w_s)
+        return BODY, wo, 0.0, a, b, c
+    return BODY, (0.0, 0.0, 1.0), 0.0, u0, u1, (u2 - w_s) / (1.0 - w_s)
+
+
 @kernel
 def three_from_one(x):
     """Three uniform numbers from one: its first 12 bits (to a cell's centre), the next 12, and
@@ -245,18 +267,11 @@ def sample(T, o, eta, au, av, smooth, rho, dist, masking, wi, u0, u1, u2):
         return (0.0, 0.0, 1.0), ZERO3, 0.0, False
     _, _, d, rs = _body(T, o, au, rho, wi[2])
     w_s = specular_share(rs, d, 0.0 if smooth else au)
-    if u2 < w_s:
-        if smooth:
-            F = fresnel(wi[2], eta)[0] / w_s
-            return (-wi[0], -wi[1], wi[2]), (F, F, F), 0.0, True
-        wo = reflected_visible(dist, au, av, wi, u0, u1)
-        if not wo[2] > 0.0:
-            # Below the surface: the body's exit distribution, from u2/w_s (uniform, independent
-            # of the normal) split into three numbers.
-            a, b, c = three_from_one(u2 / w_s)
-            wo = _sample_exit(T, o, au, a, b, c)
-    else:
-        wo = _sample_exit(T, o, au, u0, u1, (u2 - w_s) / (1.0 - w_s))
+    choice, wo, F, a, b, c = top_or_body(eta, smooth, dist, au, av, w_s, wi, u0, u1, u2)
+    if choice == TOP_DELTA:
+        return wo, (F, F, F), 0.0, True
+    if choice == BODY:
+        wo = _sample_exit(T, o, au, a, b, c)          # the body's exit distribution
     if not wo[2] > 0.0:
         return wo, ZERO3, 0.0, False
     f, pdf = eval_pdf(T, o, eta, au, av, smooth, rho, dist, masking, wi, wo)

@@ -61,7 +61,8 @@ import math
 
 from . import IMPORTANCE
 from . import conductor, dielectric, diffuse
-from .coated_diffuse import SHARP_ALPHA, reflected_visible, reflection_density, specular_share, three_from_one
+from .coated_diffuse import (BODY, SHARP_ALPHA, TOP_DELTA, reflection_density, specular_share,
+                             top_or_body)
 from ..fresnel import dielectric as fresnel
 from ..jit import inlined, kernel
 from ..turns import cos_sin_turns
@@ -402,17 +403,11 @@ def sample(T, o, rho, wi, u0, u1, u2):
         return (0.0, 0.0, 1.0), ZERO3, 0.0, False
     eta, alpha, dist, masking, smooth = _top(T, o)
     w_s = _share(T, o, rho, wi[2])
-    if u2 < w_s:
-        if smooth:
-            F = fresnel(wi[2], eta)[0] / w_s
-            return (-wi[0], -wi[1], wi[2]), (F, F, F), 0.0, True
-        wo = reflected_visible(dist, alpha, alpha, wi, u0, u1)
-        if not wo[2] > 0.0:
-            # below the surface: the table part's sampler, from u2/w_s split into three numbers
-            a, b, c = three_from_one(u2 / w_s)
-            wo = _sample_table(T, o, wi, a, b, c)
-    else:
-        wo = _sample_table(T, o, wi, u0, u1, (u2 - w_s) / (1.0 - w_s))
+    choice, wo, F, a, b, c = top_or_body(eta, smooth, dist, alpha, alpha, w_s, wi, u0, u1, u2)
+    if choice == TOP_DELTA:
+        return wo, (F, F, F), 0.0, True
+    if choice == BODY:
+        wo = _sample_table(T, o, wi, a, b, c)          # the table part's sampler
     if not wo[2] > 0.0:
         return wo, ZERO3, 0.0, False
     f, pdf = eval_pdf(T, o, rho, wi, wo)
