@@ -20,7 +20,7 @@ from .geometry.accel import NO_TIMES
 from .kernels import integrator as ki
 from .kernels import materials as km
 from .kernels.camera import camera_rays, camera_vector
-from .kernels.item_loop import STOPPED, run_item, start_lanes
+from .kernels.item_loop import ONE_SEGMENT, STOPPED, TRACED_SEGMENT, WHOLE_ITEM, run_item, start_lanes
 from .kernels.layered import batch as layered_batch
 from .kernels.layered.table import H_MAXV, H_PDF, H_TRANS, LOBES
 from .kernels.lights.table import build_light_table
@@ -29,7 +29,7 @@ from .kernels.sampler import SAMPLERS
 from .kernels.soup import shading_rows
 from .kernels.trace import RAYHIT_WORDS
 from .kernels.workitems import (FilmColumns, Lanes, QueuedEmission, RayQueue, SceneTables, ShadowRays,
-                                TracedHits, WalkScratch)
+                                WalkScratch)
 from .layered.stack_table import StackBuilder
 from .passes import NO_LANES, PassLayout
 from .render_settings import kernel_values
@@ -106,6 +106,7 @@ class _Scratch:
         # The compiled bounce loop's (kernels/item_loop.py): hits, shadow-ray times and answers,
         # embree's ray block, the loop's state.
         self.prim = np.empty(n, np.int32)
+        self.t_hit = np.empty(n, np.float32)           # hit distances where Python traced (run_item)
         self.b1 = np.empty(n, np.float32)
         self.b2 = np.empty(n, np.float32)
         self.times = np.empty(n, np.float32)
@@ -280,11 +281,8 @@ class PathTracer:
                     FilmColumns(L, albedo, normal, alpha, aux))
         lc = sc.walk.counters
         counts = np.zeros(5, np.int64)
-        queries = self.accel.queries
-        if queries.direct is not None and self.accel.recorder is None and not (self.skip_camera or self.skip_indirect):
-            rays = self._run_compiled(sc, pixels, spp, sample0, lane_time, L, albedo, normal, alpha, aux, counts, n)
-        else:
-            rays = self._run_python(sc, pixels, spp, sample0, lane_time, L, albedo, normal, alpha, aux, counts, n)
+        rays = self._bounce_loop(sc, Lanes(pixels, spp, sample0, lane_time),
+                                 FilmColumns(L, albedo, normal, alpha, aux), counts, n)
         if lc[2]:
             stats.add("layered_walk_cap_hits", int(lc[2]))
         # Per-lane samples: the film adds them in sample order (kernels/film.py).
@@ -293,47 +291,90 @@ class PathTracer:
             out["passes"] = aux
         return out
 
-    def _run_compiled(self, sc, pixels, spp, sample0, lane_time, L, albedo, normal, alpha, aux, counts, n) -> int:
-        """The item's bounce loop in one compiled call (kernels/item_loop.py); with shadow-ray
-        filters (backend/visibility.py), one call per segment and the shadow rays here."""
+    def _bounce_loop(self, sc, lanes, film, counts, n) -> int:
+        """The item's bounce loop (kernels/item_loop.py ``run_item``): in one compiled call; with
+        shadow-ray filters (backend/visibility.py), one call per segment and the shadow rays
+        here; where rays must pass objects hidden from them, embree is reached through
+        embreex's own queries or a benchmark records the rays, each segment's rays traced here
+        too (``_trace_segment``) and shaded by the same call."""
         queries = self.accel.queries
-        if not queries.direct.committed:
-            queries.commit()
-        fn_hit, fn_occ = queries._intersect_fn, queries._occluded_fn
-        embree = (fn_hit, fn_occ, queries.direct.handle, queries.offset1, sc.rayhit)
-        hits = (sc.tmax32, sc.prim, sc.b1, sc.b2, sc.times)
-        film = FilmColumns(L, albedo, normal, alpha, aux)
+        trace_here = (queries.direct is None or self.accel.recorder is not None
+                      or self.skip_camera or self.skip_indirect)
+        if trace_here:
+            mode = TRACED_SEGMENT
+            embree = (0, 0, 0, 0, sc.rayhit)           # unused: run_item traces nothing
+            hits = (sc.tmax32, sc.prim, sc.b1, sc.b2, sc.times, sc.t_hit)
+        else:
+            if not queries.direct.committed:
+                queries.commit()
+            mode = ONE_SEGMENT if self.vis.filter_shadows else WHOLE_ITEM
+            embree = (queries._intersect_fn, queries._occluded_fn, queries.direct.handle, queries.offset1,
+                      sc.rayhit)
+            hits = (sc.tmax32, sc.prim, sc.b1, sc.b2, sc.times, sc.tmax32)
+        L = film.L
         queues = [q.outputs() for q in sc.queues]
-        tables, lanes = self.tables(), Lanes(pixels, spp, sample0, lane_time)
+        tables = self.tables()
         stop = self.stop_flag if self.stop_flag is not None else self._never
-        one_segment = bool(self.vis.filter_shadows)
         state = sc.state
         state[:] = 0
         state[1] = n
-        killed = deferred = rays = 0
+        killed = deferred = 0
+        rays = 0           # every ray of the item (returned)
+        uncounted = 0      # those the main accelerator's own queries did not count
         while True:
             if self.interrupt is not None and self.interrupt():
                 raise RenderInterrupted
+            if trace_here:
+                rays += self._trace_segment(sc, queues[0], int(state[0]), int(state[1]), lanes.time)
             run_item(tables, lanes, queues[0], queues[1], sc.shadows, sc.walk, sc.queued_emission, film,
-                     embree, hits, one_segment, stop, counts, state)
+                     embree, hits, mode, stop, counts, state)
             killed += int(state[3])
             deferred += int(state[4])
             rays += int(state[5])
+            uncounted += int(state[5])
             if state[6] == STOPPED:
                 raise RenderInterrupted
             if state[7]:
                 queues.reverse()                  # the next rays are in the other queue
             ns = int(state[2])
-            if ns:                                # one_segment: the filtered shadow rays
-                blocked = self.vis.occluded(sc.sh_o32[:ns], sc.sh_d32[:ns], sc.sh_t32[:ns], sc.sh_mask[:ns])
+            if ns:                                # the shadow rays of one segment, traced here
+                if self.vis.filter_shadows:
+                    blocked = self.vis.occluded(sc.sh_o32[:ns], sc.sh_d32[:ns], sc.sh_t32[:ns], sc.sh_mask[:ns])
+                    uncounted += ns
+                else:
+                    blocked = self.accel.occluded32(sc.sh_o32[:ns], sc.sh_d32[:ns], sc.sh_t32[:ns],
+                                                    lanes.time[sc.sh_slot[:ns]] if self.motion else NO_TIMES)
                 rays += ns
                 ki.add_unoccluded(sc.sh_slot[:ns], sc.sh_c[:ns], blocked, L)
-            if not one_segment or state[1] == 0 or state[0] >= self.max_segments:
+            if mode == WHOLE_ITEM or state[1] == 0 or state[0] >= self.max_segments:
                 break
             state[3:] = 0
-        self.accel.rays_traced += rays
+        self.accel.rays_traced += uncounted
         self._count(killed, deferred)
         return rays
+
+    def _trace_segment(self, sc, cur, segment: int, active: int, lane_time) -> int:
+        """The closest hits of this segment's rays, traced here into the loop's hit arrays (for
+        ``TRACED_SEGMENT``): past the objects hidden from each ray type where the scene has them
+        (backend/visibility.py re-traces those rays), and with the rays' own limits kept, since
+        shading sees them too."""
+        o32, d32 = cur.o32[:active], cur.d32[:active]
+        t_in = sc.tmax32[:active] if segment == 0 else np.full(active, 3e38, np.float32)
+        skip = self.skip_camera if segment == 0 else self.skip_indirect
+        # embree writes each hit's distance into the tmax array it is given
+        t_ray = t_in.copy() if skip else t_in
+        times = lane_time[cur.slot[:active]] if self.motion else NO_TIMES
+        prim, t, b1, b2 = self.accel.intersect32(o32, d32, t_in, times)
+        if skip:
+            t_in = t_ray
+            prim, t, b1, b2 = self.vis.skip_hidden(self.accel, o32, d32, t_in, cur.rtype[:active],
+                                                   prim, t, b1, b2)
+        sc.tmax32[:active] = t_in
+        sc.t_hit[:active] = t
+        sc.prim[:active] = prim
+        sc.b1[:active] = b1
+        sc.b2[:active] = b2
+        return active
 
     def tables(self) -> SceneTables:
         """The scene's tables as the kernels take them (built per call: an edit in the viewport
@@ -346,57 +387,6 @@ class PathTracer:
             stats.add("paths_nonfinite_killed", killed)
         if deferred:
             stats.add("layered_pdfs_deferred", deferred)   # estimated when a ray found a light
-
-    def _run_python(self, sc, pixels, spp, sample0, lane_time, L, albedo, normal, alpha, aux, counts, n) -> int:
-        """The bounce loop in Python, a compiled call per stage: rays that pass through objects
-        hidden from them (backend/visibility.py re-traces them), embree through embreex's own
-        queries, or a benchmark recording the rays."""
-        cur, nxt = sc.queues
-        tmax32 = sc.tmax32
-        sh_slot, sh_o32, sh_d32, sh_t32, sh_c = sc.sh_slot, sc.sh_o32, sc.sh_d32, sc.sh_t32, sc.sh_c
-        tables, lanes = self.tables(), Lanes(pixels, spp, sample0, lane_time)
-        film = FilmColumns(L, albedo, normal, alpha, aux)
-        killed = 0
-        deferred = 0
-        rays = 0
-        active = n
-        for segment in range(self.max_segments):
-            if active == 0:
-                break
-            if self.interrupt is not None and self.interrupt():
-                raise RenderInterrupted
-            o32, d32 = cur.o32[:active], cur.d32[:active]
-            t_in = tmax32[:active] if segment == 0 else np.full(active, 3e38, np.float32)
-            skip = self.skip_camera if segment == 0 else self.skip_indirect
-            # embree writes each hit's distance into the tmax array it is given: re-tracing past
-            # hidden objects needs the rays' own limits (and shading then sees those too).
-            t_ray = t_in.copy() if skip else t_in
-            times = lane_time[cur.slot[:active]] if self.motion else NO_TIMES
-            prim, t, b1, b2 = self.accel.intersect32(o32, d32, t_in, times)
-            rays += active
-            if skip:
-                t_in = t_ray
-                prim, t, b1, b2 = self.vis.skip_hidden(self.accel, o32, d32, t_in, cur.rtype[:active],
-                                                       prim, t, b1, b2)
-            counts[:] = 0
-            ki.shade(tables, segment, lanes, RayQueue(*(a[:active] for a in cur.outputs())),
-                     TracedHits(t_in, prim, t, b1, b2), film, nxt.outputs(), sc.shadows, sc.walk,
-                     sc.queued_emission, counts)
-            ns = int(counts[1])
-            if ns:
-                if self.vis.filter_shadows:
-                    blocked = self.vis.occluded(sh_o32[:ns], sh_d32[:ns], sh_t32[:ns], sc.sh_mask[:ns])
-                else:
-                    blocked = self.accel.occluded32(sh_o32[:ns], sh_d32[:ns], sh_t32[:ns],
-                                                    lane_time[sh_slot[:ns]] if self.motion else NO_TIMES)
-                rays += ns
-                ki.add_unoccluded(sh_slot[:ns], sh_c[:ns], blocked, L)
-            killed += int(counts[3])
-            deferred += int(counts[4])
-            active = int(counts[0])
-            cur, nxt = nxt, cur
-        self._count(killed, deferred)
-        return rays
 
 
 def build_material_table(materials, packer, stacks=None):

@@ -11,11 +11,16 @@ The bundles are kernels/workitems.py's named tuples: the scene's tables, the lan
 queues (the rays of this bounce and of the next, swapped after each), the shadow rays, the film
 columns, the walks' scratch, the queued emission; embree as (intersect function, occluded
 function, scene handle, geometry-1 offset, RTCRayHit scratch); the hits as (tmax32, prim, b1, b2,
-time32), the item loop's own arrays.
+time32, t32), the item loop's own arrays (t32: the hit distances where the caller traced; the
+tmax32 array itself otherwise, since embree writes them there).
 
-``one_segment``: shade a single segment and leave its shadow rays to the caller (scenes whose
-shadow rays need filters made in Python: backend/visibility.py). ``stop[0]`` non-zero (another
-thread may set it: the viewport session's restart) ends the item before the next bounce.
+``mode``: WHOLE_ITEM, the item's every segment here; ONE_SEGMENT, shade a single segment and leave
+its shadow rays to the caller (scenes whose shadow rays need filters made in Python:
+backend/visibility.py); TRACED_SEGMENT, the same for a segment whose rays the caller traced into
+the hit arrays (rays that pass objects hidden from them, embree through embreex's own queries, a
+benchmark recording the rays: backend/integrator.py). One loop for every case: Python only
+traces what the compiled code cannot. ``stop[0]`` non-zero (another thread may set it: the
+viewport session's restart) ends the item before the next bounce.
 
 ``state`` (int64[8]) in: [segment, active lanes]; out: [segment reached, active lanes,
 pending shadow rays, non-finite paths killed (sum), deferred pdfs (sum), rays traced (sum),
@@ -60,16 +65,17 @@ def start_lanes(q, n, delta, rtype, recv, walk, film):
 DONE = 0
 STOPPED = 1
 FAR = np.float32(3e38)
+WHOLE_ITEM, ONE_SEGMENT, TRACED_SEGMENT = 0, 1, 2
 
 
 @kernel(nogil=True)
-def run_item(tables, lanes, q0, q1, shadows, walk, queued, film, embree, hits, one_segment, stop, counts, state):
+def run_item(tables, lanes, q0, q1, shadows, walk, queued, film, embree, hits, mode, stop, counts, state):
     S = tables.settings
     lane_time = lanes.time
     segment = state[0]
     active = state[1]
     motion = lane_time.shape[0] > 0
-    tmax, prim, b1, b2, tt = hits
+    tmax, prim, b1, b2, tt, t_hit = hits
     fn_hit, fn_occ, scene, offset1, rayhit = embree
     L = film.L
     sh_slot, sh_o32, sh_d32, sh_t32, sh_c = shadows.slot, shadows.o32, shadows.d32, shadows.t32, shadows.c
@@ -86,21 +92,23 @@ def run_item(tables, lanes, q0, q1, shadows, walk, queued, film, embree, hits, o
             break
         cur = q1 if flip else q0
         nxt = q0 if flip else q1
-        if segment > 0:                     # the camera rays' limits only hold for segment 0
-            for i in range(active):
-                tmax[i] = FAR
-        times = tt[:active] if motion else tt[:0]
-        if motion:
-            for i in range(active):
-                times[i] = lane_time[cur.slot[i]]
         t_in = tmax[:active]
-        intersect_rays(fn_hit, scene, offset1, rayhit, cur.o32[:active], cur.d32[:active], t_in, times,
-                       prim[:active], b1[:active], b2[:active])
-        rays += active
+        t_out = t_hit[:active]
+        if mode != TRACED_SEGMENT:
+            if segment > 0:                 # the camera rays' limits only hold for segment 0
+                for i in range(active):
+                    tmax[i] = FAR
+            times = tt[:active] if motion else tt[:0]
+            if motion:
+                for i in range(active):
+                    times[i] = lane_time[cur.slot[i]]
+            intersect_rays(fn_hit, scene, offset1, rayhit, cur.o32[:active], cur.d32[:active], t_in, times,
+                           prim[:active], b1[:active], b2[:active])
+            rays += active
         for k in range(counts.shape[0]):
             counts[k] = 0
         shade(tables, segment, lanes, queue_head(cur, active),
-              TracedHits(t_in, prim[:active], t_in, b1[:active], b2[:active]),
+              TracedHits(t_in, prim[:active], t_out, b1[:active], b2[:active]),
               film, nxt, shadows, walk, queued, counts)
         ns = counts[1]
         killed += counts[3]
@@ -108,7 +116,7 @@ def run_item(tables, lanes, q0, q1, shadows, walk, queued, film, embree, hits, o
         active = counts[0]
         flip = 1 - flip
         segment += 1
-        if one_segment:
+        if mode != WHOLE_ITEM:
             break
         if ns > 0:
             st = sh_time[:ns] if motion else sh_time[:0]
