@@ -28,6 +28,9 @@ from .pixels import ALBEDO_PASS, NORMAL_PASS, fill_passes, load_npy, pass_npy_pa
 from . import viewport
 from .render_server import POOL
 
+# The warning of an animation's last frame, per scene (``LaminaRenderEngine._warn_once``).
+_ANIMATION_WARNINGS: dict = {}
+
 PREVIEW_WORKERS = 1          # worker processes cost ~1 s to start; thumbnails are small
 
 
@@ -128,6 +131,8 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
         keep = False
         self._exported = None
         self._renderer_warnings: list[str] = []
+        scene = depsgraph.scene
+        self._frame_of = (scene.name, bool(self.is_animation) and scene.frame_current > scene.frame_start)
         try:
             keep = keep_files() and not self.is_preview
             self._render(depsgraph, workdir)
@@ -150,13 +155,18 @@ class LaminaRenderEngine(bpy.types.RenderEngine):
 
     def _warn_once(self) -> None:
         """The render's one warning: everything the export and the renderer could not render as
-        asked, by Blender name (object, material, node...)."""
+        asked, by Blender name (object, material, node...). In an animation a frame whose warning
+        is the previous frame's says nothing: a long animation would print the same lines once
+        per frame, and Blender keeps every report of the job."""
         exported = getattr(self, "_exported", None)
         if exported is None or self.is_preview:
             return
         text = exported.warning_text(extra=self._renderer_warnings)
         self._exported = None                    # once per render
-        if text:
+        key, later_frame = getattr(self, "_frame_of", (None, False))
+        previous = _ANIMATION_WARNINGS.get(key) if later_frame else None
+        _ANIMATION_WARNINGS[key] = text
+        if text and text != previous:
             self.report({"WARNING"}, _console(text))
 
     def _fail(self, message: str) -> None:

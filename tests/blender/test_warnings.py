@@ -146,3 +146,14 @@ def test_the_add_on_and_backend_share_the_candela_conversion():
     from bpy_harness import ROOT
     text = (ROOT / "addon" / "export" / "lights.py").read_text()
     assert f"LUMINOUS_EFFICACY = {LUMINOUS_EFFICACY}" in text
+
+
+def test_an_animation_reports_a_repeated_warning_once(tmp_path):
+    """Frames with the same warning as the frame before report nothing new: a long animation does
+    not print (and Blender does not collect) the same lines once per frame."""
+    r = run_cases("warning_cases", ["animation_warnings"], tmp=tmp_path)
+    res = result_of(r, "animation_warnings")
+    assert res["error"] is None and res["frames"] == 3, res
+    output = r["_stdout"] + r["_stderr"]
+    lines = [l for l in output.splitlines() if "Lamina ignored or approximated:" in l]
+    assert len(lines) == 1, output[-3000:]

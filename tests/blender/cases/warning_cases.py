@@ -231,3 +231,23 @@ def progress_texts(tmp):
               {"event": "progress", "done": 64, "samples": 64, "total": 64, "elapsed": 3.4, "eta": 0.0},
               {"event": "progress", "done": 4, "total": 16, "elapsed": 0.1, "eta": 0.3}]       # an old backend
     return [progress_text(e) for e in events]
+
+
+def animation_warnings(tmp):
+    """A three-frame animation of a scene whose every frame has the same warning."""
+    from .engine_cases import _fake_backend, _reset_backend
+    sc = _feature_scene()
+    sc.render.use_multiview = False
+    sc.frame_start, sc.frame_end = 1, 3
+    _fake_backend(tmp, "pixels")
+    settings = sc.render.image_settings
+    settings.file_format = "OPEN_EXR"
+    settings.color_depth = "32"
+    sc.render.filepath = str(Path(tmp) / "frames" / "f_")
+    try:
+        bpy.ops.render.render(animation=True)
+        error = None
+    except RuntimeError as exc:
+        error = str(exc)
+    _reset_backend()
+    return {"error": error, "frames": len(list((Path(tmp) / "frames").glob("f_*")))}
