@@ -744,15 +744,15 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                 continue
             bt = (bt[0] / q, bt[1] / q, bt[2] / q)
         # 3. shading frame and AOVs
-        # The denoiser's features (albedo, normal) at the camera's hit or, behind mirrors and
-        # smooth glass, at the first other surface (FEATURES_PENDING), the albedo times the
-        # throughput of the specular chain (1 at the camera's hit).
+        # The denoiser's features (albedo, normal) at the camera's hit and, behind mirrors and
+        # smooth glass, again at the first other surface (FEATURES_PENDING), which overwrites
+        # them; the albedo times the throughput of the specular chain (1 at the camera's hit).
         features = camera or (rt & FEATURES_PENDING) != 0
         if features:
             # The denoiser's normal, like the Normal pass: turned towards the camera on back
             # faces (Cycles flips N there, whatever the material).
             facing = 1.0 if _dot(wi, ng) >= 0.0 else -1.0
-            feature_n = (facing * ns[0], facing * ns[1], facing * ns[2])
+            normal[sl, 0], normal[sl, 1], normal[sl, 2] = facing * ns[0], facing * ns[1], facing * ns[2]
         kind = MT.kind[m]
         if MT.two_sided[m]:
             # Reflection-only materials are seen from both sides: turn the normals towards the
@@ -800,9 +800,6 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
         else:
             prm = NO_PARAMS
             delta_only = False
-        pass_features = features and delta_only and not last
-        if features and not pass_features:
-            normal[sl, 0], normal[sl, 1], normal[sl, 2] = feature_n
         if can_nee and not all_lights and not delta_only:
             li, sel_p = ld.select(LT, p, u_pick)
             if li >= 0 and sel_p > 0.0:
@@ -821,10 +818,14 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
             f, bpdf, wo, weight, spdf, sdelta, alb = layered.shade_lane(
                 ST, TX, sid, u, v, duv, wi_l, wo_n,
                 layered.LaneAsks(nee=live, nee_pdf=not is_delta, do_continue=not last,
-                                 sample_pdf=not S.defer_pdf, pdf_only=False, camera=features),
+                                 sample_pdf=not S.defer_pdf, pdf_only=False, camera=camera),
                 key[i], segment, walk)
-            if features:
-                albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = bt[0] * alb[0], bt[1] * alb[1], bt[2] * alb[2]
+            if camera:
+                albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = alb
+            elif features and wi_l[2] * wo[2] > 0.0:
+                # behind a mirror or glass: the continuation's reflected weight, as shade_lane's
+                # albedo estimate at a camera hit
+                albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = bt[0] * weight[0], bt[1] * weight[1], bt[2] * weight[2]
             if live:
                 _nee(S, segment, sl, bt, p, ng, LightSample(wi_w, dist, value, lpdf, is_delta), sel_p, f, bpdf,
                      S.light_shadow[li], shadows, counts)
@@ -839,7 +840,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
             continue
         dist_code = MT.dist[m]
         mask_code = MT.masking[m]
-        if features and not pass_features:
+        if features:
             a = km.albedo(MT.tables, kind, prm, wi_l)
             albedo[sl, 0], albedo[sl, 1], albedo[sl, 2] = bt[0] * a[0], bt[1] * a[1], bt[2] * a[2]
         # 4b. next-event estimation. At a rough conductor light sampling is the noisy strategy
@@ -903,7 +904,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                                                 + (VIA_SPLIT if reps > 1 or kind == km.TABULATED else 0)
                                                 + (VIA_TABLE if more else 0))
                 nrt = _lobe_class(S, kind, m, wi_l[2] * wo[2] > 0.0) if S.track else 0
-                if pass_features and sdelta:
+                if features and delta_only and sdelta:
                     nrt |= FEATURES_PENDING
                 cont = Continuation(_world(fs, ft, ns, wo), wo[2], weight, spdf, via)
                 _continue(S, segment, sl, key[i], bt, p, ng, cont, nrt, rs, nxt, counts)
