@@ -10,9 +10,9 @@ from ..errors import SceneError
 from ..kernels import materials as km
 from ..kernels.layered import iface as ki
 from ..kernels.layered import phase as ph
-from ..kernels.layered.table import (ABSORBING, APPROX, BI, EMPTY, F_FLAKE, F_MATRIX, F_TEX_ORIENT, H_BUMP,
-                                     H_CHROM, H_EST, H_ETA_BOTTOM, H_ETA_SLAB, H_ETA_TOP, H_IF0, H_MAXV,
-                                     H_MD0, H_MIS, H_N, H_NESTED, H_PDF, H_PDFC, H_TRANS, HEAD, LOBES,
+from ..kernels.layered.table import (ABSORBING, APPROX, BI, EMPTY, F_FLAKE, F_MATRIX, F_SLOT_A, F_SLOT_V,
+                                     F_TEX_ORIENT, H_BUMP, H_CHROM, H_EST, H_ETA_BOTTOM, H_ETA_SLAB, H_ETA_TOP,
+                                     H_IF0, H_MAXV, H_MD0, H_MIS, H_N, H_NESTED, H_PDF, H_PDFC, H_TRANS, HEAD, LOBES,
                                      MAX_INTERFACES, MSLOT, S_ALB, S_PA, S_PV, S_SIGMA, S_THICK, SCATTERING,
                                      STOCHASTIC, UNI, StackTable, assemble, fill_rows)
 from ..materials.dielectric import DielectricMaterial
@@ -149,8 +149,10 @@ class StackBuilder:
                 continue
             if param.slot == "a":
                 put(S_PA, params[param.key], 1)
+                flags |= F_SLOT_A
             elif param.slot == "v":
                 put(S_PV, params[param.key], 3)
+                flags |= F_SLOT_V
                 if not params[param.key].is_constant:
                     flags |= F_TEX_ORIENT                      # decoded like a normal map
         # Two kinds' own extras: the fiber's σ row for a constant spread, SGGX's matrix or shape.

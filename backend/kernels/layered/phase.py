@@ -29,7 +29,7 @@ import math
 import numpy as np
 
 from ..consts import INV_2PI, INV_4PI
-from ..jit import kernel
+from ..jit import inlined, kernel
 from ..rng import uniform
 from ..turns import cos_sin_turns
 from .phase_layout import (  # noqa: F401 (the layout, re-exported for the kernels' callers)
@@ -379,7 +379,7 @@ def bind(P, o, kind, a, v, choice, FT, row):
         P[o + PK] = kind
 
 
-@kernel(error_model="numpy")
+@inlined(error_model="numpy")
 def directional(kind):
     """Does the kind's extinction depend on the direction (``sigma_scale`` not 1)?"""
     return kind == FIBER or kind == SGGX

@@ -76,7 +76,7 @@ BSIZE = MED0 + (MAX_INTERFACES - 1) * MSTRIDE
 # medium slots (md_values / md_tex)
 S_THICK, S_SIGMA, S_ALB, S_PA, S_PV = 0, 1, 4, 7, 8
 MSLOT = 12
-F_TEX_ORIENT, F_FLAKE, F_MATRIX = 1, 2, 4
+F_TEX_ORIENT, F_FLAKE, F_MATRIX, F_SLOT_A, F_SLOT_V = 1, 2, 4, 8, 16
 
 StackTable = namedtuple("StackTable", [
     "head", "textured", "bound",
@@ -241,8 +241,9 @@ def bind_into(ST, TX, s, u, v, duv, B):
             s6 = ST.md_s6
             ph.bind_sggx(B, po, (s6[r, 0], s6[r, 1], s6[r, 2], s6[r, 3], s6[r, 4], s6[r, 5]))
         else:
-            a = _scalar(mv, mt, r, S_PA, TX, u, v)
-            ori = _rgb(mv, mt, r, S_PV, TX, u, v)
+            # only the slots the kind has (F_SLOT_*): each read is a texture lookup's call
+            a = _scalar(mv, mt, r, S_PA, TX, u, v) if flags & F_SLOT_A else 0.0
+            ori = _rgb(mv, mt, r, S_PV, TX, u, v) if flags & F_SLOT_V else (0.0, 0.0, 1.0)
             if flags & F_TEX_ORIENT:
                 ori = (2.0 * ori[0] - 1.0, 2.0 * ori[1] - 1.0, 2.0 * ori[2] - 1.0)
             ph.bind(B, po, pk, a, ori, 1 if flags & F_FLAKE else 0, ST.FT, ST.md_row[r])
