@@ -242,6 +242,12 @@ def saved_file_animation(tmp):
     bpy.ops.wm.open_mainfile(filepath=str(blend))
     sc = bpy.context.scene
     sc.render.engine = "LAMINA"                        # what -E LAMINA does
+    error, files = render_animation(sc, tmp)
+    return {"error": error, "files": files}
+
+
+def render_animation(sc, tmp):
+    """The scene's frames rendered by the fake backend into EXR files: (error or None, files)."""
     _fake_backend(tmp, "pixels")
     settings = sc.render.image_settings
     settings.file_format = "OPEN_EXR"
@@ -253,4 +259,4 @@ def saved_file_animation(tmp):
     except RuntimeError as exc:
         error = str(exc)
     _reset_backend()
-    return {"error": error, "files": sorted(str(p) for p in (Path(tmp) / "frames").glob("f_*"))}
+    return error, sorted(str(p) for p in (Path(tmp) / "frames").glob("f_*"))

@@ -235,19 +235,9 @@ def progress_texts(tmp):
 
 def animation_warnings(tmp):
     """A three-frame animation of a scene whose every frame has the same warning."""
-    from .engine_cases import _fake_backend, _reset_backend
+    from .engine_cases import render_animation
     sc = _feature_scene()
     sc.render.use_multiview = False
     sc.frame_start, sc.frame_end = 1, 3
-    _fake_backend(tmp, "pixels")
-    settings = sc.render.image_settings
-    settings.file_format = "OPEN_EXR"
-    settings.color_depth = "32"
-    sc.render.filepath = str(Path(tmp) / "frames" / "f_")
-    try:
-        bpy.ops.render.render(animation=True)
-        error = None
-    except RuntimeError as exc:
-        error = str(exc)
-    _reset_backend()
-    return {"error": error, "frames": len(list((Path(tmp) / "frames").glob("f_*")))}
+    error, files = render_animation(sc, tmp)
+    return {"error": error, "frames": len(files)}
