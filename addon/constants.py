@@ -5,8 +5,6 @@ reordered or added later.
 """
 from __future__ import annotations
 
-from ..backend.layered.phase_schema import PHASES
-
 # Named metals of the conductor interface (docs/materials.md, `conductor.metal`).
 METALS = (
     ("Ag", "Silver"), ("Al", "Aluminium"), ("Au", "Gold"), ("Be", "Beryllium"), ("Co", "Cobalt"),
@@ -29,10 +27,6 @@ INTERFACE_KINDS = (
      "MATERIAL", 4),
 )
 OPAQUE_KINDS = {"conductor", "diffuse"}
-
-# Phase functions: one row each in backend/layered/phase_schema.py (the enum's numbers are what
-# saved .blend files hold).
-PHASE_KINDS = tuple((k.enum, k.label, k.description, k.number) for k in PHASES)
 
 DISTRIBUTIONS = (
     ("GGX", "GGX", "GGX (Trowbridge-Reitz) microfacets, as Cycles", 0),

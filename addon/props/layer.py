@@ -13,7 +13,11 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorPro
 from bpy.types import PropertyGroup
 
 from ...backend.layered.phase_schema import PHASES
-from ..constants import DISTRIBUTIONS, INTERFACE_KINDS, MASKINGS, METALS, PHASE_KINDS
+from ..constants import DISTRIBUTIONS, INTERFACE_KINDS, MASKINGS, METALS
+
+# Phase functions: one row each in backend/layered/phase_schema.py (the enum's numbers are what
+# saved .blend files hold).
+PHASE_KINDS = tuple((k.enum, k.label, k.description, k.number) for k in PHASES)
 
 METAL_ITEMS = [(sym, f"{name} ({sym})", f"Measured complex IOR of {name.lower()}", i)
                for i, (sym, name) in enumerate(METALS)]

@@ -178,7 +178,7 @@ class Walks:
 
 def walks(bsdf, w0, rng, purpose="value", approx=False, rr="eval", cap=None, hero=None) -> Walks:
     """One walk per lane from directions ``w0`` (n, 3) through the bound stacks of ``bsdf``'s lanes."""
-    from ..kernels.layered.probe import walks as run
+    from ..kernels.layered.probe import WalkOut, WalkSpec, walks as run
     w0 = _rows3(w0)
     n = w0.shape[0]
     ST, TX, s = bsdf.material.kernel_table()
@@ -193,8 +193,8 @@ def walks(bsdf, w0, rng, purpose="value", approx=False, rr="eval", cap=None, her
     rec = np.zeros((n, width if purpose != "none" else 0, kw.NF))
     C = np.zeros(4, np.int64)
     start, thr = RR[rr]
-    run(B, ST.FT, w0, draw_seed(rng), PURPOSES[purpose], bool(approx), int(start), float(thr), cap, h, W1,
-        np.zeros(2, np.uint64), C, count, ed, ew, edl, hout, rec)
+    run(B, ST.FT, w0, draw_seed(rng), WalkSpec(PURPOSES[purpose], bool(approx), int(start), float(thr), cap), h, W1,
+        np.zeros(2, np.uint64), C, WalkOut(count, ed, ew, edl, hout, rec))
     return Walks(n, count, ed, ew, edl, hout, rec, int(C[0]), purpose)
 
 

@@ -253,7 +253,8 @@ def eval_pdf(T, o, eta, au, av, smooth, rho, dist, masking, wi, wo):
         a, b, t = _nodes(T, o, au)
         down = _at(T, a, b, t, FAIL_AT, wi[2])
         pdf = (1.0 - w_s + w_s * down) * _exit_density(T, o, au, mo)
-        fr, _ = dielectric.eval_pdf(eta, (1.0, 1.0, 1.0), au, av, False, dist, masking, IMPORTANCE, wi, wo)
+        fr, _ = dielectric.eval_pdf(eta, (1.0, 1.0, 1.0), au, av, smooth=False, dist=dist,
+                                    masking=masking, mode=IMPORTANCE, wi=wi, wo=wo)
         f = (f[0] + fr[0], f[1] + fr[1], f[2] + fr[2])
         pdf += w_s * reflection_density(dist, au, av, wi, wo)
     return f, pdf

@@ -391,7 +391,8 @@ def eval_pdf(T, o, rho, wi, wo):
     down = 0.0 if smooth else _per_node(T, o, H_FAIL, wi[2])
     pdf = (1.0 - w_s + w_s * down) * _table_density(T, o, wi, wo)
     if not smooth:
-        fr, _ = dielectric.eval_pdf(eta, (1.0, 1.0, 1.0), alpha, alpha, False, dist, masking, IMPORTANCE, wi, wo)
+        fr, _ = dielectric.eval_pdf(eta, (1.0, 1.0, 1.0), alpha, alpha, smooth=False, dist=dist,
+                                    masking=masking, mode=IMPORTANCE, wi=wi, wo=wo)
         f = (f[0] + fr[0], f[1] + fr[1], f[2] + fr[2])
         pdf += w_s * reflection_density(dist, alpha, alpha, wi, wo)
     return f, pdf

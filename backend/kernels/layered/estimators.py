@@ -341,7 +341,7 @@ def unidirectional(B, FT, W, nL, wo, R, mis):
     """NEE through the exit interface plus the continuation half of the MIS pair, over walk 0."""
     N = int(B[H_N])
     exit_top, E, slab_E, face, oE, u0, u1, u2 = _exit_side(B, N, wo, R)
-    u, wb, p_E, _, delta_E = _sample(B, oE, wo, u0, u1, u2, True)
+    u, wb, p_E, _, delta_E = _sample(B, oE, wo, u0, u1, u2, dens=True)
     if not (u[2] * wo[2] < 0.0 and abs(u[2]) >= GRAZING):
         wb = (0.0, 0.0, 0.0)
     ec = eta_corr(B, slab_E, exit_top)
@@ -370,7 +370,7 @@ def unidirectional(B, FT, W, nL, wo, R, mis):
                 pv, _ = ph.connect(B, mo + M_PH, FT, w_in, d, V[F_SIGIN], s_d)
                 val = (pv, pv, pv)
             else:
-                val, pv, _ = _evaluate(B, _ifo(lay), w_in, d, NAN, NAN, False)
+                val, pv, _ = _evaluate(B, _ifo(lay), w_in, d, NAN, NAN, pdf_only=False)
             T = transmittance(B, FT, slab_E, d, tv, tE)
             w = 1.0 if delta_E else (power(p_E, pv) if mis else 1.0)
             fac = abs(wo[2]) * exit_arr / abs(u[2]) * ec * w
@@ -383,7 +383,7 @@ def unidirectional(B, FT, W, nL, wo, R, mis):
             continue
         T = transmittance(B, FT, slab_E, dc, tv, tE)
         mdc = (-dc[0], -dc[1], -dc[2])
-        v, _, pE = _evaluate(B, oE, mdc, wo, NAN, NAN, False)
+        v, _, pE = _evaluate(B, oE, mdc, wo, NAN, NAN, pdf_only=False)
         arr = ki.arrival(B, oE, mdc)
         if V[F_DELTA] > 0.0:
             w = 1.0
@@ -424,7 +424,7 @@ def pdf_nee(B, FT, W, nL, wo, R, hero, approx, kmax):
     (P: ``_pass``). E must not be a delta interface (then the bidirectional estimate is used)."""
     N = int(B[H_N])
     exit_top, E, slab_E, face, oE, u0, u1, u2 = _exit_side(B, N, wo, R)
-    u, _, qf, qr, _ = _sample(B, oE, wo, u0, u1, u2, True)
+    u, _, qf, qr, _ = _sample(B, oE, wo, u0, u1, u2, dens=True)
     nee = u[2] * wo[2] < 0.0 and abs(u[2]) >= GRAZING and qf > 0.0
     d = (-u[0], -u[1], -u[2])
     mo = _mdo(slab_E)
@@ -446,13 +446,13 @@ def pdf_nee(B, FT, W, nL, wo, R, hero, approx, kmax):
             if medium:
                 pv, _ = ph.connect(B, mo + M_PH, FT, w_in, d, V[F_SIGIN], s_d)
             else:
-                _, pv, _ = _evaluate(B, _ifo(lay), w_in, d, NAN, NAN, True)
+                _, pv, _ = _evaluate(B, _ifo(lay), w_in, d, NAN, NAN, pdf_only=True)
             if pv > 0.0:
                 acc += pv * _pass(B, FT, slab_E, d, tv, tE, approx, hero) * qr * qf / (qf * qf + pv * pv)
         dc = (V[F_WOUT], V[F_WOUT + 1], V[F_WOUT + 2])
         if V[F_PF] > 0.0 and ((dc[2] > 0.0) if exit_top else (dc[2] < 0.0)) and abs(dc[2]) >= GRAZING:
             mdc = (-dc[0], -dc[1], -dc[2])
-            _, pE, qE = _evaluate(B, oE, mdc, wo, NAN, NAN, True)
+            _, pE, qE = _evaluate(B, oE, mdc, wo, NAN, NAN, pdf_only=True)
             if pE > 0.0:
                 P = _pass(B, FT, slab_E, dc, tv, tE, approx, hero)
                 if V[F_DELTA] > 0.0:
@@ -481,7 +481,7 @@ def _cap(B, W):
 @inlined(error_model="numpy")
 def value(B, FT, W, R, a, b, est, C):
     """f(a → b)·|cos θb| (importance transport) of a valid query; walk L is W[0]."""
-    f, _ = single(B, a, b, False)
+    f, _ = single(B, a, b, pdf=False)
     uni = est != BI and B[H_NESTED] <= 0.0 and not _uni_blind(B, b[2] > 0.0)
     cap = _cap(B, W)
     nL = 0
@@ -497,7 +497,7 @@ def value(B, FT, W, R, a, b, est, C):
     if uni:
         g = unidirectional(B, FT, W, nL + 0, b, R, B[H_MIS] > 0.0)
         return (f[0] + g[0], f[1] + g[1], f[2] + g[2])
-    g, _ = bidirectional(B, FT, W, nL, nR, b[2] > 0.0, False, False, 0, -1)
+    g, _ = bidirectional(B, FT, W, nL, nR, b[2] > 0.0, pdf_mode=False, approx=False, nmax=0, hero=-1)
     az = abs(b[2])
     return (f[0] + g[0] * az, f[1] + g[1] * az, f[2] + g[2] * az)
 
@@ -505,7 +505,7 @@ def value(B, FT, W, R, a, b, est, C):
 @inlined(error_model="numpy")
 def pdf(B, FT, W, R, a, b, kind, C):
     """The sampler's density of b given a (a valid query): ``pdf_pair`` for one direction."""
-    p, _ = pdf_pair(B, FT, W, R, a, b, True, b, False, kind, C)
+    p, _ = pdf_pair(B, FT, W, R, a, b, need1=True, b2=b, need2=False, kind=kind, C=C)
     return p
 
 
@@ -540,7 +540,7 @@ def pdf_pair(B, FT, W, R, a, b1, need1, b2, need2, kind, C):
                 continue
             exact = True
             if a[2] * b[2] > 0.0:
-                _, p = single(B, a, b, True)
+                _, p = single(B, a, b, pdf=True)
                 p += lb.inner_reflections(B, FT, a, b)
             else:
                 p, exact = lb.transmission(B, FT, a, b)
@@ -572,7 +572,7 @@ def pdf_pair(B, FT, W, R, a, b1, need1, b2, need2, kind, C):
         if not (need1 if k == 0 else need2):
             continue
         b = b1 if k == 0 else b2
-        _, p = single(B, a, b, True)
+        _, p = single(B, a, b, pdf=True)
         nmax = (2 * slabs + 1 if a[2] * b[2] > 0.0 else slabs + 1) if approx else 0
         if N == 2 and (kind == APPROX or kind == STOCHASTIC) and not ki.is_delta(B, _ifo(0 if b[2] > 0.0 else N - 1)):
             p += pdf_nee(B, FT, W, nL + 0, b, R, hero + 0, approx == True, (nmax - 1 if approx else nL) + 0)  # noqa: E712
@@ -581,7 +581,7 @@ def pdf_pair(B, FT, W, R, a, b1, need1, b2, need2, kind, C):
                                          2 * slabs if approx else cap, hero)
             if not approx:
                 _count(C, nR, cR)
-            _, q = bidirectional(B, FT, W, nL, nR, b[2] > 0.0, True, approx, nmax, hero)
+            _, q = bidirectional(B, FT, W, nL, nR, b[2] > 0.0, pdf_mode=True, approx=approx, nmax=nmax, hero=hero)
             p += q
         if approx:
             p += B[H_PDFC]
@@ -671,8 +671,8 @@ def nee_and_sample(B, FT, W, R, wi, wo, nee, nee_pdf, want_sample, sample_pdf, p
             nR, _, _, _, cR, _ = wk.run(B, FT, wo, W, 1, R, wk.VALUE, False, wk.RR_EVAL_START,
                                          wk.RR_EVAL_THR, _cap(B, W), -1)
             _count(C, nR, cR)
-            g, _ = bidirectional(B, FT, W, nL, nR, wo[2] > 0.0, False, False, 0, -1)
-            s, _ = single(B, wi, wo, False)
+            g, _ = bidirectional(B, FT, W, nL, nR, wo[2] > 0.0, pdf_mode=False, approx=False, nmax=0, hero=-1)
+            s, _ = single(B, wi, wo, pdf=False)
             az = abs(wo[2])
             f = (s[0] + g[0] * az, s[1] + g[1] * az, s[2] + g[2] * az)
     if conn:

@@ -165,7 +165,7 @@ def _conductor_sample(B, o, wi, u0, u1, dens):
         return wo, zero, 0.0, 0.0, False
     ti = _term(dist, masking, au, av, wis)
     to = _term(dist, masking, au, av, (wo[0], wo[1], co))
-    g2 = _g2(dist, masking, ti, to, True)
+    g2 = _g2(dist, masking, ti, to, chi=True)
     if dist == mf.GGX:
         w1 = g2 * (1.0 + ti)                    # G2/G1(wi)
     else:
@@ -225,7 +225,7 @@ def _conductor_eval(B, o, wi, wo, ti, to, pdf_only):
         ti = _term(dist, masking, au, av, wi)
     if not to >= 0.0:
         to = _term(dist, masking, au, av, wo)
-    v = D * _g2(dist, masking, ti, to, True) * (0.25 / ci)
+    v = D * _g2(dist, masking, ti, to, chi=True) * (0.25 / ci)
     eta = (B[p], B[p + 1], B[p + 2])
     k = (B[p + 3], B[p + 4], B[p + 5])
     return ((fresnel_conductor(cih, eta[0], k[0]) * B[p + 6] * v, fresnel_conductor(cih, eta[1], k[1]) * B[p + 7] * v,

@@ -144,7 +144,7 @@ def inner_reflections(B, FT, a, b):
         if not (kk == CONDUCTOR or kk == DIELECTRIC):
             continue            # NULL: index-matched, the walk passes
         if spread <= 0.0:
-            _, pf, _ = ki.evaluate(B, ok, ta, tb, NAN, NAN, True)
+            _, pf, _ = ki.evaluate(B, ok, ta, tb, NAN, NAN, pdf_only=True)
             out += w * pf * jac
         else:
             choose = 1.0
@@ -216,7 +216,7 @@ def transmission(B, FT, a, b):
         if not (abs(d_in[2]) >= GRAZING and abs(d_out[2]) >= GRAZING):
             return 0.0, True                  # total internal reflection on the chain
         if l == j:
-            _, pf, _ = ki.evaluate(B, o, d_in, d_out, NAN, NAN, True)
+            _, pf, _ = ki.evaluate(B, o, d_in, d_out, NAN, NAN, pdf_only=True)
             w *= pf
         elif B[o + ki.IF_KIND] == DIELECTRIC:
             # The choice at the angle on its entry side (a's chain) or exit side (b's chain; the

@@ -5,6 +5,8 @@ them for NumPy callers). They loop over lanes calling the same per-lane function
 and the estimators."""
 from __future__ import annotations
 
+from collections import namedtuple
+
 import math
 
 from ..jit import kernel
@@ -19,7 +21,7 @@ from .table import HEAD, M_DIR, M_PH, MED0, MSTRIDE, UNIT_DUV, IfaceRow, bind_if
 @kernel
 def bind_iface_rows(kind, dist, mask, values, tex, nmode, nval, ntex, TX, uv, B):
     for i in range(B.shape[0]):
-        row = IfaceRow(kind, dist, mask, values, tex, 0, nmode, (nval[0], nval[1], nval[2]), ntex, False)
+        row = IfaceRow(kind, dist, mask, values, tex, 0, nmode, (nval[0], nval[1], nval[2]), ntex, bump=False)
         bind_iface(row, TX, uv[i, 0], uv[i, 1], UNIT_DUV, B[i], 0)
 
 
@@ -32,7 +34,7 @@ def _ri(a, i):
 def iface_eval(Bk, wi, wo, val, pf, pr):
     for i in range(wi.shape[0]):
         v, f, r = ki.evaluate(Bk[_ri(Bk, i)], 0, (wi[i, 0], wi[i, 1], wi[i, 2]),
-                              (wo[i, 0], wo[i, 1], wo[i, 2]), math.nan, math.nan, False)
+                              (wo[i, 0], wo[i, 1], wo[i, 2]), math.nan, math.nan, pdf_only=False)
         val[i, 0], val[i, 1], val[i, 2] = v
         pf[i] = f
         pr[i] = r
@@ -44,7 +46,7 @@ def iface_sample(Bk, wi, seed, R, wo, w, pf, pr, delta):
         R[0] = path_key(seed, i, 0)
         R[1] = 0
         d, ww, f, r, dl = ki.sample(Bk[_ri(Bk, i)], 0, (wi[i, 0], wi[i, 1], wi[i, 2]), ph.rnd(R),
-                                    ph.rnd(R), ph.rnd(R), True)
+                                    ph.rnd(R), ph.rnd(R), dens=True)
         wo[i, 0], wo[i, 1], wo[i, 2] = d
         w[i, 0], w[i, 1], w[i, 2] = ww
         pf[i] = f
@@ -72,10 +74,20 @@ def slab_depth_density(Bs, FT, k, d, t0, t1, to_medium, hero, out):
                                   to_medium[i], hero[i])
 
 
+#: How ``walks`` walks: what the records are for (walk.NONE, …), the approximate pdf, Russian
+#: roulette's start and threshold, the vertex cap.
+WalkSpec = namedtuple("WalkSpec", ["purpose", "approx", "rr_start", "rr_thr", "cap"])
+#: What ``walks`` returns per lane: the vertex count, exit direction, weight and delta flag, the
+#: hero channel, and the records (lanes × vertices × walk.NF).
+WalkOut = namedtuple("WalkOut", ["count", "exit_dir", "exit_w", "exit_delta", "hero", "records"])
+
+
 @kernel
-def walks(Bs, FT, w0, seed, purpose, approx, rr_start, rr_thr, cap, hero, W1, R, C,
-          count, exit_dir, exit_w, exit_delta, hero_out, records):
-    """One walk per lane; lane i's records are copied to records[i, :count[i]]."""
+def walks(Bs, FT, w0, seed, spec, hero, W1, R, C, out):
+    """One walk per lane (``spec``: a WalkSpec; ``out``: a WalkOut); lane i's records are copied
+    to out.records[i, :out.count[i]]."""
+    purpose, approx, rr_start, rr_thr, cap = spec
+    count, exit_dir, exit_w, exit_delta, hero_out, records = out
     for i in range(w0.shape[0]):
         R[0] = path_key(seed, i, 0)
         R[1] = 0

@@ -101,7 +101,7 @@ def interface_projection(B, o, mu_in, j0, j1, s_in, weights, grid, refl, trans):
                 share = F if r == 0 else 1.0 - F
                 if not share > 0.0:
                     continue
-                wo, w, _, _, _ = ki.sample(B, o, wi, u0, u1, u2, False)
+                wo, w, _, _, _ = ki.sample(B, o, wi, u0, u1, u2, dens=False)
                 if not (w[0] > 0.0 or w[1] > 0.0 or w[2] > 0.0):
                     continue
                 mo = abs(wo[2])
@@ -141,5 +141,5 @@ def delta_reflectance(B, o, mu, out):
     from above at cos θ = mu[i] (the weight of its mirror sample, tint included)."""
     for i in range(mu.shape[0]):
         wi = (math.sqrt(max(1.0 - mu[i] * mu[i], 0.0)), 0.0, mu[i])
-        _, w, _, _, _ = ki.sample(B, o, wi, 0.5, 0.5, 0.0, False)
+        _, w, _, _, _ = ki.sample(B, o, wi, 0.5, 0.5, 0.0, dens=False)
         out[i, 0], out[i, 1], out[i, 2] = w
