@@ -14,3 +14,8 @@ class SceneError(LaminaError):
         location = f"{where}: " if where else ""
         field = f"{path}: " if path else ""
         super().__init__(f"{location}{field}{message}")
+
+
+#: What a render that ran out of memory says (the ``render`` command and the render server).
+OUT_OF_MEMORY = ("not enough memory for this scene or image (try a smaller film, fewer workers, "
+                 "or a machine with more memory)")

@@ -11,7 +11,7 @@ import importlib
 import sys
 
 from .. import __version__
-from ..errors import LaminaError
+from ..errors import OUT_OF_MEMORY, LaminaError
 
 # Modules that add sub-commands. A module that is missing (work in progress) is skipped.
 COMMAND_MODULES = (
@@ -56,6 +56,5 @@ def main(argv: list[str] | None = None) -> int:
         print("interrupted", file=sys.stderr)
         return 130
     except MemoryError:
-        print("error: not enough memory for this scene or image (try a smaller film, "
-              "fewer --workers, or a machine with more memory)", file=sys.stderr)
+        print(f"error: {OUT_OF_MEMORY}", file=sys.stderr)
         return 2

@@ -147,7 +147,7 @@ class Server:
             self.events(out)
 
     def _render(self, job, argv) -> tuple[int, str | None]:
-        from ..errors import LaminaError
+        from ..errors import OUT_OF_MEMORY, LaminaError
         from ..scene.reader import MISSING_TEXTURES
         from . import build_parser
         from .render import render_job
@@ -170,8 +170,7 @@ class Server:
         except LaminaError as exc:
             return 2, str(exc)
         except MemoryError:
-            return 2, ("not enough memory for this scene or image (try a smaller film, fewer "
-                       "workers, or a machine with more memory)")
+            return 2, OUT_OF_MEMORY
         except Exception as exc:  # noqa: BLE001 - one job's failure must not end the server
             traceback.print_exc()
             return 1, f"internal error: {type(exc).__name__}: {exc}"
