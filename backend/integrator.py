@@ -209,7 +209,8 @@ class PathTracer:
             visible_camera=np.array([bool(getattr(l, "visible_camera", l.is_infinite)) for l in self.lights]
                                     or [False]),
             sampler=SAMPLERS[s.sampler], stratified_bounces=STRATIFIED_BOUNCES, nee_all=nee_all,
-            defer_pdf=defer_pdf, **kernel_values(s), **self.vis.kernel_fields())
+            defer_pdf=defer_pdf, probed=self._probed_lights(mesh_light),
+            **kernel_values(s), **self.vis.kernel_fields())
         self.camera = camera_vector(scene.camera)
         self.camera_motion = np.ascontiguousarray(scene.camera.motion_delta, np.float64)
         if self.motion and (self.vis.filter_shadows or self.vis.skip_hits):
@@ -226,13 +227,26 @@ class PathTracer:
         self.skip_indirect = bool(lacking & ~CAMERA)
         self._local = threading.local()      # per-thread _Scratch (threads share one tracer)
 
+    def _probed_lights(self, mesh_light: int) -> np.ndarray:
+        """Per light, whether smooth glass connects its mirror direction to it (kernels/integrator.py
+        ``_probe_reflection``): lights rays can hit that do not fill the sphere; an empty array
+        where there is none or where visibility or linking filters rays."""
+        probed = np.array([(l.is_hittable or l.is_infinite) and not l.fills_sphere for l in self.lights], np.bool_)
+        if mesh_light >= 0:
+            probed[mesh_light] = False
+        if not probed.any() or self.vis.gated or self.vis.filter_shadows or self.vis.skip_hits:
+            return np.zeros(0, np.bool_)
+        return probed
+
     def _scratch(self, n: int) -> _Scratch:
         sc = getattr(self._local, "scratch", None)
         if sc is None or sc.n < n:
             # Shadow rays per lane: next-event estimation's (glossy_light_samples per light at a glossy
-            # vertex), and one dedicated ray per light with shadow linking (kernels/integrator.py).
-            per_lane = max(1, self.settings.nee_all) * self.settings.glossy_light_samples * self._nee_factor \
-                + int(self.vis.shadow_linked.size)
+            # vertex) or, at smooth glass, one per light its mirror direction can meet; and one
+            # dedicated ray per light with shadow linking (kernels/integrator.py).
+            st = self.settings
+            per_lane = max(max(1, st.nee_all) * st.glossy_light_samples * self._nee_factor,
+                           int(st.probed.sum())) + int(self.vis.shadow_linked.size)
             sc = self._local.scratch = _Scratch(n, self.walk_capacity, per_lane, self.settings.defer_pdf,
                                                 self.queue_per_lane)
         return sc

@@ -68,7 +68,7 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
                                    "visible_camera", "sampler", "stratified_bounces", "nee_all",
                                    "glossy_light_samples", "track", "gated", "links", "shadow_linked", "tri_recv",
                                    "light_vis", "light_recv", "light_shadow", "emit_vis",
-                                   "emit_recv", "mat_refl", "defer_pdf"])
+                                   "emit_recv", "mat_refl", "defer_pdf", "probed"])
 # Ray visibility and light/shadow linking (scene/links.py; integrator.py builds the tables):
 #   track         the lanes' ray types matter (the next ray's type is written: ``_lobe_class``)
 #   gated         next-event estimation and emission found by BSDF sampling are filtered per
@@ -82,6 +82,10 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
 #   emit_vis/emit_recv  per emitter triangle of the mesh light (its object's)
 #   mat_refl      per material: the class of a reflection (a layered stack: diffuse if one of
 #                 its interfaces is diffuse, else glossy; transmission is always TRANSMIT)
+# probed: per light, whether smooth glass connects its mirror direction to it (``_probe_reflection``):
+# the lights a ray can hit that do not fill the sphere (area, sphere and disk lights, suns); empty
+# where none is, or where ray visibility or linking filters rays (a shadow ray would not see what
+# the mirror ray sees).
 # defer_pdf: a layered continuation's MIS pdf is estimated only if its ray finds a light that
 # light sampling competes for (``_light_hit``), not for every continuation: its walks cost about a
 # third of a layered vertex, and most continuations never need it (integrator.py decides).
@@ -132,6 +136,7 @@ VIA_DELTA = 1        # a delta lobe (or the camera): no light sampling competes
 VIA_ALL_LIGHTS = 2   # a non-delta BSDF sample; next-event estimation sampled every light
 VIA_SPLIT = 4        # (added to 0 or 2) next-event estimation took S.glossy_light_samples samples, not one
 VIA_TABLE = 8        # (added to VIA_SPLIT) ... times TABLE_NEE (a tabulated stack)
+VIA_PROBED = 16      # the mirror branch of smooth glass whose lights the vertex took already
 
 #: The vertex a ray left, as MIS against light sampling needs it: its position, the pdf the ray's
 #: direction was sampled with (< 0: deferred, ``S.defer_pdf``) and how light sampling competed
@@ -155,7 +160,7 @@ def _light_density(LT, S, li, pdf_light, via, o):
     """Light sampling's density for emission found by BSDF sampling from o: the light's
     selection probability × its pdf × the number of light samples (0: light sampling never
     produces this ray — a delta vertex, a light it does not sample)."""
-    if via == VIA_DELTA:
+    if via == VIA_DELTA or via == VIA_PROBED:
         return 0.0
     if via & VIA_ALL_LIGHTS:
         sel = 1.0 if LT.params[li, C_POWER] > 0.0 else 0.0
@@ -179,6 +184,10 @@ def _light_hit(LT, S, li, pdf_light, came, c, segment, i, sl, target, L, sh_c, q
     vertex the ray left (CameFrom)."""
     o, prev_pdf, via = came
     PD, PC = queued
+    if via == VIA_PROBED and S.probed[li]:
+        # _probe_reflection counted this light already; a dedicated ray carries nothing
+        _weighted_to(c, 0.0, S, segment, sl, target, L, sh_c)
+        return
     dl = _light_density(LT, S, li, pdf_light, via, o)
     if dl > 0.0 and prev_pdf < 0.0:
         k = counts[4]
@@ -490,6 +499,38 @@ def _nee(S, segment, slot, beta, p, ng, ls, sel_p, f, bsdf_pdf, mask, shadows, c
     c = (w * beta[0] * f[0] * value[0], w * beta[1] * f[1] * value[1], w * beta[2] * f[2] * value[2])
     if max(c[0], max(c[1], c[2])) > 0.0:
         _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, mask, shadows, counts)
+
+
+@inlined
+def _probe_reflection(S, LT, segment, slot, beta, p, ng, r, refl, shadows, counts):
+    """The lights seen in the mirror direction ``r`` of smooth glass, reflectance ``refl``: one
+    shadow ray per light that direction meets, carrying beta · refl · its radiance. Sampling
+    chooses the mirror with probability refl only, so at glass (refl ≈ 4 %) the lights seen by
+    reflection — a sun or a lamp mirrored in a window or a sphere — came in as a few samples
+    worth 25× the light; here every sample takes them at their mean. The mirror branch, when
+    chosen, then counts none of these lights (VIA_PROBED: ``_light_hit`` weighs them 0). Only
+    lights much brighter than what the glass refracts gain (``S.probed``): for a world that is
+    about as bright in every direction the Fresnel choice is already the right one, and taking it
+    at every sample adds the choice's noise (a glass ball in a constant world: exact with the
+    choice alone); emitting surfaces (the mesh light) stay with the mirror ray too. Lights are
+    transparent to rays (as in Cycles), so a light the shadow ray reaches is exactly one the mirror
+    ray would have passed or escaped to."""
+    origin = _offset(p, ng, r)             # where the mirror ray would start
+    for li in range(S.probed.shape[0]):
+        if not S.probed[li]:
+            continue
+        if LT.is_infinite[li]:
+            dist = INF
+            le = ld.eval_escaped(LT, li, r)
+        else:
+            dist = ld.intersect(LT, li, origin, r, INF)
+            if not dist < INF:
+                continue
+            le = ld.eval_hit(LT, li, origin, r, dist)
+        if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
+            c = (beta[0] * refl * le[0], beta[1] * refl * le[1], beta[2] * refl * le[2])
+            # clamped as the mirror ray's emission would be, one segment on
+            _push_ray(S, segment + 1, slot, origin, r, dist, c, -1, shadows, counts)
 
 
 @inlined
@@ -893,6 +934,15 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                     f, bpdf = km.eval_pdf(MT.tables, kind, dist_code, mask_code, prm, 0, wi_l, wo_n)
                     _nee(S, segment, sl, bt, p, ng, LightSample(wi_w, dist, value, lpdf, is_delta), sel_p * reps,
                          f, bpdf, S.light_shadow[li], shadows, counts)
+        # 4c. smooth glass: the lights its mirror direction shows, for every sample
+        probed = False
+        if S.probed.shape[0] > 0 and delta_only and not last:
+            refl = km.chosen_reflectance(kind, prm, wi_l)
+            if refl > 0.0:
+                probed = True
+                r = _world(fs, ft, ns, (-wi_l[0], -wi_l[1], wi_l[2]))
+                if _dot(r, ng) > 0.0:          # else _continue drops the mirror ray too
+                    _probe_reflection(S, LT, segment, sl, bt, p, ng, r, refl, shadows, counts)
         # 5. continuation
         if not last:
             ub0, ub1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_BSDF))
@@ -903,6 +953,8 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                 via = VIA_DELTA if sdelta else ((VIA_ALL_LIGHTS if all_lights else VIA_SAMPLED)
                                                 + (VIA_SPLIT if reps > 1 or kind == km.TABULATED else 0)
                                                 + (VIA_TABLE if more else 0))
+                if probed and wo[2] > 0.0:
+                    via = VIA_PROBED
                 nrt = _lobe_class(S, kind, m, wi_l[2] * wo[2] > 0.0) if S.track else 0
                 if features and delta_only and sdelta:
                     nrt |= FEATURES_PENDING

@@ -230,6 +230,16 @@ def is_delta_only(kind, p):
     return kind == BLACK
 
 
+@inlined
+def chosen_reflectance(kind, p, wi):
+    """Where ``sample`` chooses between a delta reflection (weight 1) and a refraction by a
+    random number, the probability of reflecting (a smooth dielectric seen from outside: its
+    Fresnel reflectance); 0 elsewhere."""
+    if kind == DIELECTRIC:
+        return dielectric.smooth_reflectance_p(p, wi)
+    return 0.0
+
+
 @kernel
 def eval_pdf(T, kind, dist, masking, p, mode, wi, wo):
     """(f·|cos θo| RGB, pdf) of the non-delta part; T: the material table's ``tables``."""

@@ -149,3 +149,12 @@ def albedo_p(p):
 @inlined
 def delta_only_p(p):
     return p[6] > 0.0
+
+
+@inlined
+def smooth_reflectance_p(p, wi):
+    """The Fresnel reflectance F of a smooth dielectric seen from outside (wi.z > 0): ``sample``
+    reflects with probability F, weight 1; 0 where it is rough or seen from inside."""
+    if p[6] > 0.0 and wi[2] > 0.0:
+        return fresnel(wi[2], p[0])[0]
+    return 0.0
