@@ -334,6 +334,19 @@ class ClusterItems:
                 self._check_workers()
         return wait_for(future, should_stop, check_connection)
 
+    def _connection_lost(self, within: float = 5.0) -> bool:
+        """Whether the client has lost its scheduler, waiting up to ``within`` s (at most the
+        grace period) for it to notice: a closed connection can reach a gather before the client's
+        status changes (seen once in a fresh test run: "cancelled a work item (CommClosedError)"
+        for a killed scheduler)."""
+        end = time.perf_counter() + min(within, self.grace)
+        while True:
+            if self.client.status != "running":
+                return True
+            if time.perf_counter() >= end:
+                return False
+            time.sleep(0.1)
+
     def _scheduler_lost(self) -> str:
         return f"lost the connection to the Dask scheduler at {self.address}; the render stopped"
 
@@ -343,7 +356,7 @@ class ClusterItems:
             return (f"a work item was running on each of several cluster workers that died "
                     f"(Dask gave up on it: {str(exc)[:200]}); too little memory on the workers?")
         if name in ("CancelledError", "FutureCancelledError", "CommClosedError") or isinstance(exc, OSError):
-            return self._scheduler_lost() if self.client.status != "running" else (
+            return self._scheduler_lost() if self._connection_lost() else (
                 f"the cluster cancelled a work item ({name}: {str(exc)[:200]})")
         return failure_text(exc)
 
