@@ -2,7 +2,7 @@
 """Where the compiled kernels spend their time: a sampling profile of one benchmark scene, by
 kernel function (and by source line with ``--lines``).
 
-    .venv/bin/python tools/profile_kernels.py [--scene cornell|peer-cornell|sphere-microflake] [--spp 16] [--lines]
+    .venv/bin/python tools/profile_kernels.py [--scene cornell|peer-cornell|peer-everyday|sphere-microflake] [--spp 16] [--lines]
 
 Needs Linux ``perf`` (``perf record`` with the cpu-clock event works in a VM without hardware
 counters). Numba's machine code lives in anonymous memory, so perf alone sees addresses only.
@@ -52,6 +52,9 @@ def _scene(name: str, spp: int) -> dict:
     if name == "peer-cornell":
         from benchmarks.peers.scenes import cornell
         data = cornell(96)
+    elif name == "peer-everyday":
+        from benchmarks.peers.scenes import everyday
+        data = everyday(96)
     elif name == "sphere-microflake":
         # benchmarks/layered_throughput.py --render: the one-sphere worst case of issue 16.
         from benchmarks.layered_throughput import STACKS, _sphere_scene
@@ -65,7 +68,8 @@ def _scene(name: str, spp: int) -> dict:
 
 def child(args) -> int:
     """Render the scene ``args.repeat`` times (after one warm-up render), then write the symbol
-    map of the library that holds ``shade`` (address, size, name per line)."""
+    map of the library that holds ``shade`` — the bounce loop's, ``run_item`` — (address, size,
+    name per line)."""
     import numpy as np
     _keep_objects()
     from backend.warmup import ensure_compiled, warm_up
@@ -98,7 +102,11 @@ def child(args) -> int:
     if times:
         print(f"render CPU per pass: min {min(times):.3f} s, max {max(times):.3f} s ({len(times)} passes)")
 
-    compiled = ki.shade.overloads[ki.shade.signatures[0]]
+    # The compiled bounce loop (kernels/item_loop.py run_item) calls shade: its library holds
+    # shade's code linked in (shade itself is never called from Python, so it has no overload).
+    from backend.kernels import item_loop
+    entry_kernel = ki.shade if ki.shade.signatures else item_loop.run_item
+    compiled = entry_kernel.overloads[entry_kernel.signatures[0]]
     library = compiled.library
     obj = getattr(library, "_lamina_object", None) or library._compiled_object
     path = Path(args.map).with_suffix(".o")
@@ -178,7 +186,7 @@ def report(perf_data: Path, map_file: Path, lines: bool, top: int) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scene", choices=("cornell", "peer-cornell", "sphere-microflake"), default="cornell")
+    ap.add_argument("--scene", choices=("cornell", "peer-cornell", "peer-everyday", "sphere-microflake"), default="cornell")
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--lines", action="store_true", help="per source line (debug-info build)")
