@@ -26,6 +26,14 @@ def front_perspective(distance: float = 5.0, half_width: float = 0.3, aspect: fl
             "frame": [[hw, hh, -1], [hw, -hh, -1], [-hw, -hh, -1], [-hw, hh, -1]]}
 
 
+def quad(centre, a, b) -> dict:
+    """A mesh of one parallelogram: centre ± a ± b (two triangles, counter-clockwise seen from
+    a × b)."""
+    c, a, b = (np.asarray(v, dtype=float) for v in (centre, a, b))
+    return {"positions": [list(c - a - b), list(c + a - b), list(c + a + b), list(c - a + b)],
+            "indices": [[0, 1, 2], [0, 2, 3]]}
+
+
 def scene(width, height, camera, materials, meshes, objects, lights=(), world=None, render=None,
           film_filter=None) -> dict:
     data = {"format": "lamina-scene", "version": 1,

@@ -7,24 +7,18 @@ import math
 
 import numpy as np
 
-from render_util import render, scene
+from render_util import quad, render, scene
 
 WALL = [0.2, 0.4, 0.6]
 S2 = 1.0 / math.sqrt(2.0)
-
-
-def _quad(centre, a, b):
-    c, a, b = (np.asarray(v, dtype=float) for v in (centre, a, b))
-    return {"positions": [list(c - a - b), list(c + a - b), list(c + a + b), list(c - a + b)],
-            "indices": [[0, 1, 2], [0, 2, 3]]}
 
 
 def _mirror_scene(mirror: dict) -> dict:
     """A camera looking down −Z at a 45° mirror that sends its rays along −Y to a diffuse wall."""
     camera = {"type": "perspective", "to_world": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]],
               "frame": [[0.1, 0.1, -1], [0.1, -0.1, -1], [-0.1, -0.1, -1], [-0.1, 0.1, -1]]}
-    meshes = {"mirror": _quad([0, 0, -2], [1, 0, 0], [0, S2, S2]),
-              "wall": _quad([0, -3, -2], [5, 0, 0], [0, 0, 8])}
+    meshes = {"mirror": quad([0, 0, -2], [1, 0, 0], [0, S2, S2]),
+              "wall": quad([0, -3, -2], [5, 0, 0], [0, 0, 8])}
     return scene(8, 8, camera, {"mirror": mirror, "wall": {"type": "diffuse", "color": WALL}}, meshes,
                  [{"name": "mirror", "mesh": "mirror", "materials": ["mirror"]},
                   {"name": "wall", "mesh": "wall", "materials": ["wall"]}],
