@@ -5,7 +5,8 @@ connection switched off, region by region, within the renders' own standard erro
 noise where the glass mirrors a light must fall. The scene mirrors every kind of emitter a ray
 can meet: an area light and a sun disk (taken by the connection), an emitting mesh (left to the
 mirror ray) and the world. No floor: its caustics behind the glass would be most of the noise,
-and the connection does nothing for them."""
+and the connection does nothing for them. The same for the smooth top of a coated kind (closed
+form, table), whose sampler takes the top's mirror by a random number too."""
 from __future__ import annotations
 
 import numpy as np
@@ -55,11 +56,22 @@ def _render(spp: int, seed: int, **shape):
     return render(_glass_scene(spp, seed, **shape))
 
 
-@pytest.mark.parametrize("glass", [GLASS,
-                                   # a Mix Shader picks the glass in half the hits (throughput × 2)
-                                   {"type": "mix", "factor": 0.5,
-                                    "materials": [GLASS, {"type": "diffuse", "color": [0.5, 0.5, 0.5]}]}],
-                         ids=["glass", "mix"])
+# A smooth top over a diffuse body (closed form: kernels/bsdf/coated_diffuse.py) and over a
+# rough metal (a table: kernels/bsdf/tabulated.py): their samplers take the top's mirror with
+# probability ≥ 20 % at weight F/that, the same choice.
+COATED_DIFFUSE = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.0},
+                                                    {"type": "diffuse", "color": [0.6, 0.2, 0.1]}],
+                  "media": [{"thickness": 1.0, "sigma_t": 0.0}]}
+COATED_METAL = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.0},
+                                                  {"type": "conductor", "metal": "Au", "roughness": 0.3}],
+                "media": [{"thickness": 1.0, "sigma_t": 0.0}]}
+KINDS = {"glass": GLASS,
+         # a Mix Shader picks the glass in half the hits (throughput × 2)
+         "mix": {"type": "mix", "factor": 0.5, "materials": [GLASS, {"type": "diffuse", "color": [0.5, 0.5, 0.5]}]},
+         "coated-diffuse": COATED_DIFFUSE, "coated-metal": COATED_METAL}
+
+
+@pytest.mark.parametrize("glass", list(KINDS.values()), ids=list(KINDS))
 def test_glass_mirror_connection_keeps_the_image(request, glass):
     on = _render(64, 3, glass=glass)
     request.getfixturevalue("probe_off")
@@ -70,15 +82,19 @@ def test_glass_mirror_connection_keeps_the_image(request, glass):
     assert z.max() < bound, (z.max(), bound)
 
 
-def test_glass_mirror_connection_lowers_the_noise(request):
+@pytest.mark.parametrize("glass, bound", [(GLASS, 0.2), (COATED_DIFFUSE, 0.3), (COATED_METAL, 0.3)],
+                         ids=["glass", "coated-diffuse", "coated-metal"])
+def test_glass_mirror_connection_lowers_the_noise(request, glass, bound):
     """Direct light only (max_bounces 0) and no emitting panel: the light the glass reflects is
     all the noise there is, besides the world's Fresnel choice (left as it was) and where each
-    sample lands in its pixel (a 10° sun mirrored in the ball is a spot under a pixel wide)."""
-    shape = dict(max_bounces=0, panel=False)
+    sample lands in its pixel (a 10° sun mirrored in the ball is a spot under a pixel wide). A
+    coat's body adds its own light-sampling noise, which the connection leaves as it was.
+    Measured ratios: glass 0.11, coated diffuse 0.14, coated metal 0.19."""
+    shape = dict(max_bounces=0, panel=False, glass=glass)
     on = _render(32, 5, **shape)
     var_on = on.film.variance_of_mean()
     request.getfixturevalue("probe_off")
     off = _render(32, 5, **shape)
     var_off = off.film.variance_of_mean()
     ratio = float(var_on.sum() / var_off.sum())
-    assert ratio < 0.2, ratio
+    assert ratio < bound, ratio

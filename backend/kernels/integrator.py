@@ -503,7 +503,8 @@ def _nee(S, segment, slot, beta, p, ng, ls, sel_p, f, bsdf_pdf, mask, shadows, c
 
 @inlined
 def _probe_reflection(S, LT, segment, slot, beta, p, ng, r, refl, shadows, counts):
-    """The lights seen in the mirror direction ``r`` of smooth glass, reflectance ``refl``: one
+    """The lights seen in the mirror direction ``r`` of smooth glass (or a coated kind's smooth
+    top, sampled with probability ≥ 20 % at weight F/that), reflectance ``refl``: one
     shadow ray per light that direction meets, carrying beta · refl · its radiance. Sampling
     chooses the mirror with probability refl only, so at glass (refl ≈ 4 %) the lights seen by
     reflection — a sun or a lamp mirrored in a window or a sphere — came in as a few samples
@@ -934,10 +935,10 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                     f, bpdf = km.eval_pdf(MT.tables, kind, dist_code, mask_code, prm, 0, wi_l, wo_n)
                     _nee(S, segment, sl, bt, p, ng, LightSample(wi_w, dist, value, lpdf, is_delta), sel_p * reps,
                          f, bpdf, S.light_shadow[li], shadows, counts)
-        # 4c. smooth glass: the lights its mirror direction shows, for every sample
+        # 4c. smooth glass, a coated kind's smooth top: the lights its mirror shows, every sample
         probed = False
-        if S.probed.shape[0] > 0 and delta_only and not last:
-            refl = km.chosen_reflectance(kind, prm, wi_l)
+        if S.probed.shape[0] > 0 and not last:
+            refl = km.chosen_reflectance(MT.tables, kind, prm, wi_l)
             if refl > 0.0:
                 probed = True
                 r = _world(fs, ft, ns, (-wi_l[0], -wi_l[1], wi_l[2]))
@@ -953,7 +954,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                 via = VIA_DELTA if sdelta else ((VIA_ALL_LIGHTS if all_lights else VIA_SAMPLED)
                                                 + (VIA_SPLIT if reps > 1 or kind == km.TABULATED else 0)
                                                 + (VIA_TABLE if more else 0))
-                if probed and wo[2] > 0.0:
+                if probed and sdelta and wo[2] > 0.0:      # the mirror, not a refraction or the body
                     via = VIA_PROBED
                 nrt = _lobe_class(S, kind, m, wi_l[2] * wo[2] > 0.0) if S.track else 0
                 if features and delta_only and sdelta:

@@ -48,7 +48,7 @@ KINDS = {DIFFUSE: "diffuse", CONDUCTOR: "conductor", DIELECTRIC: "dielectric", B
 BSDF_KINDS = (DIFFUSE, CONDUCTOR, DIELECTRIC, COATED_DIFFUSE, TABULATED)
 ANSWERS = {"bind": BSDF_KINDS, "eval_pdf": BSDF_KINDS, "sample": BSDF_KINDS, "albedo": BSDF_KINDS,
            "is_delta_only": (CONDUCTOR, DIELECTRIC, BLACK), "is_mix": (MIX, ADD),
-           "is_stack": (LAYERED, COATED_DIFFUSE, TABULATED), "chosen_reflectance": (DIELECTRIC,)}
+           "is_stack": (LAYERED, COATED_DIFFUSE, TABULATED), "chosen_reflectance": (DIELECTRIC, COATED_DIFFUSE, TABULATED)}
 NSLOT = 22
 EMISSION = 0                 # RGB, every kind
 N_MAP, N_STRENGTH = 16, 19   # every kind: the normal map (RGB) and its strength
@@ -231,12 +231,16 @@ def is_delta_only(kind, p):
 
 
 @inlined
-def chosen_reflectance(kind, p, wi):
-    """Where ``sample`` chooses between a delta reflection (weight 1) and a refraction by a
-    random number, the probability of reflecting (a smooth dielectric seen from outside: its
-    Fresnel reflectance); 0 elsewhere."""
+def chosen_reflectance(T, kind, p, wi):
+    """Where ``sample`` takes a delta mirror only by a random number — smooth glass seen from
+    outside, the smooth top of a coated kind — what that mirror returns on average (its Fresnel
+    reflectance); 0 elsewhere (no delta mirror, or one taken every time: a smooth metal)."""
     if kind == DIELECTRIC:
         return dielectric.smooth_reflectance_p(p, wi)
+    if kind == COATED_DIFFUSE:
+        return coated_diffuse.smooth_reflectance_p(p, wi)
+    if kind == TABULATED:
+        return tabulated.smooth_reflectance_p(T, p, wi)
     return 0.0
 
 

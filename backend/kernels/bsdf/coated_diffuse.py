@@ -402,3 +402,9 @@ def sample_p(T, p, dist, masking, wi, u0, u1, u2):
 @inlined
 def albedo_p(T, p, mu):
     return albedo(T, int(p[7]), p[1], (p[4], p[5], p[6]), mu)
+
+
+@inlined
+def smooth_reflectance_p(p, wi):
+    """A smooth top's mirror, as ``top_or_body`` samples it (TOP_DELTA): F on average."""
+    return dielectric.smooth_reflectance(p[0], p[3] > 0.0, wi)

@@ -152,9 +152,16 @@ def delta_only_p(p):
 
 
 @inlined
-def smooth_reflectance_p(p, wi):
-    """The Fresnel reflectance F of a smooth dielectric seen from outside (wi.z > 0): ``sample``
-    reflects with probability F, weight 1; 0 where it is rough or seen from inside."""
-    if p[6] > 0.0 and wi[2] > 0.0:
-        return fresnel(wi[2], p[0])[0]
+def smooth_reflectance(eta, smooth, wi):
+    """The Fresnel reflectance F of a smooth interface seen from above (wi.z > 0), 0 where it is
+    rough or seen from below: what a sampler that picks the delta mirror by a random number
+    returns there on average (this one: probability F, weight 1; the coated kinds' top_or_body:
+    probability w_s, weight F/w_s)."""
+    if smooth and wi[2] > 0.0:
+        return fresnel(wi[2], eta)[0]
     return 0.0
+
+
+@inlined
+def smooth_reflectance_p(p, wi):
+    return smooth_reflectance(p[0], p[6] > 0.0, wi)

@@ -460,3 +460,10 @@ def sample_p(T, p, wi, u0, u1, u2):
 @inlined
 def albedo_p(T, p, mu):
     return albedo(T, int(p[0]), (p[1], p[2], p[3]), mu)
+
+
+@inlined
+def smooth_reflectance_p(T, p, wi):
+    """A smooth top's mirror, as ``top_or_body`` samples it (TOP_DELTA): F on average."""
+    eta, _, _, _, smooth = _top(T, int(p[0]))
+    return dielectric.smooth_reflectance(eta, smooth, wi)
