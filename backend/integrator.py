@@ -228,9 +228,10 @@ class PathTracer:
         self._local = threading.local()      # per-thread _Scratch (threads share one tracer)
 
     def _probed_lights(self, mesh_light: int) -> np.ndarray:
-        """Per light, whether smooth glass connects its mirror direction to it (kernels/integrator.py
-        ``_probe_reflection``): lights rays can hit that do not fill the sphere; an empty array
-        where there is none or where visibility or linking filters rays."""
+        """Per light, whether smooth glass and a coated kind's smooth top connect their mirror
+        direction to it (kernels/integrator.py ``_probe_reflection``): lights rays can hit that do
+        not fill the sphere; an empty array where there is none or where visibility or linking
+        filters rays."""
         probed = np.array([(l.is_hittable or l.is_infinite) and not l.fills_sphere for l in self.lights], np.bool_)
         if mesh_light >= 0:
             probed[mesh_light] = False

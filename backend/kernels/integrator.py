@@ -82,10 +82,10 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
 #   emit_vis/emit_recv  per emitter triangle of the mesh light (its object's)
 #   mat_refl      per material: the class of a reflection (a layered stack: diffuse if one of
 #                 its interfaces is diffuse, else glossy; transmission is always TRANSMIT)
-# probed: per light, whether smooth glass connects its mirror direction to it (``_probe_reflection``):
-# the lights a ray can hit that do not fill the sphere (area, sphere and disk lights, suns); empty
-# where none is, or where ray visibility or linking filters rays (a shadow ray would not see what
-# the mirror ray sees).
+# probed: per light, whether smooth glass and a coated kind's smooth top connect their mirror
+# direction to it (``_probe_reflection``): the lights a ray can hit that do not fill the sphere
+# (area, sphere and disk lights, suns); empty where none is, or where ray visibility or linking
+# filters rays (a shadow ray would not see what the mirror ray sees).
 # defer_pdf: a layered continuation's MIS pdf is estimated only if its ray finds a light that
 # light sampling competes for (``_light_hit``), not for every continuation: its walks cost about a
 # third of a layered vertex, and most continuations never need it (integrator.py decides).
