@@ -200,7 +200,7 @@ def top_or_body(eta, smooth, dist, au, av, w_s, wi, u0, u1, u2):
     the surface, three numbers split from u2/w_s (uniform, independent of the normal)."""
     if u2 < w_s:
         if smooth:
-            return TOP_DELTA, (-wi[0], -wi[1], wi[2]), fresnel(wi[2], eta)[0] / w_s, u0, u1, u2
+            return TOP_DELTA, (-wi[0], -wi[1], wi[2]), dielectric.smooth_reflectance(eta, True, wi) / w_s, u0, u1, u2
         wo = reflected_visible(dist, au, av, wi, u0, u1)
         if wo[2] > 0.0:
             return TOP_LOBE, wo, 0.0, u0, u1, u2
