@@ -159,3 +159,16 @@ def mixture_directions(mat, wi1, m, rng, frames=None):
         i = np.clip(np.searchsorted(PSI_EDGES, psi, side="right") - 1, 0, nring - 1)
         q += 0.5 / len(peaks) / (nring * ring_area[i])
     return d, q
+
+
+def cosine_over_pdf(bsdf, wi_dir, n: int, rng, mode):
+    """(mean, standard error) of cos θo / pdf over ``n`` of the sampler's own directions at
+    ``wi_dir`` (0 for delta samples and failed ones): ∫ cos θo dω = π over the hemisphere where
+    the pdf is that of the sampler. A pdf that is off anywhere moves the mean; cos θo keeps the
+    ratio bounded where the sampler's density falls like cos θo."""
+    wi = np.tile(wi_dir, (n, 1))
+    s = bsdf.sample(wi, rng, mode)
+    ok = (s.pdf > 0) & ~s.delta & (s.wo[:, 2] > 0)
+    x = np.zeros(n)
+    x[ok] = s.wo[ok, 2] / s.pdf[ok]
+    return float(x.mean()), float(x.std() / np.sqrt(n))

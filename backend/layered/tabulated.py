@@ -435,22 +435,21 @@ def solve(B: np.ndarray, FT: np.ndarray, kinds: list, settings: dict, rho=None) 
 
 # ----------------------------------------------------------------------------- the table block
 def _top_reflection(B, o, kind: str, alpha: float, dist: int, masking: int, mu: np.ndarray):
-    """(directional albedo, share of visible normals mirrored below the surface) of the top's own
-    reflection at each μ."""
+    """The directional albedo of the top's own reflection at each μ."""
     if kind == "null":
-        return np.zeros(mu.size), np.zeros(mu.size)
+        return np.zeros(mu.size)
     from ..kernels.bsdf.coated_diffuse import _interface_integrals
     from .coated_diffuse import STRATA
     from ..kernels.fresnel import dielectric as fresnel
     from ..kernels.layered.iface import IF_P
     eta = float(B[o + IF_P])
     if alpha <= 0.0:
-        return np.array([fresnel(float(m), eta)[0] for m in mu]), np.zeros(mu.size)
-    rs, down = np.empty(mu.size), np.empty(mu.size)
+        return np.array([fresnel(float(m), eta)[0] for m in mu])
+    rs = np.empty(mu.size)
     for k, m in enumerate(mu):
-        _, rs[k], _, down[k] = _interface_integrals(eta, (1.0, 1.0, 1.0), alpha, False, dist, masking,
-                                                    (0.0, 0.0, 0.0), max(float(m), 1e-4), STRATA)
-    return rs, down
+        rs[k] = _interface_integrals(eta, (1.0, 1.0, 1.0), alpha, False, dist, masking,
+                                     (0.0, 0.0, 0.0), max(float(m), 1e-4), STRATA)[1]
+    return rs
 
 
 def _bound_kinds(B, N: int) -> list:
@@ -591,7 +590,7 @@ def _block(B, FT, kinds, settings) -> np.ndarray:
     cells = S_O * S_B
     head = np.zeros(kt.HEAD)
     packed, yoff, ycnt = _pack(y)
-    parts = [mu, packed, yoff, ycnt, np.zeros(S_I * (cells + 1)), np.zeros(3 * S_I), np.zeros(S_I), np.zeros(S_I),
+    parts = [mu, packed, yoff, ycnt, np.zeros(S_I * (cells + 1)), np.zeros(3 * S_I), np.zeros(S_I),
              G.ravel(), H.ravel(), rbar, np.zeros(3 * S_I)]
     offsets = np.cumsum([kt.HEAD] + [p.size for p in parts[:-1]])
     head[kt.H_BODY] = 1.0 if body else 0.0
@@ -609,16 +608,14 @@ def _block(B, FT, kinds, settings) -> np.ndarray:
         head[kt.H_F1_DIST], head[kt.H_F1_MASK] = B[o1 + IF_DIST], B[o1 + IF_MASK]
         head[kt.H_F1_P:kt.H_F1_P + 12] = B[o1 + IF_P:o1 + IF_P + 12]
         head[kt.H_TAU0:kt.H_TAU0 + 3] = B[md_offset(0) + M_TAU:md_offset(0) + M_TAU + 3]
-    for h, off in zip((kt.H_MU, kt.H_Y, kt.H_YOFF, kt.H_YCNT, kt.H_CDF, kt.H_ALB, kt.H_RS, kt.H_FAIL,
+    for h, off in zip((kt.H_MU, kt.H_Y, kt.H_YOFF, kt.H_YCNT, kt.H_CDF, kt.H_ALB, kt.H_RS,
                        kt.H_G, kt.H_H, kt.H_RBAR, kt.H_KBODY), offsets):
         head[h] = off
     block = np.concatenate([head] + parts)
     _sampling_tables(block, kt)
     theta = np.linspace(0.0, 0.5 * math.pi, S_I)
     mu_s = np.maximum(np.cos(theta), 1e-3)
-    rs, down = _top_reflection(B, o, top, alpha, dist, masking, mu_s)
-    block[int(head[kt.H_RS]):int(head[kt.H_RS]) + S_I] = rs
-    block[int(head[kt.H_FAIL]):int(head[kt.H_FAIL]) + S_I] = down
+    block[int(head[kt.H_RS]):int(head[kt.H_RS]) + S_I] = _top_reflection(B, o, top, alpha, dist, masking, mu_s)
     block.setflags(write=False)
     from .. import stats
     stats.add("layered_tables_built", 1)

@@ -35,15 +35,18 @@ with probability w_s = Rs/(Rs + D̄) — Rs the interface's directional albedo, 
 from a piecewise-constant table over μo² (``ES``: its NU values, mean 1; uniform in μ² is the
 cosine distribution), so the body's part of a sample's weight is nearly constant (a constant
 world then adds almost no noise, as on a Lambertian surface). A visible normal whose reflection
-points below the surface (probability P↓(μi), tabulated: 5.9 % of normals at normal incidence
-for GGX α 0.25) does not end the path: it draws from the body's exit distribution instead, with
-two numbers split from the one that chose the branch. So pdf = w_s·q_r + (1 − w_s + w_s·P↓)·
-h(μo²) cos θo/π. A smooth interface's mirror reflection is a delta lobe taken with probability
-w_s (weight F(μi)/w_s). The weight of a non-delta sample is eval/pdf (exact: nothing estimated).
+points below the surface (5.9 % of them at normal incidence for GGX α 0.25, most of them near
+grazing incidence) does not end the path: the reflection is mirrored up through the surface
+plane, so the top's density at wo is q_r(wo) + q_r(wo mirrored below), both exact
+(``top_density``), and pdf = w_s·(that) + (1 − w_s)·h(μo²) cos θo/π. (Until 2026-12-07 such a
+reflection drew from the body instead, at a share tabulated over μ, and the pdf was off where
+that share changes fast, near grazing incidence: tests/test_coated_diffuse.py.) A smooth
+interface's mirror reflection is a delta lobe taken with probability w_s (weight F(μi)/w_s).
+The weight of a non-delta sample is eval/pdf (exact: nothing estimated).
 
 Table block ``T[o:]`` (float64): the head [number of roughness nodes NA, 1/η², 0, 0], then NA
 node blocks of NODE values: E (3 × NMU, per channel over μ = 0 … 1 in NMU uniform steps), Rs
-(NMU), r (3), Ē (3), ES (NU), its running sum / NU (NU + 1), P↓ (NMU). One node: the material's constant
+(NMU), r (3), Ē (3), ES (NU), its running sum / NU (NU + 1). One node: the material's constant
 roughness. NA > 1: the roughness is a texture and the nodes are uniform in √α over [0, 1]
 (Blender's roughness slider), interpolated linearly (node 0 is the smooth interface); the exit
 distribution is then the mixture of the two nodes' (each drawn with its interpolation weight).
@@ -67,8 +70,7 @@ HEAD = 4
 E_AT, RS_AT, R_AT, EBAR_AT = 0, 3 * NMU, 4 * NMU, 4 * NMU + 3
 ES_AT = 4 * NMU + 6
 CDF_AT = ES_AT + NU
-FAIL_AT = CDF_AT + NU + 1
-NODE = FAIL_AT + NMU
+NODE = CDF_AT + NU + 1
 MU_MIN = 1e-4                 # node μ = 0 is evaluated here (the visible normals degenerate at 0)
 GOLDEN = 0.6180339887498949   # (√5 − 1)/2: the integrals' normals form a Fibonacci lattice
 
@@ -195,29 +197,25 @@ def top_or_body(eta, smooth, dist, au, av, w_s, wi, u0, u1, u2):
     """The split every coated sampler makes (this module's and the tables',
     kernels/bsdf/tabulated.py): with probability w_s the top interface's reflection, else the
     body's own sampler. Returns (choice, wo, F, a, b, c): TOP_DELTA for a smooth top (its weight
-    F/w_s, already divided), TOP_LOBE with wo above the surface, or BODY, whose sampler takes the
-    three numbers (a, b, c) — u2 rescaled past w_s, or, where the top's reflection fell below
-    the surface, three numbers split from u2/w_s (uniform, independent of the normal)."""
+    F/w_s, already divided), TOP_LOBE with wo above the surface (a reflection below it mirrored
+    up: ``top_density``), or BODY, whose sampler takes the three numbers (a, b, c) — u2
+    rescaled past w_s."""
     if u2 < w_s:
         if smooth:
             return TOP_DELTA, (-wi[0], -wi[1], wi[2]), dielectric.smooth_reflectance(eta, True, wi) / w_s, u0, u1, u2
         wo = reflected_visible(dist, au, av, wi, u0, u1)
-        if wo[2] > 0.0:
-            return TOP_LOBE, wo, 0.0, u0, u1, u2
-        a, b, c = three_from_one(u2 / w_s)
-        return BODY, wo, 0.0, a, b, c
+        # A reflection below the surface is mirrored up (``top_density`` counts both ways in).
+        return TOP_LOBE, (wo[0], wo[1], abs(wo[2])), 0.0, u0, u1, u2
     return BODY, (0.0, 0.0, 1.0), 0.0, u0, u1, (u2 - w_s) / (1.0 - w_s)
 
 
 @kernel
-def three_from_one(x):
-    """Three uniform numbers from one: its first 12 bits (to a cell's centre), the next 12, and
-    the rest (for a rare second draw, where stratification no longer matters)."""
-    y = x * 4096.0
-    k = math.floor(y)
-    z = (y - k) * 4096.0
-    j = math.floor(z)
-    return (k + 0.5) / 4096.0, (j + 0.5) / 4096.0, z - j
+def top_density(dist, au, av, wi, wo):
+    """Density of the top's sampler (``top_or_body``) at wo above the surface: a visible normal
+    reflected to wo, or reflected below the surface to wo's mirror image and mirrored up. Both
+    terms are exact, so the sampler's pdf is (no tabulated share of reflections lost below)."""
+    return (reflection_density(dist, au, av, wi, wo)
+            + reflection_density(dist, au, av, wi, (wo[0], wo[1], -wo[2])))
 
 
 @kernel
@@ -250,13 +248,11 @@ def eval_pdf(T, o, eta, au, av, smooth, rho, dist, masking, wi, wo):
     if smooth:
         pdf = (1.0 - w_s) * _exit_density(T, o, au, mo)
     else:
-        a, b, t = _nodes(T, o, au)
-        down = _at(T, a, b, t, FAIL_AT, wi[2])
-        pdf = (1.0 - w_s + w_s * down) * _exit_density(T, o, au, mo)
+        pdf = (1.0 - w_s) * _exit_density(T, o, au, mo)
         fr, _ = dielectric.eval_pdf(eta, (1.0, 1.0, 1.0), au, av, smooth=False, dist=dist,
                                     masking=masking, mode=IMPORTANCE, wi=wi, wo=wo)
         f = (f[0] + fr[0], f[1] + fr[1], f[2] + fr[2])
-        pdf += w_s * reflection_density(dist, au, av, wi, wo)
+        pdf += w_s * top_density(dist, au, av, wi, wo)
     return f, pdf
 
 
@@ -300,7 +296,6 @@ def _interface_integrals(eta, tint, alpha, smooth, dist, masking, tau, mu, n):
     e0 = e1 = e2 = 0.0
     rs = 0.0
     d0 = d1 = d2 = 0.0
-    down = 0.0
     if smooth:
         F, ct, _ = fresnel(mu, eta)
         a = 1.0 - F
@@ -310,12 +305,10 @@ def _interface_integrals(eta, tint, alpha, smooth, dist, masking, tau, mu, n):
             e2 = a * tint[2] * math.exp(-tau[2] / abs(ct))
         Fb = fresnel(-mu, eta)[0]
         x = 1.0 / max(mu, 1e-300)
-        return ((e0, e1, e2), F, (Fb * math.exp(-tau[0] * x), Fb * math.exp(-tau[1] * x), Fb * math.exp(-tau[2] * x)),
-                0.0)
+        return (e0, e1, e2), F, (Fb * math.exp(-tau[0] * x), Fb * math.exp(-tau[1] * x), Fb * math.exp(-tau[2] * x))
     inv = 1.0 / n
     for q in range(n * n):
-        # a Fibonacci lattice (a grid's points fall on n rings of tilt at normal incidence:
-        # the share of normals mirrored below the surface came out in steps of 1/n)
+        # a Fibonacci lattice (a grid's points fall on n rings of tilt at normal incidence)
         u0 = (q + 0.5) * inv * inv
         u1 = (0.5 + q * GOLDEN) % 1.0
         # from above: the normal's Fresnel factor, then each branch's weight (G2/G1, tint)
@@ -325,9 +318,6 @@ def _interface_integrals(eta, tint, alpha, smooth, dist, masking, tau, mu, n):
                                          above, u0, u1, 0.0)
         if wr[2] > 0.0:
             rs += F * vr[0]
-        c = above[0] * m[0] + above[1] * m[1] + above[2] * m[2]
-        if not 2.0 * c * m[2] - above[2] > 0.0:     # the normal's mirror direction points down
-            down += 1.0
         if F < 1.0:
             wt, vt, _, _ = dielectric.sample(eta, tint, alpha, alpha, False, dist, masking, IMPORTANCE,
                                              above, u0, u1, 1.0)
@@ -347,7 +337,7 @@ def _interface_integrals(eta, tint, alpha, smooth, dist, masking, tau, mu, n):
             d1 += Fb * vb[1] * math.exp(-tau[1] * x)
             d2 += Fb * vb[2] * math.exp(-tau[2] * x)
     s = inv * inv
-    return (e0 * s, e1 * s, e2 * s), rs * s, (d0 * s, d1 * s, d2 * s), down * s
+    return (e0 * s, e1 * s, e2 * s), rs * s, (d0 * s, d1 * s, d2 * s)
 
 
 @kernel(nogil=True)
@@ -357,17 +347,16 @@ def integrate_node(eta, tint, alpha, smooth, dist, masking, tau, n, gl_x, gl_w, 
     [0, 1]) of the integrals computed at its nodes."""
     for j in range(NMU):
         mu = max(j / (NMU - 1.0), MU_MIN)
-        e, rs, _, down = _interface_integrals(eta, tint, alpha, smooth, dist, masking, tau, mu, n)
+        e, rs, _ = _interface_integrals(eta, tint, alpha, smooth, dist, masking, tau, mu, n)
         for c in range(3):
             out[E_AT + c * NMU + j] = e[c]
         out[RS_AT + j] = rs
-        out[FAIL_AT + j] = down
     for c in range(3):
         out[R_AT + c] = 0.0
         out[EBAR_AT + c] = 0.0
     for q in range(gl_x.shape[0]):
         mu = gl_x[q]
-        e, _, d, _ = _interface_integrals(eta, tint, alpha, smooth, dist, masking, tau, mu, n)
+        e, _, d = _interface_integrals(eta, tint, alpha, smooth, dist, masking, tau, mu, n)
         w = 2.0 * mu * gl_w[q]
         for c in range(3):
             out[EBAR_AT + c] += w * e[c]

@@ -29,8 +29,8 @@ top, as kernels/bsdf/coated_diffuse.specular_share explains), else a direction f
 table part's own piecewise-constant distribution: per sampling node (uniform in θi), cells
 uniform in θo × Δ bins over [0, π] (either sign), probabilities ∝ the table part integrated
 over the cell; the two nodes around θi are mixed with their interpolation weights. A rough top's
-reflection that points below the surface draws from the table part instead. pdf and weights
-(eval/pdf) are exact for this BSDF; the tables' own error against the walk is measured in
+reflection that points below the surface is mirrored up (coated_diffuse.top_density). pdf and
+weights (eval/pdf) are exact for this BSDF; the tables' own error against the walk is measured in
 tests/test_tabulated.py.
 
 Block layout (``T[o:]``, the H_* offsets; arrays at the offsets stored in the head):
@@ -51,9 +51,10 @@ Block layout (``T[o:]``, the H_* offsets; arrays at the offsets stored in the he
                             (G, H: 3 × n over the nodes; r̄: 3; backend/layered/tabulated.py
                             ``_body_factors``); H_KBODY: per sampling node the albedo a white
                             body adds (3), so the albedo is ALB + ρ·K·(1 − r̄)/(1 − ρ·r̄)
-  H_CDF, H_ALB, H_RS, H_FAIL   per sampling node: running sums over the SO·SB cells (SO·SB + 1),
-                            the table part's albedo (RGB), the top's reflection albedo, the share of
-                            its visible normals whose mirror direction points below the surface
+  H_CDF, H_ALB, H_RS         per sampling node: running sums over the SO·SB cells (SO·SB + 1),
+                            the table part's albedo (RGB), the top's reflection albedo (head slot 18
+                            is unused: until 2026-12-07 it placed the share of the top's reflections
+                            below the surface, which the sampler no longer needs: ``top_density``)
 """
 from __future__ import annotations
 
@@ -61,15 +62,14 @@ import math
 
 from . import IMPORTANCE
 from . import conductor, dielectric, diffuse
-from .coated_diffuse import (BODY, SHARP_ALPHA, TOP_DELTA, reflection_density, specular_share,
-                             top_or_body)
+from .coated_diffuse import BODY, SHARP_ALPHA, TOP_DELTA, specular_share, top_density, top_or_body
 from ..fresnel import dielectric as fresnel
 from ..jit import inlined, kernel
 from ..turns import cos_sin_turns
 
 SMOOTH_TOP, ROUGH_TOP = 0, 1
 H_N, H_M, H_MODE, H_ETA, H_ALPHA, H_DIST, H_MASK, H_TINT = 0, 1, 2, 3, 4, 5, 6, 7
-H_SI, H_SO, H_SB, H_MU, H_Y, H_CDF, H_ALB, H_RS, H_FAIL = 10, 11, 12, 13, 14, 15, 16, 17, 18
+H_SI, H_SO, H_SB, H_MU, H_Y, H_CDF, H_ALB, H_RS = 10, 11, 12, 13, 14, 15, 16, 17
 H_F1, H_F1_DIST, H_F1_MASK, H_TAU0, H_F1_P = 19, 20, 21, 22, 25
 H_YOFF, H_YCNT = 37, 38
 H_BODY, H_G, H_H, H_RBAR, H_KBODY = 39, 40, 41, 42, 43
@@ -388,13 +388,12 @@ def eval_pdf(T, o, rho, wi, wo):
     eta, alpha, dist, masking, smooth = _top(T, o)
     f = table_part(T, o, rho, wi, wo)
     w_s = _share(T, o, rho, wi[2])
-    down = 0.0 if smooth else _per_node(T, o, H_FAIL, wi[2])
-    pdf = (1.0 - w_s + w_s * down) * _table_density(T, o, wi, wo)
+    pdf = (1.0 - w_s) * _table_density(T, o, wi, wo)
     if not smooth:
         fr, _ = dielectric.eval_pdf(eta, (1.0, 1.0, 1.0), alpha, alpha, smooth=False, dist=dist,
                                     masking=masking, mode=IMPORTANCE, wi=wi, wo=wo)
         f = (f[0] + fr[0], f[1] + fr[1], f[2] + fr[2])
-        pdf += w_s * reflection_density(dist, alpha, alpha, wi, wo)
+        pdf += w_s * top_density(dist, alpha, alpha, wi, wo)
     return f, pdf
 
 
