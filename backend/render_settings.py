@@ -61,7 +61,9 @@ SETTINGS: tuple[Setting, ...] = (
             lo=0, hi=MAX_BOUNCES, label="Russian Roulette Depth", kernel="rr_depth"),
     Setting("seed", int, 0, "Random seed; same seed and samples give the same image",
             lo=0, hi=MAX_SEED, label="Seed", cli="--seed"),
-    Setting("clamp", float, 0.0, "Clamp indirect sample values (trades bias for fireflies); 0 = off",
+    Setting("clamp", float, 0.0, "Clamp indirect light as Cycles does: light gathered after the "
+            "first surface a camera ray meets is scaled down to this sum of R, G and B (trades bias "
+            "for fireflies); 0 = off",
             lo=0.0, label="Clamp Indirect", kernel="clamp"),
     Setting("noise_target", float, 0.0, "Adaptive sampling: stop pixels whose relative standard error "
             "is below this; 0 = off", lo=0.0, hi=1.0, label="Noise Threshold", blender="noise_threshold",

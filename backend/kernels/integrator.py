@@ -112,10 +112,14 @@ def _offset(p, ng, d):
 
 
 @kernel
-def _clamped(c, clamp, segment):
-    """Cycles-style sample clamping of indirect contributions (off when clamp ≤ 0)."""
-    if clamp > 0.0 and segment > 0:
-        m = max(c[0], max(c[1], c[2]))
+def _clamped(c, clamp, bounce):
+    """Clamp Indirect as Cycles has it: light a path gathers at a vertex after the camera's hit
+    (``bounce`` > 0: light samples taken there, emission found by the ray leaving it) is scaled
+    down so that the sum of its RGB is at most ``clamp`` (off when ≤ 0). The camera hit's own
+    light — its light samples and the emission its continuation finds — is direct light and
+    never clamped; nor is what the camera sees."""
+    if clamp > 0.0 and bounce > 0:
+        m = c[0] + c[1] + c[2]
         if m > clamp:
             s = clamp / m
             return (c[0] * s, c[1] * s, c[2] * s)
@@ -174,7 +178,7 @@ def _light_density(LT, S, li, pdf_light, via, o):
 
 
 @inlined
-def _light_hit(LT, S, li, pdf_light, came, c, segment, i, sl, target, L, sh_c, queued, counts):
+def _light_hit(LT, S, li, pdf_light, came, c, bounce, i, sl, target, L, sh_c, queued, counts):
     """Emission ``c`` (throughput × radiance) found by BSDF sampling, weighted by MIS against
     light sampling from o (the power heuristic with sample counts; weight 1 where light
     sampling cannot produce the ray), clamped, added to L (``target`` −1) or written to shadow
@@ -186,7 +190,7 @@ def _light_hit(LT, S, li, pdf_light, came, c, segment, i, sl, target, L, sh_c, q
     PD, PC = queued
     if via == VIA_PROBED and S.probed[li]:
         # _probe_reflection counted this light already; a dedicated ray carries nothing
-        _weighted_to(c, 0.0, S, segment, sl, target, L, sh_c)
+        _weighted_to(c, 0.0, S, bounce, sl, target, L, sh_c)
         return
     dl = _light_density(LT, S, li, pdf_light, via, o)
     if dl > 0.0 and prev_pdf < 0.0:
@@ -198,12 +202,12 @@ def _light_hit(LT, S, li, pdf_light, came, c, segment, i, sl, target, L, sh_c, q
         counts[4] = k + 1
         return
     w = power_heuristic(prev_pdf, dl) if dl > 0.0 else 1.0
-    _weighted_to(c, w, S, segment, sl, target, L, sh_c)
+    _weighted_to(c, w, S, bounce, sl, target, L, sh_c)
 
 
 @inlined
-def _weighted_to(c, w, S, segment, sl, target, L, sh_c):
-    cc = _clamped((c[0] * w, c[1] * w, c[2] * w), S.clamp, segment)
+def _weighted_to(c, w, S, bounce, sl, target, L, sh_c):
+    cc = _clamped((c[0] * w, c[1] * w, c[2] * w), S.clamp, bounce)
     if target >= 0:
         sh_c[target, 0], sh_c[target, 1], sh_c[target, 2] = cc
     else:
@@ -468,14 +472,14 @@ def _light_sample(S, LT, TX, li, p, u0, u1, fs, ft, ns, ng):
 
 
 @inlined
-def _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, mask, shadows, counts):
+def _push_shadow(S, bounce, slot, p, ng, wi_w, dist, c, mask, shadows, counts):
     """A shadow ray from p (offset) towards wi_w over dist, carrying c if nothing blocks it;
     ``mask``: the blocker sets that stop it (shadow linking; −1: all)."""
-    _push_ray(S, segment, slot, _offset(p, ng, wi_w), wi_w, dist, c, mask, shadows, counts)
+    _push_ray(S, bounce, slot, _offset(p, ng, wi_w), wi_w, dist, c, mask, shadows, counts)
 
 
 @inlined
-def _push_ray(S, segment, slot, origin, wi_w, dist, c, mask, shadows, counts):
+def _push_ray(S, bounce, slot, origin, wi_w, dist, c, mask, shadows, counts):
     """Append a shadow ray to ``shadows`` (kernels/workitems.py ShadowRays)."""
     k = counts[1]
     shadows.slot[k] = slot
@@ -484,13 +488,13 @@ def _push_ray(S, segment, slot, origin, wi_w, dist, c, mask, shadows, counts):
         shadows.o32[k, j] = origin[j]
         shadows.d32[k, j] = wi_w[j]
     shadows.t32[k] = min(dist * (1.0 - SHADOW_EPS), 3e38) if math.isfinite(dist) else 3e38
-    cc = _clamped(c, S.clamp, segment)
+    cc = _clamped(c, S.clamp, bounce)
     shadows.c[k, 0], shadows.c[k, 1], shadows.c[k, 2] = cc
     counts[1] = k + 1
 
 
 @inlined
-def _nee(S, segment, slot, beta, p, ng, ls, sel_p, f, bsdf_pdf, mask, shadows, counts):
+def _nee(S, bounce, slot, beta, p, ng, ls, sel_p, f, bsdf_pdf, mask, shadows, counts):
     """Light-sample contribution of ``ls`` (a LightSample): MIS (power heuristic) against BSDF
     sampling, divided by the selection probability; a shadow ray if it carries anything."""
     wi_w, dist, value, lpdf, is_delta = ls
@@ -498,11 +502,11 @@ def _nee(S, segment, slot, beta, p, ng, ls, sel_p, f, bsdf_pdf, mask, shadows, c
     w /= sel_p
     c = (w * beta[0] * f[0] * value[0], w * beta[1] * f[1] * value[1], w * beta[2] * f[2] * value[2])
     if max(c[0], max(c[1], c[2])) > 0.0:
-        _push_shadow(S, segment, slot, p, ng, wi_w, dist, c, mask, shadows, counts)
+        _push_shadow(S, bounce, slot, p, ng, wi_w, dist, c, mask, shadows, counts)
 
 
 @inlined
-def _probe_reflection(S, LT, segment, slot, beta, p, ng, r, refl, shadows, counts):
+def _probe_reflection(S, LT, bounce, slot, beta, p, ng, r, refl, shadows, counts):
     """The lights seen in the mirror direction ``r`` of smooth glass (or a coated kind's smooth
     top, sampled with probability ≥ 20 % at weight F/that), reflectance ``refl``: one
     shadow ray per light that direction meets, carrying beta · refl · its radiance. Sampling
@@ -530,8 +534,8 @@ def _probe_reflection(S, LT, segment, slot, beta, p, ng, r, refl, shadows, count
             le = ld.eval_hit(LT, li, origin, r, dist)
         if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
             c = (beta[0] * refl * le[0], beta[1] * refl * le[1], beta[2] * refl * le[2])
-            # clamped as the mirror ray's emission would be, one segment on
-            _push_ray(S, segment + 1, slot, origin, r, dist, c, -1, shadows, counts)
+            # clamped as the mirror ray's emission would be: light gathered at this vertex
+            _push_ray(S, bounce, slot, origin, r, dist, c, -1, shadows, counts)
 
 
 @inlined
@@ -654,6 +658,9 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
     sh_c = shadows.c
     PD, PC = queued
     camera = segment == 0
+    # The bounce, for Clamp Indirect (``_clamped``), of the vertex this segment's rays left: the
+    # light they find belongs to it (−1: the camera); light samples taken here belong to this one.
+    found = segment - 1
     inv_spp = 1.0 / spp
     last = segment == S.max_segments - 1
     can_nee = S.has_lights and segment + 1 < S.max_segments
@@ -692,8 +699,8 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
             if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
                 c = (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2])
                 k = counts[1]
-                _push_ray(S, segment, sl, ro, rd, tl, c, S.light_shadow[li], shadows, counts)
-                _light_hit(LT, S, li, pdf_l, came, c, segment, i, sl, k, L, sh_c, queued, counts)
+                _push_ray(S, found, sl, ro, rd, tl, c, S.light_shadow[li], shadows, counts)
+                _light_hit(LT, S, li, pdf_l, came, c, found, i, sl, k, L, sh_c, queued, counts)
         # 1. lights passed on the way (transparent, as in Cycles)
         for j in range(nh):
             li = S.hittable[j]
@@ -706,7 +713,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
             if tl < INF:
                 le = ld.eval_hit(LT, li, ro, rd, tl)
                 _light_hit(LT, S, li, ld.pdf_hit(LT, li, ro, rd, tl), came,
-                           (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2]), segment, i, sl, -1, L, sh_c, queued,
+                           (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2]), found, i, sl, -1, L, sh_c, queued,
                            counts)
         if pr < 0:
             if not (camera and S.transparent):
@@ -720,7 +727,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                     le = ld.eval_escaped(LT, li, rd)
                     if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
                         _light_hit(LT, S, li, ld.pdf_escaped(LT, li, rd), came,
-                                   (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2]), segment, i, sl, -1, L, sh_c,
+                                   (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2]), found, i, sl, -1, L, sh_c,
                                    queued, counts)
             continue
         if camera:
@@ -776,9 +783,9 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
             if S.mesh_light >= 0:
                 local = G.irows[pr, ROW_EMIT]
                 pdf_l = ld.mesh_pdf_hit(LT, S.mesh_light, ro, rd, t_surf, local) if local >= 0 else 0.0
-                _light_hit(LT, S, S.mesh_light, pdf_l, came, c, segment, i, sl, -1, L, sh_c, queued, counts)
+                _light_hit(LT, S, S.mesh_light, pdf_l, came, c, found, i, sl, -1, L, sh_c, queued, counts)
             else:
-                _weighted_to(c, 1.0, S, segment, sl, -1, L, sh_c)
+                _weighted_to(c, 1.0, S, found, sl, -1, L, sh_c)
         # Russian roulette at this surface, after the emission the ray found (see _roulette)
         if segment >= S.rr_depth and not last:
             q = _roulette(MT, TX, m, u, v, wi, ng, bt)
@@ -974,7 +981,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
             lane = i
             pdf = _deferred_pdf(ST, TX, dfr, i, key[i], segment - 1, walk)
             estimates += 1
-        _weighted_to((PC[k, 0], PC[k, 1], PC[k, 2]), power_heuristic(pdf, PC[k, 3]), S, segment, slot[i],
+        _weighted_to((PC[k, 0], PC[k, 1], PC[k, 2]), power_heuristic(pdf, PC[k, 3]), S, found, slot[i],
                      PD[k, 1], L, sh_c)
     counts[4] = estimates
 

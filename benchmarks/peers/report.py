@@ -34,7 +34,9 @@ EQUAL = [
     ("Russian roulette", "from the same surface, survival min(1, √max throughput), decided after the emission found",
      f"Lamina `rr_depth` {RR_DEPTH} ↔ Cycles `min_light_bounces` {RR_DEPTH - 2} (Cycles' kernel adds 1: no roulette at "
      "bounce ≤ min + 1, the camera hit being bounce 0; Lamina: at surfaces with index ≥ rr_depth)"),
-    ("clamping", "off", "Cycles `sample_clamp_direct` = `sample_clamp_indirect` = 0 (its indirect default is 10)"),
+    ("clamping", "off; everyday and presets: indirect at 10 (Cycles' default)",
+     "Lamina `clamp` = Cycles `sample_clamp_indirect` (the same definition: the sum of RGB of what a vertex after "
+     "the camera hit gathers), `sample_clamp_direct` 0"),
     ("Filter Glossy", "off", "Cycles `blur_glossy` 0 (default 1)"),
     ("caustics", "reflective and refractive on", "Lamina's paths are unbiased"),
     ("denoising, adaptive sampling", "off", "Cycles' defaults are on"),

@@ -259,8 +259,8 @@ def settings(sc, render: dict, threads: int) -> dict:
     c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = bounces
     c.volume_bounces = 0
     c.min_light_bounces = max(int(render.get("rr_depth", 3)) - 2, 0)
-    # Lamina's "clamp" limits what each vertex after the camera hit adds (kernels/integrator.py
-    # _clamped): Cycles' indirect clamp; light at the first hit is never clamped in Lamina.
+    # Lamina's "clamp" is Cycles' indirect clamp (kernels/integrator.py _clamped: the sum of RGB of
+    # what each vertex after the camera hit gathers); light at the first hit is never clamped.
     c.sample_clamp_direct = 0.0
     c.sample_clamp_indirect = float(render.get("clamp", 0.0))
     c.blur_glossy = 0.0
