@@ -243,11 +243,12 @@ class PathTracer:
         sc = getattr(self._local, "scratch", None)
         if sc is None or sc.n < n:
             # Shadow rays per lane: next-event estimation's (glossy_light_samples per light at a glossy
-            # vertex) or, at smooth glass, one per light its mirror direction can meet; and one
-            # dedicated ray per light with shadow linking (kernels/integrator.py).
+            # vertex), one per light the mirror of smooth glass or a coated kind's top (its
+            # direction or one from its sharp lobe) can meet, and one dedicated ray per light
+            # with shadow linking (kernels/integrator.py).
             st = self.settings
-            per_lane = max(max(1, st.nee_all) * st.glossy_light_samples * self._nee_factor,
-                           int(st.probed.sum())) + int(self.vis.shadow_linked.size)
+            per_lane = (max(1, st.nee_all) * st.glossy_light_samples * self._nee_factor
+                        + int(st.probed.sum()) + int(self.vis.shadow_linked.size))
             sc = self._local.scratch = _Scratch(n, self.walk_capacity, per_lane, self.settings.defer_pdf,
                                                 self.queue_per_lane)
         return sc

@@ -14,7 +14,7 @@ import pytest
 from scipy.stats import norm
 
 import backend.integrator as integrator
-from render_util import front_perspective, quad, region_z, render, scene
+from render_util import front_perspective, look_down_ortho, quad, region_z, render, scene
 from stats_util import sidak
 
 BLOCKS = 4
@@ -65,10 +65,20 @@ COATED_DIFFUSE = {"type": "layered", "interfaces": [{"type": "dielectric", "ior"
 COATED_METAL = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.0},
                                                   {"type": "conductor", "metal": "Au", "roughness": 0.3}],
                 "media": [{"thickness": 1.0, "sigma_t": 0.0}]}
+# Sharp but rough tops (α ≤ SHARP_ALPHA: glossy plastic, a clear coat): the lights a direction
+# drawn from the top's lobe alone meets, at every sample (``_probe_lobe``), instead of in the
+# ≥ 20 % of samples whose choice takes that lobe.
+SHARP_COATED_DIFFUSE = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.004},
+                                                          {"type": "diffuse", "color": [0.6, 0.2, 0.1]}],
+                        "media": [{"thickness": 1.0, "sigma_t": 0.0}]}
+SHARP_COATED_METAL = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.01},
+                                                        {"type": "conductor", "metal": "Au", "roughness": 0.3}],
+                      "media": [{"thickness": 1.0, "sigma_t": 0.0}]}
 KINDS = {"glass": GLASS,
          # a Mix Shader picks the glass in half the hits (throughput × 2)
          "mix": {"type": "mix", "factor": 0.5, "materials": [GLASS, {"type": "diffuse", "color": [0.5, 0.5, 0.5]}]},
-         "coated-diffuse": COATED_DIFFUSE, "coated-metal": COATED_METAL}
+         "coated-diffuse": COATED_DIFFUSE, "coated-metal": COATED_METAL,
+         "sharp-coated-diffuse": SHARP_COATED_DIFFUSE, "sharp-coated-metal": SHARP_COATED_METAL}
 
 
 @pytest.mark.parametrize("glass", list(KINDS.values()), ids=list(KINDS))
@@ -82,8 +92,9 @@ def test_glass_mirror_connection_keeps_the_image(request, glass):
     assert z.max() < bound, (z.max(), bound)
 
 
-@pytest.mark.parametrize("glass, bound", [(GLASS, 0.2), (COATED_DIFFUSE, 0.3), (COATED_METAL, 0.3)],
-                         ids=["glass", "coated-diffuse", "coated-metal"])
+@pytest.mark.parametrize("glass, bound", [(GLASS, 0.2), (COATED_DIFFUSE, 0.3), (COATED_METAL, 0.3),
+                                          (SHARP_COATED_DIFFUSE, 0.35), (SHARP_COATED_METAL, 0.55)],
+                         ids=["glass", "coated-diffuse", "coated-metal", "sharp-coated-diffuse", "sharp-coated-metal"])
 def test_glass_mirror_connection_lowers_the_noise(request, glass, bound):
     """Direct light only (max_bounces 0) and no emitting panel: the light the glass reflects is
     all the noise there is, besides the world's Fresnel choice (left as it was) and where each
@@ -98,3 +109,32 @@ def test_glass_mirror_connection_lowers_the_noise(request, glass, bound):
     var_off = off.film.variance_of_mean()
     ratio = float(var_on.sum() / var_off.sum())
     assert ratio < bound, ratio
+
+
+def _tilted_plane(material: dict, spp: int, seed: int, sun_angle: float = 20.0) -> dict:
+    """A plane at 45° seen from above, mirroring a sun on the horizon into every pixel: the light
+    a sharp top reflects is most of the image (direct light only)."""
+    sun = {"type": "sun", "strength": 2.0, "angle": sun_angle,
+           "to_world": [[1, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]]}   # shines towards +y
+    return scene(16, 16, look_down_ortho(0.5), {"m": material},
+                 {"plane": quad([0, 0, 0], [1.2, 0, 0], [0, 0.85, 0.85])}, [{"mesh": "plane", "materials": ["m"]}],
+                 [sun], world={"type": "constant", "color": [0.2, 0.2, 0.2]},
+                 render={"spp": spp, "max_bounces": 0, "seed": seed})
+
+
+# The third: a lobe at SHARP_ALPHA (α 0.02, the bluntest that is probed), about as wide as a 2° sun, so that light sampling takes a fair share of the highlight and the two
+# strategies' weights both matter.
+BLUNT = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.02},
+                                          {"type": "diffuse", "color": [0.2, 0.3, 0.6]}],
+         "media": [{"thickness": 1.0, "sigma_t": 0.0}]}
+
+
+@pytest.mark.parametrize("material, sun", [(SHARP_COATED_DIFFUSE, 20.0), (SHARP_COATED_METAL, 20.0), (BLUNT, 2.0)],
+                         ids=["diffuse", "metal", "lobe-as-wide-as-the-sun"])
+def test_sharp_top_connection_keeps_the_mirrored_sun(request, material, sun):
+    on = render(_tilted_plane(material, 64, 7, sun))
+    request.getfixturevalue("probe_off")
+    off = render(_tilted_plane(material, 64, 8, sun))
+    z = region_z(on, off, 2)
+    bound = norm.isf(sidak(1e-3, z.size) / 2.0)
+    assert z.max() < bound, (z.max(), bound)

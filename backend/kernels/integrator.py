@@ -141,6 +141,8 @@ VIA_ALL_LIGHTS = 2   # a non-delta BSDF sample; next-event estimation sampled ev
 VIA_SPLIT = 4        # (added to 0 or 2) next-event estimation took S.glossy_light_samples samples, not one
 VIA_TABLE = 8        # (added to VIA_SPLIT) ... times TABLE_NEE (a tabulated stack)
 VIA_PROBED = 16      # the mirror branch of smooth glass whose lights the vertex took already
+VIA_TOP_PROBED = 32  # (added to the others) the sharp top's lobe of a coated kind, whose probed
+                     # lights the vertex took already (``_probe_lobe``)
 
 #: The vertex a ray left, as MIS against light sampling needs it: its position, the pdf the ray's
 #: direction was sampled with (< 0: deferred, ``S.defer_pdf``) and how light sampling competed
@@ -188,8 +190,8 @@ def _light_hit(LT, S, li, pdf_light, came, c, bounce, i, sl, target, L, sh_c, qu
     vertex the ray left (CameFrom)."""
     o, prev_pdf, via = came
     PD, PC = queued
-    if via == VIA_PROBED and S.probed[li]:
-        # _probe_reflection counted this light already; a dedicated ray carries nothing
+    if (via == VIA_PROBED or (via & VIA_TOP_PROBED) != 0) and S.probed[li]:
+        # _probe_reflection or _probe_lobe counted this light already; a dedicated ray carries nothing
         _weighted_to(c, 0.0, S, bounce, sl, target, L, sh_c)
         return
     dl = _light_density(LT, S, li, pdf_light, via, o)
@@ -535,6 +537,41 @@ def _probe_reflection(S, LT, bounce, slot, beta, p, ng, r, refl, shadows, counts
         if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
             c = (beta[0] * refl * le[0], beta[1] * refl * le[1], beta[2] * refl * le[2])
             # clamped as the mirror ray's emission would be: light gathered at this vertex
+            _push_ray(S, bounce, slot, origin, r, dist, c, -1, shadows, counts)
+
+
+@inlined
+def _probe_lobe(S, LT, bounce, slot, beta, p, ng, r, weight, pdf, via, shadows, counts):
+    """The lights seen along ``r``, a direction drawn from the sharp top's lobe alone of a coated
+    kind (kernels/materials.py ``sharp_top``), at every sample: the generalisation of
+    ``_probe_reflection`` to a top that is rough but sharp (α ≤ SHARP_ALPHA: a clear coat, glossy
+    plastic, car paint). The sampler takes that lobe with probability w_s only (≥ 20 %) and so
+    found a sun mirrored in the coat in one sample in five, at five times its value — the
+    highlight's noise, now direct light that Clamp Indirect does not touch. Here each light the
+    direction meets carries beta · (f/pdf)(r) · w_s (``weight``) · its radiance, weighted against
+    light sampling by the power heuristic as the continuation's hit would be (``pdf``: the
+    sampler's whole pdf at r; ``via``: how light sampling competed here); the continuation, when
+    it takes the top's lobe, then counts none of these lights (VIA_TOP_PROBED). Unbiased: the
+    lobe's part of the BSDF strategy, ∫ f L w_s p_top / pdf, is estimated with samples of p_top
+    instead of with the w_s-chance of one, and the body's part is the continuation's as before."""
+    origin = _offset(p, ng, r)             # where the continuation would start
+    for li in range(S.probed.shape[0]):
+        if not S.probed[li]:
+            continue
+        if LT.is_infinite[li]:
+            dist = INF
+            le = ld.eval_escaped(LT, li, r)
+            pdf_l = ld.pdf_escaped(LT, li, r)
+        else:
+            dist = ld.intersect(LT, li, origin, r, INF)
+            if not dist < INF:
+                continue
+            le = ld.eval_hit(LT, li, origin, r, dist)
+            pdf_l = ld.pdf_hit(LT, li, origin, r, dist)
+        if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
+            dl = _light_density(LT, S, li, pdf_l, via, origin)
+            w = power_heuristic(pdf, dl) if dl > 0.0 else 1.0
+            c = (beta[0] * weight[0] * w * le[0], beta[1] * weight[1] * w * le[1], beta[2] * weight[2] * w * le[2])
             _push_ray(S, bounce, slot, origin, r, dist, c, -1, shadows, counts)
 
 
@@ -942,8 +979,14 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                     f, bpdf = km.eval_pdf(MT.tables, kind, dist_code, mask_code, prm, 0, wi_l, wo_n)
                     _nee(S, segment, sl, bt, p, ng, LightSample(wi_w, dist, value, lpdf, is_delta), sel_p * reps,
                          f, bpdf, S.light_shadow[li], shadows, counts)
-        # 4c. smooth glass, a coated kind's smooth top: the lights its mirror shows, every sample
+        # how light sampling competed here: the MIS weight of a light a ray from here hits
+        # counts the light samples taken here
+        via_nee = ((VIA_ALL_LIGHTS if all_lights else VIA_SAMPLED) + (VIA_SPLIT if reps > 1 or kind == km.TABULATED else 0)
+                   + (VIA_TABLE if more else 0))
+        # 4c. smooth glass, a coated kind's smooth top: the lights its mirror shows, every sample;
+        # a coated kind's sharp top: the lights a direction from its lobe meets, every sample
         probed = False
+        top_share = 0.0
         if S.probed.shape[0] > 0 and not last:
             refl = km.chosen_reflectance(MT.tables, kind, prm, wi_l)
             if refl > 0.0:
@@ -951,18 +994,27 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                 r = _world(fs, ft, ns, (-wi_l[0], -wi_l[1], wi_l[2]))
                 if _dot(r, ng) > 0.0:          # else _continue drops the mirror ray too
                     _probe_reflection(S, LT, segment, sl, bt, p, ng, r, refl, shadows, counts)
+            elif can_nee:
+                uq0, uq1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_BSDF) + DIM_NEXT_LIGHT)
+                top_share, wq = km.sharp_top(MT.tables, kind, dist_code, prm, wi_l, uq0, uq1)
+                if top_share > 0.0:
+                    fq, pq = km.eval_pdf(MT.tables, kind, dist_code, mask_code, prm, 0, wi_l, wq)
+                    r = _world(fs, ft, ns, wq)
+                    if pq > 0.0 and _dot(r, ng) > 0.0:
+                        s_q = top_share / pq
+                        _probe_lobe(S, LT, segment, sl, bt, p, ng, r, (fq[0] * s_q, fq[1] * s_q, fq[2] * s_q),
+                                    pq, via_nee, shadows, counts)
         # 5. continuation
         if not last:
             ub0, ub1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_BSDF))
             wo, weight, spdf, sdelta = km.sample(MT.tables, kind, dist_code, mask_code, prm, 0, wi_l,
                                                  ub0, ub1, u_lobe)
             if weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0:
-                # the MIS weight of a light this ray hits counts the light samples taken here
-                via = VIA_DELTA if sdelta else ((VIA_ALL_LIGHTS if all_lights else VIA_SAMPLED)
-                                                + (VIA_SPLIT if reps > 1 or kind == km.TABULATED else 0)
-                                                + (VIA_TABLE if more else 0))
+                via = VIA_DELTA if sdelta else via_nee
                 if probed and sdelta and wo[2] > 0.0:      # the mirror, not a refraction or the body
                     via = VIA_PROBED
+                if top_share > 0.0 and u_lobe < top_share:  # the sampler took the top's lobe
+                    via |= VIA_TOP_PROBED
                 nrt = _lobe_class(S, kind, m, wi_l[2] * wo[2] > 0.0) if S.track else 0
                 if features and delta_only and sdelta:
                     nrt |= FEATURES_PENDING

@@ -48,7 +48,8 @@ KINDS = {DIFFUSE: "diffuse", CONDUCTOR: "conductor", DIELECTRIC: "dielectric", B
 BSDF_KINDS = (DIFFUSE, CONDUCTOR, DIELECTRIC, COATED_DIFFUSE, TABULATED)
 ANSWERS = {"bind": BSDF_KINDS, "eval_pdf": BSDF_KINDS, "sample": BSDF_KINDS, "albedo": BSDF_KINDS,
            "is_delta_only": (CONDUCTOR, DIELECTRIC, BLACK), "is_mix": (MIX, ADD),
-           "is_stack": (LAYERED, COATED_DIFFUSE, TABULATED), "chosen_reflectance": (DIELECTRIC, COATED_DIFFUSE, TABULATED)}
+           "is_stack": (LAYERED, COATED_DIFFUSE, TABULATED), "chosen_reflectance": (DIELECTRIC, COATED_DIFFUSE, TABULATED),
+           "sharp_top": (COATED_DIFFUSE, TABULATED)}
 NSLOT = 22
 EMISSION = 0                 # RGB, every kind
 N_MAP, N_STRENGTH = 16, 19   # every kind: the normal map (RGB) and its strength
@@ -242,6 +243,18 @@ def chosen_reflectance(T, kind, p, wi):
     if kind == TABULATED:
         return tabulated.smooth_reflectance_p(T, p, wi)
     return 0.0
+
+
+@inlined
+def sharp_top(T, kind, dist, p, wi, u0, u1):
+    """A coated kind whose top is rough but sharp (0 < α ≤ SHARP_ALPHA, kernels/bsdf/
+    coated_diffuse.py): (the probability w_s that ``sample`` takes the top's lobe at wi — its
+    choice is u2 < w_s — and a direction from that lobe alone, by u0, u1); w_s 0 elsewhere."""
+    if kind == COATED_DIFFUSE:
+        return coated_diffuse.sharp_top_p(T, p, dist, wi, u0, u1)
+    if kind == TABULATED:
+        return tabulated.sharp_top_p(T, p, wi, u0, u1)
+    return 0.0, (0.0, 0.0, 1.0)
 
 
 @kernel

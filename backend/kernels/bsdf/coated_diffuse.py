@@ -203,10 +203,17 @@ def top_or_body(eta, smooth, dist, au, av, w_s, wi, u0, u1, u2):
     if u2 < w_s:
         if smooth:
             return TOP_DELTA, (-wi[0], -wi[1], wi[2]), dielectric.smooth_reflectance(eta, True, wi) / w_s, u0, u1, u2
-        wo = reflected_visible(dist, au, av, wi, u0, u1)
-        # A reflection below the surface is mirrored up (``top_density`` counts both ways in).
-        return TOP_LOBE, (wo[0], wo[1], abs(wo[2])), 0.0, u0, u1, u2
+        return TOP_LOBE, top_lobe_sample(dist, au, av, wi, u0, u1), 0.0, u0, u1, u2
     return BODY, (0.0, 0.0, 1.0), 0.0, u0, u1, (u2 - w_s) / (1.0 - w_s)
+
+
+@kernel
+def top_lobe_sample(dist, au, av, wi, u0, u1):
+    """A direction from the top's own sampler (``top_or_body``'s TOP_LOBE): a visible normal's
+    reflection, mirrored up where it points below the surface (``top_density`` counts both ways
+    in)."""
+    wo = reflected_visible(dist, au, av, wi, u0, u1)
+    return (wo[0], wo[1], abs(wo[2]))
 
 
 @kernel
@@ -397,3 +404,13 @@ def albedo_p(T, p, mu):
 def smooth_reflectance_p(p, wi):
     """A smooth top's mirror, as ``top_or_body`` samples it (TOP_DELTA): F on average."""
     return dielectric.smooth_reflectance(p[0], p[3] > 0.0, wi)
+
+
+@inlined
+def sharp_top_p(T, p, dist, wi, u0, u1):
+    """For a rough top with α ≤ SHARP_ALPHA: (w_s, a direction from the top's lobe alone);
+    w_s 0 for any other top (kernels/integrator.py ``_probe_lobe``)."""
+    if p[3] > 0.0 or not p[1] <= SHARP_ALPHA or not wi[2] > 0.0:
+        return 0.0, (0.0, 0.0, 1.0)
+    _, _, d, rs = _body(T, int(p[7]), p[1], (p[4], p[5], p[6]), wi[2])
+    return specular_share(rs, d, p[1]), top_lobe_sample(dist, p[1], p[2], wi, u0, u1)

@@ -62,7 +62,8 @@ import math
 
 from . import IMPORTANCE
 from . import conductor, dielectric, diffuse
-from .coated_diffuse import BODY, SHARP_ALPHA, TOP_DELTA, specular_share, top_density, top_or_body
+from .coated_diffuse import (BODY, SHARP_ALPHA, TOP_DELTA, specular_share, top_density, top_lobe_sample,
+                             top_or_body)
 from ..fresnel import dielectric as fresnel
 from ..jit import inlined, kernel
 from ..turns import cos_sin_turns
@@ -459,6 +460,17 @@ def sample_p(T, p, wi, u0, u1, u2):
 @inlined
 def albedo_p(T, p, mu):
     return albedo(T, int(p[0]), (p[1], p[2], p[3]), mu)
+
+
+@inlined
+def sharp_top_p(T, p, wi, u0, u1):
+    """For a rough top with α ≤ SHARP_ALPHA: (w_s, a direction from the top's lobe alone);
+    w_s 0 for any other top (kernels/integrator.py ``_probe_lobe``)."""
+    o = int(p[0])
+    _, alpha, dist, _, smooth = _top(T, o)
+    if smooth or not alpha <= SHARP_ALPHA or not wi[2] > 0.0:
+        return 0.0, (0.0, 0.0, 1.0)
+    return _share(T, o, (p[1], p[2], p[3]), wi[2]), top_lobe_sample(dist, alpha, alpha, wi, u0, u1)
 
 
 @inlined
