@@ -553,7 +553,10 @@ def _probe_lobe(S, LT, bounce, slot, beta, p, ng, r, weight, pdf, via, shadows, 
     sampler's whole pdf at r; ``via``: how light sampling competed here); the continuation, when
     it takes the top's lobe, then counts none of these lights (VIA_TOP_PROBED). Unbiased: the
     lobe's part of the BSDF strategy, ∫ f L w_s p_top / pdf, is estimated with samples of p_top
-    instead of with the w_s-chance of one, and the body's part is the continuation's as before."""
+    instead of with the w_s-chance of one, and the body's part is the continuation's as before.
+    At the camera's hit only: deeper, a highlight's noise is spread over the path's other
+    choices (the presets scene, 80², 16 spp, 8 seeds: image variance 29.99 probed at the camera's
+    hit, 30.45 at every vertex, whose shadow rays cost 3–8 % more CPU; 68.8 without)."""
     origin = _offset(p, ng, r)             # where the continuation would start
     for li in range(S.probed.shape[0]):
         if not S.probed[li]:
@@ -984,7 +987,8 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
         via_nee = ((VIA_ALL_LIGHTS if all_lights else VIA_SAMPLED) + (VIA_SPLIT if reps > 1 or kind == km.TABULATED else 0)
                    + (VIA_TABLE if more else 0))
         # 4c. smooth glass, a coated kind's smooth top: the lights its mirror shows, every sample;
-        # a coated kind's sharp top: the lights a direction from its lobe meets, every sample
+        # a coated kind's sharp top seen by the camera: the lights a direction from its lobe
+        # meets, every sample
         probed = False
         top_share = 0.0
         if S.probed.shape[0] > 0 and not last:
@@ -994,7 +998,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                 r = _world(fs, ft, ns, (-wi_l[0], -wi_l[1], wi_l[2]))
                 if _dot(r, ng) > 0.0:          # else _continue drops the mirror ray too
                     _probe_reflection(S, LT, segment, sl, bt, p, ng, r, refl, shadows, counts)
-            elif can_nee:
+            elif can_nee and camera:
                 uq0, uq1 = get2(smode, ps, key[i], smp, bounce_dim(segment, SLOT_BSDF) + DIM_NEXT_LIGHT)
                 top_share, wq = km.sharp_top(MT.tables, kind, dist_code, prm, wi_l, uq0, uq1)
                 if top_share > 0.0:
