@@ -508,6 +508,19 @@ def _nee(S, bounce, slot, beta, p, ng, ls, sel_p, f, bsdf_pdf, mask, shadows, co
 
 
 @inlined
+def _met_light(LT, li, origin, r):
+    """Light ``li`` as a ray from ``origin`` along ``r`` would meet it, lights being transparent:
+    (its distance, INF for one at infinity; its radiance there, 0 where the ray misses it; the
+    density light sampling has for that ray, per solid angle)."""
+    if LT.is_infinite[li]:
+        return INF, ld.eval_escaped(LT, li, r), ld.pdf_escaped(LT, li, r)
+    dist = ld.intersect(LT, li, origin, r, INF)
+    if not dist < INF:
+        return INF, (0.0, 0.0, 0.0), 0.0
+    return dist, ld.eval_hit(LT, li, origin, r, dist), ld.pdf_hit(LT, li, origin, r, dist)
+
+
+@inlined
 def _probe_reflection(S, LT, bounce, slot, beta, p, ng, r, refl, shadows, counts):
     """The lights seen in the mirror direction ``r`` of smooth glass (or a coated kind's smooth
     top, sampled with probability ≥ 20 % at weight F/that), reflectance ``refl``: one
@@ -526,14 +539,7 @@ def _probe_reflection(S, LT, bounce, slot, beta, p, ng, r, refl, shadows, counts
     for li in range(S.probed.shape[0]):
         if not S.probed[li]:
             continue
-        if LT.is_infinite[li]:
-            dist = INF
-            le = ld.eval_escaped(LT, li, r)
-        else:
-            dist = ld.intersect(LT, li, origin, r, INF)
-            if not dist < INF:
-                continue
-            le = ld.eval_hit(LT, li, origin, r, dist)
+        dist, le, _ = _met_light(LT, li, origin, r)
         if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
             c = (beta[0] * refl * le[0], beta[1] * refl * le[1], beta[2] * refl * le[2])
             # clamped as the mirror ray's emission would be: light gathered at this vertex
@@ -561,16 +567,7 @@ def _probe_lobe(S, LT, bounce, slot, beta, p, ng, r, weight, pdf, via, shadows, 
     for li in range(S.probed.shape[0]):
         if not S.probed[li]:
             continue
-        if LT.is_infinite[li]:
-            dist = INF
-            le = ld.eval_escaped(LT, li, r)
-            pdf_l = ld.pdf_escaped(LT, li, r)
-        else:
-            dist = ld.intersect(LT, li, origin, r, INF)
-            if not dist < INF:
-                continue
-            le = ld.eval_hit(LT, li, origin, r, dist)
-            pdf_l = ld.pdf_hit(LT, li, origin, r, dist)
+        dist, le, pdf_l = _met_light(LT, li, origin, r)
         if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
             dl = _light_density(LT, S, li, pdf_l, via, origin)
             w = power_heuristic(pdf, dl) if dl > 0.0 else 1.0
