@@ -221,8 +221,10 @@ def top_density(dist, au, av, wi, wo):
     """Density of the top's sampler (``top_or_body``) at wo above the surface: a visible normal
     reflected to wo, or reflected below the surface to wo's mirror image and mirrored up. Both
     terms are exact, so the sampler's pdf is (no tabulated share of reflections lost below)."""
-    return (reflection_density(dist, au, av, wi, wo)
-            + reflection_density(dist, au, av, wi, (wo[0], wo[1], -wo[2])))
+    d = reflection_density(dist, au, av, wi, wo)
+    if wo[2] < wi[2]:           # else the half vector of wo's mirror image is not above the surface
+        d += reflection_density(dist, au, av, wi, (wo[0], wo[1], -wo[2]))
+    return d
 
 
 @kernel
