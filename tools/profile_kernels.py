@@ -2,7 +2,7 @@
 """Where the compiled kernels spend their time: a sampling profile of one benchmark scene, by
 kernel function (and by source line with ``--lines``).
 
-    .venv/bin/python tools/profile_kernels.py [--scene cornell|peer-cornell|peer-everyday|sphere-microflake] [--spp 16] [--lines]
+    .venv/bin/python tools/profile_kernels.py [--scene cornell|peer-cornell|peer-everyday|peer-presets|sphere-microflake] [--spp 16] [--lines]
 
 Needs Linux ``perf`` (``perf record`` with the cpu-clock event works in a VM without hardware
 counters). Numba's machine code lives in anonymous memory, so perf alone sees addresses only.
@@ -55,6 +55,9 @@ def _scene(name: str, spp: int) -> dict:
     elif name == "peer-everyday":
         from benchmarks.peers.scenes import everyday
         data = everyday(96)
+    elif name == "peer-presets":
+        from benchmarks.peers.scenes import presets
+        data = presets(80)
     elif name == "sphere-microflake":
         # benchmarks/layered_throughput.py --render: the one-sphere worst case of issue 16.
         from benchmarks.layered_throughput import STACKS, _sphere_scene
@@ -186,7 +189,7 @@ def report(perf_data: Path, map_file: Path, lines: bool, top: int) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scene", choices=("cornell", "peer-cornell", "peer-everyday", "sphere-microflake"), default="cornell")
+    ap.add_argument("--scene", choices=("cornell", "peer-cornell", "peer-everyday", "peer-presets", "sphere-microflake"), default="cornell")
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--lines", action="store_true", help="per source line (debug-info build)")
