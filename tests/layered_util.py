@@ -161,6 +161,11 @@ def mixture_directions(mat, wi1, m, rng, frames=None):
     return d, q
 
 
+#: |z| bound of ``cosine_over_pdf`` checks: two-sided, 1 % family-wise (Šidák) over the 45 of
+#: tests/test_coated_diffuse.py and tests/test_tabulated.py.
+DENSITY_K = 3.7
+
+
 def cosine_over_pdf(bsdf, wi_dir, n: int, rng, mode):
     """(mean, standard error) of cos θo / pdf over ``n`` of the sampler's own directions at
     ``wi_dir`` (0 for delta samples and failed ones): ∫ cos θo dω = π over the hemisphere where

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from backend.materials.base import IMPORTANCE, RADIANCE, ShadingContext
-from layered_util import cosine_over_pdf, direction, eval_stats
+from layered_util import DENSITY_K, cosine_over_pdf, direction, eval_stats
 from layered_util import load as _load
 from stats_util import SIGNIFICANCE, Grid, chi2_test, sidak
 
@@ -133,7 +133,6 @@ def test_below_the_surface_is_black():
 
 
 LEVEL = sidak(SIGNIFICANCE, 12)
-K_DENSITY = 3.7     # two-sided, 1 % family-wise (Šidák) over the 45 density checks of this file and test_tabulated
 SPHERE = Grid(20, 32, -1.0, 1.0)
 
 
@@ -186,7 +185,7 @@ def test_the_sampler_density_is_exact_at_grazing_incidence(name):
     rng = np.random.default_rng(21)
     for theta in (0.0, 60.0, 85.0, 88.0, 89.0):
         mean, se = cosine_over_pdf(b, direction(theta, 0.3), 200_000, rng, RADIANCE)
-        assert abs(mean - math.pi) < K_DENSITY * se, (name, theta, mean, se)
+        assert abs(mean - math.pi) < DENSITY_K * se, (name, theta, mean, se)
 
 
 def test_which_stacks_take_the_closed_form():

@@ -59,21 +59,21 @@ def _render(spp: int, seed: int, **shape):
 # A smooth top over a diffuse body (closed form: kernels/bsdf/coated_diffuse.py) and over a
 # rough metal (a table: kernels/bsdf/tabulated.py): their samplers take the top's mirror with
 # probability ≥ 20 % at weight F/that, the same choice.
-COATED_DIFFUSE = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.0},
-                                                    {"type": "diffuse", "color": [0.6, 0.2, 0.1]}],
-                  "media": [{"thickness": 1.0, "sigma_t": 0.0}]}
-COATED_METAL = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.0},
-                                                  {"type": "conductor", "metal": "Au", "roughness": 0.3}],
-                "media": [{"thickness": 1.0, "sigma_t": 0.0}]}
+def _coated(top_roughness: float, body: dict) -> dict:
+    """A dielectric top (index 1.5) over ``body`` with an empty slab between."""
+    return {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": top_roughness}, body],
+            "media": [{"thickness": 1.0, "sigma_t": 0.0}]}
+
+
+DIFFUSE_BODY = {"type": "diffuse", "color": [0.6, 0.2, 0.1]}
+GOLD_BODY = {"type": "conductor", "metal": "Au", "roughness": 0.3}
+COATED_DIFFUSE = _coated(0.0, DIFFUSE_BODY)
+COATED_METAL = _coated(0.0, GOLD_BODY)
 # Sharp but rough tops (α ≤ SHARP_ALPHA: glossy plastic, a clear coat): the lights a direction
 # drawn from the top's lobe alone meets, at every sample (``_probe_lobe``), instead of in the
 # ≥ 20 % of samples whose choice takes that lobe.
-SHARP_COATED_DIFFUSE = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.004},
-                                                          {"type": "diffuse", "color": [0.6, 0.2, 0.1]}],
-                        "media": [{"thickness": 1.0, "sigma_t": 0.0}]}
-SHARP_COATED_METAL = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.01},
-                                                        {"type": "conductor", "metal": "Au", "roughness": 0.3}],
-                      "media": [{"thickness": 1.0, "sigma_t": 0.0}]}
+SHARP_COATED_DIFFUSE = _coated(0.004, DIFFUSE_BODY)
+SHARP_COATED_METAL = _coated(0.01, GOLD_BODY)
 KINDS = {"glass": GLASS,
          # a Mix Shader picks the glass in half the hits (throughput × 2)
          "mix": {"type": "mix", "factor": 0.5, "materials": [GLASS, {"type": "diffuse", "color": [0.5, 0.5, 0.5]}]},
@@ -124,9 +124,7 @@ def _tilted_plane(material: dict, spp: int, seed: int, sun_angle: float = 20.0) 
 
 # The third: a lobe at SHARP_ALPHA (α 0.02, the bluntest that is probed), about as wide as a 2° sun, so that light sampling takes a fair share of the highlight and the two
 # strategies' weights both matter.
-BLUNT = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.02},
-                                          {"type": "diffuse", "color": [0.2, 0.3, 0.6]}],
-         "media": [{"thickness": 1.0, "sigma_t": 0.0}]}
+BLUNT = _coated(0.02, {"type": "diffuse", "color": [0.2, 0.3, 0.6]})
 
 
 @pytest.mark.parametrize("material, sun", [(SHARP_COATED_DIFFUSE, 20.0), (SHARP_COATED_METAL, 20.0), (BLUNT, 2.0)],

@@ -27,12 +27,11 @@ from backend.layered import tabulated as tb
 from backend.kernels.bsdf import tabulated as kt
 from backend.materials.base import IMPORTANCE, RADIANCE, ShadingContext
 from conftest import DATA
-from layered_util import cosine_over_pdf, direction, eval_stats
+from layered_util import DENSITY_K, cosine_over_pdf, direction, eval_stats
 from layered_util import load as _load
 from stats_util import SIGNIFICANCE, Grid, chi2_test, sidak
 
 K_SIGMA = 4.5
-K_DENSITY = 3.7     # two-sided, 1 % family-wise (Šidák) over the 45 density checks here and in test_coated_diffuse
 CTX = ShadingContext(np.zeros((1, 2)))
 
 
@@ -243,7 +242,7 @@ def test_the_sampler_density_is_exact_at_grazing_incidence(name):
     rng = np.random.default_rng(22)
     for theta in (0.0, 60.0, 85.0, 88.0, 89.0):
         mean, se = cosine_over_pdf(b, direction(theta, 0.3), 200_000, rng, RADIANCE)
-        assert abs(mean - math.pi) < K_DENSITY * se, (name, theta, mean, se)
+        assert abs(mean - math.pi) < DENSITY_K * se, (name, theta, mean, se)
 
 
 def test_which_stacks_are_tabulated():
