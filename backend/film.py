@@ -95,6 +95,10 @@ class FilmAccumulator:
         self.normal = np.zeros((n, 3))
         self.count = np.zeros(n, dtype=np.int64)
         self.alpha = np.zeros(n)
+        # Light-traced caustics (kernels/caustics.py): the photons' splats, summed, and how many
+        # photons were traced; the image is the samples' mean plus this sum over the photons.
+        self.caustic = np.zeros((n, 3))
+        self.photons = 0
         self.transparent = False   # set from the scene: alpha = coverage instead of 1
 
     def add(self, pixels: np.ndarray, result: dict) -> int:
@@ -104,6 +108,11 @@ class FilmAccumulator:
         work was cut (kernels/film.py)."""
         from .kernels.film import accumulate
         L, albedo, normal, alpha = result["lanes"]
+        caustics = result.get("caustics")
+        if caustics is not None:
+            photons, pix, rgb = caustics
+            self.photons += int(photons)
+            np.add.at(self.caustic, pix, rgb)
         aux = result.get("passes")
         if aux is None or self.passes is None:
             aux = NO_LANES
@@ -116,7 +125,11 @@ class FilmAccumulator:
         return (a / c).reshape(self.height, self.width, -1)
 
     def combined(self) -> np.ndarray:
-        return self._mean(self.sum)
+        """The image: the camera samples' mean, plus the light-traced caustics where any."""
+        img = self._mean(self.sum)
+        if self.photons:
+            img += (self.caustic / self.photons).reshape(self.height, self.width, 3)
+        return img
 
     def variance_of_mean(self) -> np.ndarray:
         """Unbiased sample variance divided by n, per channel (0 where n < 2):

@@ -16,10 +16,12 @@ import threading
 import numpy as np
 
 from . import stats
+from .caustics import plan_caustics
 from .geometry.accel import NO_TIMES
 from .kernels import integrator as ki
 from .kernels import materials as km
 from .kernels.camera import camera_rays, camera_vector
+from .kernels.caustics import trace_photons
 from .kernels.item_loop import ONE_SEGMENT, STOPPED, TRACED_SEGMENT, WHOLE_ITEM, run_item, start_lanes
 from .kernels.layered import batch as layered_batch
 from .kernels.layered.table import H_MAXV, H_PDF, H_TRANS, LOBES
@@ -199,6 +201,9 @@ class PathTracer:
         estimated_pdf = bool(np.any((head[:, H_PDF] != LOBES) | (head[:, H_TRANS] > 0.0)))
         defer_pdf = estimated_pdf and self.queue_per_lane <= DEFER_MAX_LIGHTS and not any(
             l.fills_sphere and pw > 0 for l, pw in zip(self.lights, powers))
+        # Caustics light traced where the scene allows it (backend/caustics.py), and the path
+        # tracer's share of them dropped (kernels/integrator.py CAUSTIC_CHAIN).
+        self.caustics = plan_caustics(scene, self)
         # Settings the kernels take as they are come from the table (backend/render_settings.py:
         # rr_depth, clamp, glossy_light_samples); the rest are derived here.
         self.settings = ki.Settings(
@@ -210,6 +215,7 @@ class PathTracer:
                                     or [False]),
             sampler=SAMPLERS[s.sampler], stratified_bounces=STRATIFIED_BOUNCES, nee_all=nee_all,
             defer_pdf=defer_pdf, probed=self._probed_lights(mesh_light),
+            caustic_light=self.caustics.light, caustic_plain=self.caustics.plain,
             **kernel_values(s), **self.vis.kernel_fields())
         self.camera = camera_vector(scene.camera)
         self.camera_motion = np.ascontiguousarray(scene.camera.motion_delta, np.float64)
@@ -258,6 +264,9 @@ class PathTracer:
         nothing else depends on the camera)."""
         self.scene.camera = camera
         self.camera = camera_vector(camera)
+        self.caustics = plan_caustics(self.scene, self)
+        self.settings = self.settings._replace(caustic_light=self.caustics.light,
+                                               caustic_plain=self.caustics.plain)
         self.camera_motion = np.ascontiguousarray(camera.motion_delta, np.float64)
         self.pass_params = self._pass_params(camera)
 
@@ -303,6 +312,9 @@ class PathTracer:
             stats.add("layered_walk_cap_hits", int(lc[2]))
         # Per-lane samples: the film adds them in sample order (kernels/film.py).
         out = {"lanes": (L, albedo, normal, alpha), "spp": spp, "rays": rays}
+        if self.caustics.active:
+            out["caustics"], photon_rays = self._photons(sc, pixels, spp, sample0)
+            out["rays"] += photon_rays
         if self.passes is not None:
             out["passes"] = aux
         return out
@@ -368,6 +380,26 @@ class PathTracer:
         self.accel.rays_traced += uncounted
         self._count(killed, deferred)
         return rays
+
+    def _photons(self, sc, pixels, spp: int, sample0: int) -> tuple:
+        """The item's share of the caustic photons (kernels/caustics.py): caustic_photons per
+        camera sample, keyed by the item's first pixel and first sample (so the same for any
+        worker count). Returns ((photons, flat pixel indices, RGB splats), rays traced)."""
+        n = int(round(self.scene.settings.caustic_photons * pixels.size * spp))
+        plan = self.caustics
+        room = n * plan.splats_per_photon
+        pix = np.empty(room, np.int64)
+        rgb = np.empty((room, 3))
+        q = self.accel.queries
+        if not q.direct.committed:
+            q.commit()
+        embree = (q._intersect_fn, q._occluded_fn, q.direct.handle, q.offset1, sc.rayhit)
+        counts = np.zeros(2, np.int64)
+        trace_photons(self.tables(), plan.tables, embree, int(pixels[0]) if pixels.size else 0,
+                      int(sample0), n, pix, rgb, counts)
+        k = int(counts[0])
+        self.accel.rays_traced += int(counts[1])
+        return (n, pix[:k].copy(), rgb[:k].copy()), int(counts[1])
 
     def _trace_segment(self, sc, cur, segment: int, active: int, lane_time) -> int:
         """The closest hits of this segment's rays, traced here into the loop's hit arrays (for

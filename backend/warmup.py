@@ -85,7 +85,7 @@ def scene_dict() -> dict:
               {"type": "sun", "to_world": up, "strength": 1.0, "angle": 2.0}]
     return {"format": "lamina-scene", "version": 1, "film": {"width": 4, "height": 4},
             "camera": {"type": "perspective", "to_world": eye, "frame": frame},
-            "render": {"spp": 2, "max_bounces": 3, "seed": 1}, "materials": materials,
+            "render": {"spp": 2, "max_bounces": 3, "seed": 1, "caustic_photons": 1.0}, "materials": materials,
             "meshes": meshes, "objects": objects, "lights": lights,
             "world": {"type": "constant", "color": [0.2, 0.2, 0.2]}}
 

@@ -57,6 +57,7 @@ def draw_advanced(layout, settings) -> None:
     col = _column(layout)
     col.prop(settings, "sampler")
     col.prop(settings, "glossy_light_samples")
+    col.prop(settings, "caustic_photons")
     col.prop(settings, "estimator")
     col.prop(settings, "pdf_mode")
     col.prop(settings, "rr_depth")

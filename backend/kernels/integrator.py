@@ -68,7 +68,8 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
                                    "visible_camera", "sampler", "stratified_bounces", "nee_all",
                                    "glossy_light_samples", "track", "gated", "links", "shadow_linked", "tri_recv",
                                    "light_vis", "light_recv", "light_shadow", "emit_vis",
-                                   "emit_recv", "mat_refl", "defer_pdf", "probed"])
+                                   "emit_recv", "mat_refl", "defer_pdf", "probed", "caustic_light",
+                                   "caustic_plain"])
 # Ray visibility and light/shadow linking (scene/links.py; integrator.py builds the tables):
 #   track         the lanes' ray types matter (the next ray's type is written: ``_lobe_class``)
 #   gated         next-event estimation and emission found by BSDF sampling are filtered per
@@ -89,12 +90,21 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
 # defer_pdf: a layered continuation's MIS pdf is estimated only if its ray finds a light that
 # light sampling competes for (``_light_hit``), not for every continuation: its walks cost about a
 # third of a layered vertex, and most continuations never need it (integrator.py decides).
+# caustic_light: per light, whether light tracing takes its caustics (kernels/caustics.py);
+# caustic_plain: per material, whether the photons understand it. Both empty where the scene's
+# caustics are path traced only (backend/caustics.py says when).
 # Ray-type bits (scene/links.py).
 RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT = 1, 2, 4, 8
 # Not a ray type: the ray continues a camera path that has met only mirrors and smooth glass, so
 # the denoiser's albedo and normal are still to be written, at the first surface that is neither
 # (as Cycles' denoising features follow specular bounces to what they show).
 FEATURES_PENDING = 128
+# Not ray types either: caustics that light tracing takes (kernels/caustics.py). CAUSTIC_FROM: the
+# ray left the camera's hit on a plain material by a non-delta lobe; CAUSTIC_CHAIN: it left a
+# plain delta vertex (smooth glass, a mirror) of such a path. The emission of a covered light
+# (``caustic_light``) that a CAUSTIC_CHAIN ray finds belongs to the photons: it is dropped here.
+CAUSTIC_FROM = 16
+CAUSTIC_CHAIN = 32
 NO_RECEIVER = 64
 NO_PARAMS = (0.0,) * 12      # km.bind's 12-tuple, for lanes that do not use it
 _NO_DUV = (0.0,) * 6         # a layered lane's dP/du, dP/dv where its stack has no bump map
@@ -705,9 +715,12 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
     ni = S.infinite.shape[0]
     nsl = S.shadow_linked.shape[0] if not camera else 0
     gate_hits = S.gated and not camera     # camera rays see every light (Cycles)
+    caustics = S.caustic_light.shape[0] > 0
     for i in range(slot.shape[0]):
         sl = slot[i]
         rt = rtype[i]
+        # a caustic path the photons take: its covered lights carry nothing here
+        chain = caustics and (rt & CAUSTIC_CHAIN) != 0
         rv = recv[i]
         ro = (o[i, 0], o[i, 1], o[i, 2])
         rd = (d[i, 0], d[i, 1], d[i, 2])
@@ -746,6 +759,8 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
             if gate_hits and not ((S.light_vis[li] & rt) != 0 and _linked(S.light_recv[li], rv)
                                   and S.light_shadow[li] == -1):
                 continue
+            if chain and S.caustic_light[li]:
+                continue
             tl = ld.intersect(LT, li, ro, rd, t_limit)
             if tl < INF:
                 le = ld.eval_hit(LT, li, ro, rd, tl)
@@ -760,6 +775,8 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                         continue
                     if gate_hits and not ((S.light_vis[li] & rt) != 0 and _linked(S.light_recv[li], rv)
                                           and S.light_shadow[li] == -1):
+                        continue
+                    if chain and S.caustic_light[li]:
                         continue
                     le = ld.eval_escaped(LT, li, rd)
                     if le[0] > 0.0 or le[1] > 0.0 or le[2] > 0.0:
@@ -848,8 +865,13 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                 ns = (-ns[0], -ns[1], -ns[2])
             if _dot(wi, ns) <= 0.0:
                 ns = ng
+        bent = False
         if G.has_normals or mapped:
-            ns = _valid_reflection_normal(wi, ns, ng)
+            nv = _valid_reflection_normal(wi, ns, ng)
+            # a bent normal depends on the view direction: a delta vertex bent here cannot be
+            # retraced from the light, so its path stays the path tracer's (kernels/caustics.py)
+            bent = nv[0] != ns[0] or nv[1] != ns[1] or nv[2] != ns[2]
+            ns = nv
         fs, ft = _frame(ns, tan)
         wi_l = _local(fs, ft, ns, wi)
         # 4a. light sample (shared with layered lanes) from the sampler's 2-D slots of this bounce.
@@ -988,7 +1010,10 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
         # meets, every sample
         probed = False
         top_share = 0.0
-        if S.probed.shape[0] > 0 and not last:
+        # (not at a delta vertex of a caustic path the photons take: they count its mirror too)
+        in_chain = (caustics and (rt & (CAUSTIC_FROM | CAUSTIC_CHAIN)) != 0 and S.caustic_plain[m_surface]
+                    and delta_only and not bent)
+        if S.probed.shape[0] > 0 and not last and not in_chain:
             refl = km.chosen_reflectance(MT.tables, kind, prm, wi_l)
             if refl > 0.0:
                 probed = True
@@ -1019,6 +1044,12 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                 nrt = _lobe_class(S, kind, m, wi_l[2] * wo[2] > 0.0) if S.track else 0
                 if features and delta_only and sdelta:
                     nrt |= FEATURES_PENDING
+                if caustics and S.caustic_plain[m_surface]:
+                    if camera:
+                        if not delta_only and not sdelta:
+                            nrt |= CAUSTIC_FROM
+                    elif in_chain and sdelta:
+                        nrt |= CAUSTIC_CHAIN
                 cont = Continuation(_world(fs, ft, ns, wo), wo[2], weight, spdf, via)
                 _continue(S, segment, sl, key[i], bt, p, ng, cont, nrt, rs, nxt, counts)
     # Emission queued behind a deferred layered pdf (``_light_hit``): each lane's pdf estimated

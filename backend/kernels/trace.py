@@ -93,3 +93,32 @@ def occluded_rays(fn, scene, scratch, o32, d32, tmax32, time32, blocked):
         _load_ray(f, w, o32, d32, tmax32, time32, i)
         _call_embree(fn, scene, addr)
         blocked[i] = np.int32(0) if f[8] < 0.0 else np.int32(-1)
+
+
+@inlined
+def intersect_one(fn, scene, offset1, f, w, addr, o, d, tmax):
+    """One ray (float64 tuples, time 0) through an RTCRayHit block from ``_aligned_block``:
+    (scene triangle index or −1, hit distance, b1, b2). For code that follows one path at a time
+    (kernels/caustics.py)."""
+    f[0], f[1], f[2], f[3] = np.float32(o[0]), np.float32(o[1]), np.float32(o[2]), np.float32(0.0)
+    f[4], f[5], f[6], f[7] = np.float32(d[0]), np.float32(d[1]), np.float32(d[2]), np.float32(0.0)
+    f[8] = np.float32(min(tmax, 3e38))
+    w[9], w[10], w[11] = _INVALID, np.uint32(0), np.uint32(0)
+    w[17], w[18], w[19] = _INVALID, _INVALID, _INVALID
+    _call_embree(fn, scene, addr)
+    g = w[18]
+    if g == _INVALID:
+        return -1, np.inf, 0.0, 0.0
+    pr = np.int64(w[17]) + (offset1 if g == 1 else 0)
+    return pr, np.float64(f[8]), np.float64(f[15]), np.float64(f[16])
+
+
+@inlined
+def occluded_one(fn, scene, f, w, addr, o, d, tmax):
+    """Whether something lies on the segment (0, tmax) of one ray (see ``intersect_one``)."""
+    f[0], f[1], f[2], f[3] = np.float32(o[0]), np.float32(o[1]), np.float32(o[2]), np.float32(0.0)
+    f[4], f[5], f[6], f[7] = np.float32(d[0]), np.float32(d[1]), np.float32(d[2]), np.float32(0.0)
+    f[8] = np.float32(min(tmax, 3e38))
+    w[9], w[10], w[11] = _INVALID, np.uint32(0), np.uint32(0)
+    _call_embree(fn, scene, addr)
+    return f[8] < 0.0

@@ -1,0 +1,171 @@
+"""Whether a scene's caustics are light traced, and the tables the photon kernel reads
+(backend/kernels/caustics.py explains the method and the partition with the path tracer).
+
+``plan_caustics`` returns a ``CausticPlan``: the kernel's ``CausticTables`` and the path tracer's
+two flags (which lights are covered, which materials are plain), or, where the scene cannot use
+light tracing, empty ones and the reason (the path tracer then renders every caustic, as before).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .kernels import materials as km
+from .kernels.caustics import (P_DS, P_DT, P_FAR, P_H, P_INV, P_N, P_NEAR, P_O, P_SUPPORT, P_TL, P_W, PROJ_SIZE,
+                               CausticTables)
+from .kernels.lights import area as _area
+from .kernels.lights import sun as _sun
+
+#: Added to the scene seed for the photons' keys (a stream of their own).
+PHOTON_SEED_SALT = 0xC0FFEE5EED
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+
+@dataclass
+class CausticPlan:
+    tables: CausticTables | None     # None: not light traced
+    light: np.ndarray                # (lights,) bool, covered; empty when not light traced
+    plain: np.ndarray                # (materials,) bool; empty when not light traced
+    reason: str                      # why not ("" when light traced)
+    splats_per_photon: int = 0       # room one photon may need in the splat buffers
+
+    @property
+    def active(self) -> bool:
+        return self.tables is not None
+
+
+def _off(reason: str) -> CausticPlan:
+    return CausticPlan(None, np.zeros(0, np.bool_), np.zeros(0, np.bool_), reason)
+
+
+def plain_materials(mt) -> np.ndarray:
+    """Materials the photon kernel and the path tracer's chain flag understand: analytic kinds
+    without a mix, a layered stack, a normal map or a bump."""
+    kind = np.asarray(mt.kind)
+    return (~np.isin(kind, (km.LAYERED, km.MIX, km.ADD))) & (np.asarray(mt.nmode) == 0) & ~np.asarray(mt.bump, bool)
+
+
+def can_be_delta(mt, plain: np.ndarray) -> np.ndarray:
+    """Plain materials that may be a smooth dielectric or conductor somewhere: roughness 0, or
+    roughness from a texture (which may be 0 in places)."""
+    out = np.zeros(len(mt.kind), np.bool_)
+    for m, k in enumerate(mt.kind):
+        if not plain[m]:
+            continue
+        if k == km.DIELECTRIC:
+            au, av = km.D_AU, km.D_AV
+        elif k == km.CONDUCTOR:
+            au, av = km.AU, km.AV
+        else:
+            continue
+        textured = mt.tex[m, au] >= 0 or mt.tex[m, av] >= 0
+        out[m] = textured or (mt.values[m, au] <= 0.0 and mt.values[m, av] <= 0.0)
+    return out
+
+
+def _projection(camera, width: int, height: int, support: float) -> np.ndarray:
+    """The camera as kernels/caustics.py ``project`` reads it (columns P_*)."""
+    M = np.asarray(camera.to_world, np.float64)
+    A = M[:3, :3]
+    frame = np.asarray(camera.frame, np.float64)       # tr, br, bl, tl (camera space)
+    tl = A @ frame[3]
+    a = A @ (frame[0] - frame[3])                       # s: left → right
+    b = A @ (frame[2] - frame[3])                       # t: top → bottom
+    n = np.cross(a, b)
+    g = np.array([[a @ a, a @ b], [a @ b, b @ b]])
+    gi = np.linalg.inv(g)
+    ds = gi[0, 0] * a + gi[0, 1] * b
+    dt = gi[1, 0] * a + gi[1, 1] * b
+    p = np.zeros(PROJ_SIZE)
+    p[P_O:P_O + 3] = M[:3, 3]
+    p[P_TL:P_TL + 3] = tl
+    p[P_N:P_N + 3] = n
+    p[P_DS:P_DS + 3] = ds
+    p[P_DT:P_DT + 3] = dt
+    p[P_INV:P_INV + 9] = np.linalg.inv(A).ravel()
+    p[P_NEAR] = camera.clip_start
+    p[P_FAR] = camera.clip_end if np.isfinite(camera.clip_end) else np.inf
+    p[P_W] = width
+    p[P_H] = height
+    p[P_SUPPORT] = support
+    return p
+
+
+def plan_caustics(scene, tracer) -> CausticPlan:
+    """Decide for ``tracer`` (a PathTracer whose material and light tables exist)."""
+    s = scene.settings
+    ratio = float(getattr(s, "caustic_photons", 0.0))
+    if not ratio > 0.0:
+        return _off("caustic_photons is 0")
+    cam = scene.camera
+    if cam.kind != "perspective":
+        return _off("the camera is not perspective")
+    if cam.aperture_radius > 0.0 and cam.focus_distance > 0.0:
+        return _off("the camera has depth of field")
+    if tracer.motion:
+        return _off("motion blur")
+    if getattr(tracer.accel.queries, "direct", None) is None:
+        return _off("embree cannot be called from compiled code here")
+    vis = tracer.vis
+    if vis.gated or vis.light_linking or vis.filter_shadows or vis.skip_hits or vis.shadow_linked.size:
+        return _off("ray visibility, light or shadow linking")
+    if float(getattr(s, "clamp", 0.0)) > 0.0:
+        return _off("Clamp Indirect is on")
+    mt = tracer.materials
+    plain = plain_materials(mt)
+    delta = can_be_delta(mt, plain)
+    soup = tracer.soup
+    if soup.count == 0:
+        return _off("no triangles")
+    casters = delta[np.asarray(soup.material)]
+    if not casters.any():
+        return _off("no smooth glass or mirror")
+    lt = tracer.light_table
+    covered = np.zeros(len(tracer.lights), np.bool_)
+    for li in range(len(tracer.lights)):
+        k = int(lt.kind[li])
+        if k == _sun.SUN and not lt.is_delta[li]:
+            covered[li] = True
+        elif k == _area.AREA and lt.iparams[li, _area.I_EMITS] != 0:
+            covered[li] = True
+    if not covered.any():
+        return _off("no area light or sun with an angle")
+    v = np.asarray(soup.vertices[casters], np.float64).reshape(-1, 3)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    center = 0.5 * (lo + hi)
+    radius = float(np.sqrt(((v - center) ** 2).sum(axis=1)).max()) * (1.0 + 1e-6) + 1e-6
+    allv = np.asarray(soup.vertices, np.float64).reshape(-1, 3)
+    far = float(np.sqrt(((allv - center) ** 2).sum(axis=1)).max()) * 1.01 + radius + 1.0
+    lights = np.flatnonzero(covered).astype(np.int64)
+    weight = np.array([_flux_estimate(lt, int(li), center, radius) for li in lights])
+    if not weight.sum() > 0.0:
+        return _off("the covered lights send nothing towards the glass")
+    cdf = np.concatenate([[0.0], np.cumsum(weight) / weight.sum()])
+    cdf[-1] = 1.0
+    pf = scene.pixel_filter
+    proj = _projection(cam, scene.width, scene.height, pf.support)
+    tables = CausticTables(lights, cdf, np.array([*center, radius, far]), proj,
+                           np.ascontiguousarray(pf._cdf, np.float64), np.int64(tracer.max_segments - 2),
+                           np.uint64((int(s.seed) + PHOTON_SEED_SALT) % (1 << 64)))
+    side = int(np.floor(pf.support)) + 2
+    return CausticPlan(tables, covered, plain, "", side * side)
+
+
+def _flux_estimate(lt, li: int, center: np.ndarray, radius: float) -> float:
+    """Roughly the flux light ``li`` sends at the caster sphere (luminance), for choosing which
+    light a photon leaves: only the variance depends on it."""
+    P = lt.params
+    if int(lt.kind[li]) == _sun.SUN:
+        return float(LUMINANCE @ P[li, _sun.S_IRRADIANCE:_sun.S_IRRADIANCE + 3]) * np.pi * radius ** 2
+    c = P[li, _area.A_CENTER:_area.A_CENTER + 3]
+    n = P[li, _area.A_N:_area.A_N + 3]
+    d = center - c
+    dist = float(np.linalg.norm(d))
+    if dist <= radius:
+        solid, cos = 2.0 * np.pi, 0.5
+    else:
+        solid = 2.0 * np.pi * (1.0 - np.sqrt(max(1.0 - (radius / dist) ** 2, 0.0)))
+        cos = max(float(d @ n) / dist, 0.05)
+    lum = float(LUMINANCE @ P[li, _area.A_SCALE:_area.A_SCALE + 3])
+    return lum * P[li, _area.A_AREA] * solid * cos

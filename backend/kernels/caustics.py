@@ -1,0 +1,324 @@
+"""Caustics by light tracing: paths light → smooth glass or mirror (one or more delta vertices)
+→ a surface the camera sees, traced from the light and splatted onto the film.
+
+Why: a path tracer finds such a path only when a BSDF-sampled ray from the seen surface happens
+to pass through the glass into the light's small solid angle (a sun's disk, a lamp seen through
+a lens), so the sun's caustic under a glass ball is a scatter of rare, bright samples (the demo:
+most of its variance). From the light the same paths are easy: aim at the glass, refract through
+it, and connect the first other surface to the camera.
+
+The two estimators share the work by a partition, so nothing is counted twice and nothing is
+lost. A path belongs to the light tracer exactly when
+  * its camera ray hits a *plain* material (kernels/integrator.py ``caustic_plain``: no mix, no
+    layered stack, no normal map or bump) whose continuation there is not a delta lobe,
+  * every vertex after it up to the light is a delta vertex of a plain material (smooth
+    dielectric or conductor, ``materials.is_delta_only``), at least one of them, and at most
+    max_bounces of them,
+  * and the light is *covered* (``CausticTables.lights``: an area light or a sun with an angle;
+    the path tracer cannot find a delta light through glass at all, so those stay uncounted,
+    as before and as in Cycles).
+The path tracer drops the emission of exactly those paths (``CAUSTIC_CHAIN``); this kernel traces
+photons from the covered lights towards a sphere around every triangle whose material can be a
+delta one (the casters), so every such path has a positive density here.
+
+Estimator (one photon; N photons per render, ``FilmAccumulator``): the photon leaves light ``li``
+(chosen with probability P_li) with flux Φ = L_e cos θ_e / (P_li · pdf(position, direction)),
+passes the delta vertices with the adjoint weights (importance-mode BSDF weight times
+|ω_in·n_s||ω_out·n_g| / (|ω_in·n_g||ω_out·n_s|), Veach 1997 §5.3: shading normals), and at the
+first other surface x adds to pixel q
+
+    Φ · f(ω_cam, ω_in) |ω_in·n_s| / |ω_in·n_g| · |ω_cam·n_g| / r² · J · h_q(film position)
+
+where f |ω_in·n_s| is ``materials.eval_pdf`` with the camera as the view direction (exactly what
+the path tracer evaluates at its camera hit), r the distance to the pinhole, J = W H |P|³/|n·P|
+the film's pixels per steradian along the ray (P: the ray's point on the film plane, n the
+plane's normal × its area), and h_q the pixel filter's density at the position's offset from q's
+centre (the piecewise-constant density the camera kernel's filter sampling has). The image is
+the path tracer's mean plus the sum of the splats divided by N.
+
+What restricts it (backend/caustics.py decides, per scene): a pinhole camera (no depth of field,
+no camera motion), no moving geometry, no ray visibility, light or shadow linking, no Clamp
+Indirect (it clamps per path sample, which a splat cannot reproduce).
+"""
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numpy as np
+
+from . import materials as km
+from .bsdf import IMPORTANCE, RADIANCE
+from .integrator import _interp3, _offset, _valid_reflection_normal
+from .jit import kernel
+from .lights import area as _area
+from .lights import sun as _sun
+from .lights.common import get3, sample_cone, sin2_to_one_minus_cos
+from .rng import path_key, uniform
+from .soup import ROW_MAT, ROW_N, ROW_NG, ROW_TAN, ROW_UV, ROW_V
+from .trace import _aligned_block, intersect_one, occluded_one
+from .vec import coordinate_system
+from .vec import dot as _dot
+from .vec import shading_frame as _frame
+from .vec import to_local as _local
+from .vec import to_world as _world
+from .warp import disk_concentric
+
+#: What the photon kernel reads besides the scene's tables (backend/caustics.py builds it):
+#:   lights     (k,) int64    the covered lights (rows of the light table)
+#:   cdf        (k + 1,)      their selection distribution (∝ the flux they send at the casters)
+#:   sphere     (5,)          caster sphere centre xyz, radius, and the distance at which a sun's
+#:                            photons start (beyond every triangle)
+#:   proj       (PROJ_SIZE,)  the camera as a projection (columns P_* below)
+#:   fcdf       (m + 1,)      the pixel filter's cumulative table (backend/film.py PixelFilter)
+#:   max_delta  int           delta vertices a photon may pass (max_bounces)
+#:   seed       uint64        the photons' random-number seed
+CausticTables = namedtuple("CausticTables", ["lights", "cdf", "sphere", "proj", "fcdf", "max_delta", "seed"])
+
+P_O, P_TL, P_N, P_DS, P_DT, P_INV = 0, 3, 6, 9, 12, 15     # 3, 3, 3, 3, 3, 9 columns
+P_NEAR, P_FAR, P_W, P_H, P_SUPPORT = 24, 25, 26, 27, 28
+PROJ_SIZE = 29
+
+# Photon dimensions (hashed: one photon is one sample of a 2-D-per-vertex integral, and the
+# photons of a render are many; stratifying them would need a sequence over items).
+D_PICK, D_POS, D_DIR, D_VERTEX = 0, 1, 3, 5        # vertex k: D_VERTEX + 3k … + 2
+
+
+@kernel
+def _filter_density(fcdf, support, offset):
+    """Density of the camera kernel's filter offsets at ``offset`` pixels (1-D): the table's
+    piecewise-constant density, so that it integrates exactly as the sampling does."""
+    x = offset / support + 0.5
+    if not (x >= 0.0 and x < 1.0):
+        return 0.0
+    m = fcdf.shape[0] - 1
+    k = min(int(x * m), m - 1)
+    return (fcdf[k + 1] - fcdf[k]) * m / support
+
+
+@kernel
+def project(proj, x):
+    """Film position (s, t) of point x (fractions of the width and height, as camera_rays'
+    (s, t)), J = pixels per steradian along the ray, the distance r to the pinhole and the
+    length the camera-facing ray from x may travel before the near clip plane; J = 0 where the
+    camera cannot see x (behind it, outside the clip range)."""
+    q = (x[0] - proj[P_O], x[1] - proj[P_O + 1], x[2] - proj[P_O + 2])
+    r = math.sqrt(_dot(q, q))
+    # depth along the view axis, in the camera's own units (the clip distances')
+    depth = -(proj[P_INV + 6] * q[0] + proj[P_INV + 7] * q[1] + proj[P_INV + 8] * q[2])
+    if not (r > 0.0 and depth > proj[P_NEAR] and depth < proj[P_FAR]):
+        return 0.0, 0.0, 0.0, r, 0.0
+    n = (proj[P_N], proj[P_N + 1], proj[P_N + 2])
+    tl = (proj[P_TL], proj[P_TL + 1], proj[P_TL + 2])
+    nq = _dot(n, q)
+    if nq == 0.0:
+        return 0.0, 0.0, 0.0, r, 0.0
+    lam = _dot(n, tl) / nq
+    if not lam > 0.0:
+        return 0.0, 0.0, 0.0, r, 0.0
+    P = (lam * q[0], lam * q[1], lam * q[2])
+    e = (P[0] - tl[0], P[1] - tl[1], P[2] - tl[2])
+    s = _dot(e, (proj[P_DS], proj[P_DS + 1], proj[P_DS + 2]))
+    t = _dot(e, (proj[P_DT], proj[P_DT + 1], proj[P_DT + 2]))
+    pl = math.sqrt(_dot(P, P))
+    J = proj[P_W] * proj[P_H] * pl * pl * pl / abs(_dot(n, P))
+    reach = r * (1.0 - proj[P_NEAR] / depth)
+    return s, t, J, r, reach
+
+
+@kernel
+def _emit(LT, CT, key):
+    """A photon from a covered light: (origin, direction, flux RGB already divided by the
+    selection probability and the sampling density); flux 0 where it leaves nothing."""
+    lights, cdf, sphere = CT.lights, CT.cdf, CT.sphere
+    u = uniform(key, D_PICK)
+    k = 0
+    while k < lights.shape[0] - 1 and not u < cdf[k + 1]:
+        k += 1
+    pick = cdf[k + 1] - cdf[k]
+    li = lights[k]
+    P, I = LT.params, LT.iparams
+    c = (sphere[0], sphere[1], sphere[2])
+    R = sphere[3]
+    u1, u2 = uniform(key, D_POS), uniform(key, D_POS + 1)
+    u3, u4 = uniform(key, D_DIR), uniform(key, D_DIR + 1)
+    zero = (0.0, 0.0, 0.0)
+    if LT.kind[li] == _sun.SUN:
+        omc = P[li, _sun.S_OMC]
+        toward = sample_cone(get3(P, li, _sun.S_DIR), omc, u3, u4)
+        s, t = coordinate_system(toward)
+        dx, dy = disk_concentric(u1, u2)
+        far = sphere[4]
+        o = (c[0] + far * toward[0] + R * (dx * s[0] + dy * t[0]),
+             c[1] + far * toward[1] + R * (dx * s[1] + dy * t[1]),
+             c[2] + far * toward[2] + R * (dx * s[2] + dy * t[2]))
+        scale = math.pi * R * R * 2.0 * math.pi * omc / pick
+        L = get3(P, li, _sun.S_RADIANCE)
+        return o, (-toward[0], -toward[1], -toward[2]), (L[0] * scale, L[1] * scale, L[2] * scale)
+    # an area light: a point by area, a direction uniformly in the cone of the caster sphere
+    dx, dy = disk_concentric(u1, u2)
+    if I[li, _area.I_ELLIPSE] != 0:
+        lu, lv = dx * P[li, _area.A_HALF_U], dy * P[li, _area.A_HALF_V]
+    else:
+        lu, lv = (2.0 * u1 - 1.0) * P[li, _area.A_HALF_U], (2.0 * u2 - 1.0) * P[li, _area.A_HALF_V]
+    y = _area._point(P, li, lu, lv)
+    dc = (c[0] - y[0], c[1] - y[1], c[2] - y[2])
+    dist = math.sqrt(_dot(dc, dc))
+    if dist <= R:
+        omc = 2.0
+        axis = (0.0, 0.0, 1.0)
+    else:
+        omc = sin2_to_one_minus_cos((R / dist) ** 2)
+        axis = (dc[0] / dist, dc[1] / dist, dc[2] / dist)
+    d = sample_cone(axis, omc, u3, u4)
+    cos_out = _dot(d, get3(P, li, _area.A_N))
+    if not cos_out > 0.0 or I[li, _area.I_EMITS] == 0:
+        return y, d, zero
+    L = _area.radiance(P, I, li, cos_out)
+    scale = cos_out * P[li, _area.A_AREA] * 2.0 * math.pi * omc / pick
+    return y, d, (L[0] * scale, L[1] * scale, L[2] * scale)
+
+
+@kernel(nogil=True)
+def trace_photons(tables, CT, embree, pixel0, sample0, n, pix, rgb, counts):
+    """Photons 0 … n−1 of the work item keyed (pixel0, sample0); their splats go to pix (flat
+    pixel index) and rgb, whose room must be n × (⌊support⌋ + 2)² rows. ``counts`` (int64[2])
+    out: [splats, rays traced]."""
+    G, MT, TX, LT, S, PS, ST = tables
+    fn_hit, fn_occ, scene, offset1, rayhit = embree
+    f32, w32, addr = _aligned_block(rayhit)
+    proj, fcdf = CT.proj, CT.fcdf
+    W = int(proj[P_W])
+    H = int(proj[P_H])
+    support = proj[P_SUPPORT]
+    half = 0.5 * support
+    R = G.rows
+    count = 0
+    rays = 0
+    for j in range(n if CT.lights.shape[0] > 0 else 0):
+        key = path_key(CT.seed, pixel0, np.uint64(sample0) * np.uint64(1 << 32) + np.uint64(j))
+        o, d, beta = _emit(LT, CT, key)
+        if not (beta[0] > 0.0 or beta[1] > 0.0 or beta[2] > 0.0):
+            continue
+        nd = 0
+        while True:
+            pr, t, b1, b2 = intersect_one(fn_hit, scene, offset1, f32, w32, addr, o, d, np.inf)
+            rays += 1
+            if pr < 0:
+                break
+            p = _interp3(R, pr, ROW_V, b1, b2)
+            ng = (np.float64(R[pr, ROW_NG]), np.float64(R[pr, ROW_NG + 1]), np.float64(R[pr, ROW_NG + 2]))
+            if G.has_normals:
+                ns = _interp3(R, pr, ROW_N, b1, b2)
+                ln = math.sqrt(_dot(ns, ns))
+                ns = (ns[0] / ln, ns[1] / ln, ns[2] / ln) if ln > 0.0 else ng
+            else:
+                ns = ng
+            tan = (np.float64(R[pr, ROW_TAN]), np.float64(R[pr, ROW_TAN + 1]), np.float64(R[pr, ROW_TAN + 2]))
+            if G.has_uvs:
+                uu0 = np.float64(R[pr, ROW_UV])
+                vv0 = np.float64(R[pr, ROW_UV + 1])
+                u = uu0 + b1 * (np.float64(R[pr, ROW_UV + 2]) - uu0) + b2 * (np.float64(R[pr, ROW_UV + 4]) - uu0)
+                v = vv0 + b1 * (np.float64(R[pr, ROW_UV + 3]) - vv0) + b2 * (np.float64(R[pr, ROW_UV + 5]) - vv0)
+            else:
+                u = 0.0
+                v = 0.0
+            m = G.irows[pr, ROW_MAT]
+            if not S.caustic_plain[m]:
+                break
+            kind = MT.kind[m]
+            prm = km.bind(MT, TX, m, u, v)
+            w_in = (-d[0], -d[1], -d[2])        # towards where the photon came from
+            if km.is_delta_only(kind, prm):
+                if nd >= CT.max_delta:
+                    break
+                # The path tracer's view direction here is the photon's outgoing one, known only
+                # after sampling. A two-sided material (a mirror) reflects to the side the photon
+                # came from, so its flip is taken from w_in and checked after sampling; where the
+                # path tracer would bend the normal for w_out (``_valid_reflection_normal``, at
+                # grazing reflections) the path stays the path tracer's (its CAUSTIC_CHAIN needs
+                # an unbent normal), so the photon ends.
+                if MT.two_sided[m] and _dot(w_in, ng) < 0.0:
+                    ng = (-ng[0], -ng[1], -ng[2])
+                    ns = (-ns[0], -ns[1], -ns[2])
+                if MT.two_sided[m] and _dot(w_in, ns) <= 0.0:
+                    ns = ng
+                fs, ft = _frame(ns, tan)
+                wl = _local(fs, ft, ns, w_in)
+                # the path tracer continues along w_in from here: its leak guard
+                if not (_dot(w_in, ng) * wl[2] > 0.0):
+                    break
+                k3 = D_VERTEX + 3 * nd
+                wo, weight, _pdf, sdelta = km.sample(MT.tables, kind, MT.dist[m], MT.masking[m], prm, IMPORTANCE,
+                                                     wl, uniform(key, k3), uniform(key, k3 + 1), uniform(key, k3 + 2))
+                if not sdelta or not (wo[2] != 0.0):
+                    break
+                w_out = _world(fs, ft, ns, wo)
+                if MT.two_sided[m] and not (_dot(w_out, ng) > 0.0):
+                    break
+                if G.has_normals:
+                    nv = _valid_reflection_normal(w_out, ns, ng)
+                    if nv[0] != ns[0] or nv[1] != ns[1] or nv[2] != ns[2]:
+                        break
+                adj = abs(wl[2]) * abs(_dot(w_out, ng)) / (abs(_dot(w_in, ng)) * abs(wo[2]))
+                beta = (beta[0] * weight[0] * adj, beta[1] * weight[1] * adj, beta[2] * weight[2] * adj)
+                if not (beta[0] > 0.0 or beta[1] > 0.0 or beta[2] > 0.0):
+                    break
+                nd += 1
+                o = _offset(p, ng, w_out)
+                d = w_out
+                continue
+            # the first surface that is not a delta one: a caustic if glass or a mirror came first
+            if nd == 0 or G.holdout[pr]:
+                break
+            s, tt, J, r, reach = project(proj, p)
+            if not J > 0.0:
+                break
+            w_cam = ((proj[P_O] - p[0]) / r, (proj[P_O + 1] - p[1]) / r, (proj[P_O + 2] - p[2]) / r)
+            # the shading frame exactly as the path tracer builds it at its camera hit
+            if MT.two_sided[m]:
+                if _dot(w_cam, ng) < 0.0:
+                    ng = (-ng[0], -ng[1], -ng[2])
+                    ns = (-ns[0], -ns[1], -ns[2])
+                if _dot(w_cam, ns) <= 0.0:
+                    ns = ng
+            if G.has_normals:
+                ns = _valid_reflection_normal(w_cam, ns, ng)
+            fs, ft = _frame(ns, tan)
+            wi_l = _local(fs, ft, ns, w_cam)
+            wo_l = _local(fs, ft, ns, w_in)
+            cin = _dot(w_in, ng)
+            if not (cin * wo_l[2] > 0.0):       # the path tracer's leak guard on its continuation
+                break
+            fv, _pdf = km.eval_pdf(MT.tables, kind, MT.dist[m], MT.masking[m], prm, RADIANCE, wi_l, wo_l)
+            g = abs(_dot(w_cam, ng)) / (abs(cin) * r * r) * J
+            c = (beta[0] * fv[0] * g, beta[1] * fv[1] * g, beta[2] * fv[2] * g)
+            if not (c[0] > 0.0 or c[1] > 0.0 or c[2] > 0.0):
+                break
+            if not (math.isfinite(c[0]) and math.isfinite(c[1]) and math.isfinite(c[2])):
+                break
+            rays += 1
+            if occluded_one(fn_occ, scene, f32, w32, addr, _offset(p, ng, w_cam), w_cam, reach):
+                break
+            fx = s * W
+            fy = tt * H
+            x0 = max(int(math.ceil(fx - 0.5 - half)), 0)
+            x1 = min(int(math.floor(fx - 0.5 + half)), W - 1)
+            y0 = max(int(math.ceil(fy - 0.5 - half)), 0)
+            y1 = min(int(math.floor(fy - 0.5 + half)), H - 1)
+            for py in range(y0, y1 + 1):
+                hy = _filter_density(fcdf, support, fy - (py + 0.5))
+                if hy == 0.0:
+                    continue
+                for px in range(x0, x1 + 1):
+                    h = hy * _filter_density(fcdf, support, fx - (px + 0.5))
+                    if h == 0.0:
+                        continue
+                    pix[count] = py * W + px
+                    rgb[count, 0] = c[0] * h
+                    rgb[count, 1] = c[1] * h
+                    rgb[count, 2] = c[2] * h
+                    count += 1
+            break
+    counts[0] = count
+    counts[1] = rays
