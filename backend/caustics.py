@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .kernels import materials as km
-from .kernels.caustics import (P_DS, P_DT, P_FAR, P_H, P_INV, P_N, P_NEAR, P_O, P_SUPPORT, P_TL, P_W, PROJ_SIZE,
-                               CausticTables)
+from .kernels.caustics import (P_CROP, P_DS, P_DT, P_FAR, P_H, P_INV, P_N, P_NEAR, P_O, P_SUPPORT, P_TL, P_W,
+                               PROJ_SIZE, CausticTables)
 from .kernels.lights import area as _area
 from .kernels.lights import sun as _sun
 
@@ -64,8 +64,9 @@ def can_be_delta(mt, plain: np.ndarray) -> np.ndarray:
     return out
 
 
-def _projection(camera, width: int, height: int, support: float) -> np.ndarray:
-    """The camera as kernels/caustics.py ``project`` reads it (columns P_*)."""
+def _projection(camera, width: int, height: int, support: float, crop=None) -> np.ndarray:
+    """The camera as kernels/caustics.py ``project`` reads it (columns P_*), and the pixels that
+    are rendered (a crop: the splats stay inside it, as the samples do)."""
     M = np.asarray(camera.to_world, np.float64)
     A = M[:3, :3]
     frame = np.asarray(camera.frame, np.float64)       # tr, br, bl, tl (camera space)
@@ -89,6 +90,7 @@ def _projection(camera, width: int, height: int, support: float) -> np.ndarray:
     p[P_W] = width
     p[P_H] = height
     p[P_SUPPORT] = support
+    p[P_CROP:P_CROP + 4] = crop if crop is not None else (0, 0, width, height)
     return p
 
 
@@ -144,7 +146,7 @@ def plan_caustics(scene, tracer) -> CausticPlan:
     cdf = np.concatenate([[0.0], np.cumsum(weight) / weight.sum()])
     cdf[-1] = 1.0
     pf = scene.pixel_filter
-    proj = _projection(cam, scene.width, scene.height, pf.support)
+    proj = _projection(cam, scene.width, scene.height, pf.support, getattr(scene, "crop", None))
     tables = CausticTables(lights, cdf, np.array([*center, radius, far]), proj,
                            np.ascontiguousarray(pf._cdf, np.float64), np.int64(tracer.max_segments - 2),
                            np.uint64((int(s.seed) + PHOTON_SEED_SALT) % (1 << 64)))

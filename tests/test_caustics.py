@@ -158,3 +158,15 @@ def test_a_scene_it_serves_says_so():
     plan = plan_caustics(sc, PathTracer(sc, Accelerator(sc.soup)))
     # the sun and the area light; the world (the last light) stays with the path tracer
     assert plan.active and plan.reason == "" and plan.light.tolist() == [True, True, False]
+
+
+def test_a_crop_gets_no_caustic_outside_it():
+    """The splats stay inside a crop, as the camera samples do; inside it the caustic is there."""
+    data = _scene(4, 1, 1.0)
+    data["film"]["crop"] = [4, 14, 20, 22]          # the floor in front of the ball, its caustics
+    film = render(data).film
+    img = film.combined()
+    inside = np.zeros(img.shape[:2], bool)
+    inside[14:22, 4:20] = True
+    assert film.photons > 0 and np.all(img[~inside] == 0.0)
+    assert film.caustic.reshape(img.shape)[inside].sum() > 0.0

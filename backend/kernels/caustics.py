@@ -77,7 +77,8 @@ CausticTables = namedtuple("CausticTables", ["lights", "cdf", "sphere", "proj", 
 
 P_O, P_TL, P_N, P_DS, P_DT, P_INV = 0, 3, 6, 9, 12, 15     # 3, 3, 3, 3, 3, 9 columns
 P_NEAR, P_FAR, P_W, P_H, P_SUPPORT = 24, 25, 26, 27, 28
-PROJ_SIZE = 29
+P_CROP = 29                     # 4: the pixels rendered, x0, y0, x1, y1 (ends excluded)
+PROJ_SIZE = 33
 
 # Photon dimensions (hashed: one photon is one sample of a 2-D-per-vertex integral, and the
 # photons of a render are many; stratifying them would need a sequence over items).
@@ -189,7 +190,6 @@ def trace_photons(tables, CT, embree, pixel0, sample0, n, pix, rgb, counts):
     f32, w32, addr = _aligned_block(rayhit)
     proj, fcdf = CT.proj, CT.fcdf
     W = int(proj[P_W])
-    H = int(proj[P_H])
     support = proj[P_SUPPORT]
     half = 0.5 * support
     R = G.rows
@@ -301,11 +301,11 @@ def trace_photons(tables, CT, embree, pixel0, sample0, n, pix, rgb, counts):
             if occluded_one(fn_occ, scene, f32, w32, addr, _offset(p, ng, w_cam), w_cam, reach):
                 break
             fx = s * W
-            fy = tt * H
-            x0 = max(int(math.ceil(fx - 0.5 - half)), 0)
-            x1 = min(int(math.floor(fx - 0.5 + half)), W - 1)
-            y0 = max(int(math.ceil(fy - 0.5 - half)), 0)
-            y1 = min(int(math.floor(fy - 0.5 + half)), H - 1)
+            fy = tt * proj[P_H]
+            x0 = max(int(math.ceil(fx - 0.5 - half)), int(proj[P_CROP]))
+            x1 = min(int(math.floor(fx - 0.5 + half)), int(proj[P_CROP + 2]) - 1)
+            y0 = max(int(math.ceil(fy - 0.5 - half)), int(proj[P_CROP + 1]))
+            y1 = min(int(math.floor(fy - 0.5 + half)), int(proj[P_CROP + 3]) - 1)
             for py in range(y0, y1 + 1):
                 hy = _filter_density(fcdf, support, fy - (py + 0.5))
                 if hy == 0.0:
