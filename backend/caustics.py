@@ -22,13 +22,20 @@ PHOTON_SEED_SALT = 0xC0FFEE5EED
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
+#: Glossy materials at least this sharp (GGX/Beckmann α of the reflecting surface: a metal, the
+#: top of a coat) pass photons on as smooth ones do: their caustics (a polished metal ball's
+#: light on the floor) are the light tracer's too. Path tracing finds them by light sampling
+#: at the glossy surface, whose lobe weighs the light's points very unequally when it is narrow.
+CAUSTIC_ALPHA = 0.1
+
+
 @dataclass
 class CausticPlan:
     tables: CausticTables | None     # None: not light traced
     light: np.ndarray                # (lights,) bool, covered; empty when not light traced
     plain: np.ndarray                # (materials,) bool; empty when not light traced
+    caster: np.ndarray               # (materials,) bool: photons pass through; empty likewise
     reason: str                      # why not ("" when light traced)
-    splats_per_photon: int = 0       # room one photon may need in the splat buffers
 
     @property
     def active(self) -> bool:
@@ -36,7 +43,7 @@ class CausticPlan:
 
 
 def _off(reason: str) -> CausticPlan:
-    return CausticPlan(None, np.zeros(0, np.bool_), np.zeros(0, np.bool_), reason)
+    return CausticPlan(None, np.zeros(0, np.bool_), np.zeros(0, np.bool_), np.zeros(0, np.bool_), reason)
 
 
 def plain_materials(mt) -> np.ndarray:
@@ -61,6 +68,25 @@ def can_be_delta(mt, plain: np.ndarray) -> np.ndarray:
             continue
         textured = mt.tex[m, au] >= 0 or mt.tex[m, av] >= 0
         out[m] = textured or (mt.values[m, au] <= 0.0 and mt.values[m, av] <= 0.0)
+    return out
+
+
+def sharp_glossy(mt, plain: np.ndarray) -> np.ndarray:
+    """Plain glossy materials whose reflecting surface has α ≤ CAUSTIC_ALPHA everywhere
+    (untextured roughness): rough metals and dielectrics, a coated kind's top (closed form or
+    table)."""
+    from .kernels.bsdf import tabulated as _tab
+    out = np.zeros(len(mt.kind), np.bool_)
+    for m, k in enumerate(mt.kind):
+        if not plain[m]:
+            continue
+        if k in (km.DIELECTRIC, km.CONDUCTOR, km.COATED_DIFFUSE):
+            au, av = {km.DIELECTRIC: (km.D_AU, km.D_AV), km.CONDUCTOR: (km.AU, km.AV),
+                      km.COATED_DIFFUSE: (km.CD_AU, km.CD_AV)}[int(k)]
+            if mt.tex[m, au] < 0 and mt.tex[m, av] < 0:
+                out[m] = max(mt.values[m, au], mt.values[m, av]) <= CAUSTIC_ALPHA
+        elif k == km.TABULATED:
+            out[m] = mt.tables[int(mt.values[m, km.TB_TAB]) + _tab.H_ALPHA] <= CAUSTIC_ALPHA
     return out
 
 
@@ -116,13 +142,13 @@ def plan_caustics(scene, tracer) -> CausticPlan:
         return _off("Clamp Indirect is on")
     mt = tracer.materials
     plain = plain_materials(mt)
-    delta = can_be_delta(mt, plain)
+    caster = can_be_delta(mt, plain) | sharp_glossy(mt, plain)
     soup = tracer.soup
     if soup.count == 0:
         return _off("no triangles")
-    casters = delta[np.asarray(soup.material)]
+    casters = caster[np.asarray(soup.material)]
     if not casters.any():
-        return _off("no smooth glass or mirror")
+        return _off("no smooth glass, mirror or sharp glossy surface")
     lt = tracer.light_table
     covered = np.zeros(len(tracer.lights), np.bool_)
     for li in range(len(tracer.lights)):
@@ -150,8 +176,7 @@ def plan_caustics(scene, tracer) -> CausticPlan:
     tables = CausticTables(lights, cdf, np.array([*center, radius, far]), proj,
                            np.ascontiguousarray(pf._cdf, np.float64), np.int64(tracer.max_segments - 2),
                            np.uint64((int(s.seed) + PHOTON_SEED_SALT) % (1 << 64)))
-    side = int(np.floor(pf.support)) + 2
-    return CausticPlan(tables, covered, plain, "", side * side)
+    return CausticPlan(tables, covered, plain, caster, "")
 
 
 def _flux_estimate(lt, li: int, center: np.ndarray, radius: float) -> float:

@@ -21,7 +21,7 @@ from .geometry.accel import NO_TIMES
 from .kernels import integrator as ki
 from .kernels import materials as km
 from .kernels.camera import camera_rays, camera_vector
-from .kernels.caustics import trace_photons
+from .kernels.caustics import P_SUPPORT, trace_photons
 from .kernels.item_loop import ONE_SEGMENT, STOPPED, TRACED_SEGMENT, WHOLE_ITEM, run_item, start_lanes
 from .kernels.layered import batch as layered_batch
 from .kernels.layered.table import H_MAXV, H_PDF, H_TRANS, LOBES
@@ -216,6 +216,7 @@ class PathTracer:
             sampler=SAMPLERS[s.sampler], stratified_bounces=STRATIFIED_BOUNCES, nee_all=nee_all,
             defer_pdf=defer_pdf, probed=self._probed_lights(mesh_light),
             caustic_light=self.caustics.light, caustic_plain=self.caustics.plain,
+            caustic_caster=self.caustics.caster,
             **kernel_values(s), **self.vis.kernel_fields())
         self.camera = camera_vector(scene.camera)
         self.camera_motion = np.ascontiguousarray(scene.camera.motion_delta, np.float64)
@@ -266,7 +267,8 @@ class PathTracer:
         self.camera = camera_vector(camera)
         self.caustics = plan_caustics(self.scene, self)
         self.settings = self.settings._replace(caustic_light=self.caustics.light,
-                                               caustic_plain=self.caustics.plain)
+                                               caustic_plain=self.caustics.plain,
+                                               caustic_caster=self.caustics.caster)
         self.camera_motion = np.ascontiguousarray(camera.motion_delta, np.float64)
         self.pass_params = self._pass_params(camera)
 
@@ -387,19 +389,28 @@ class PathTracer:
         worker count). Returns ((photons, flat pixel indices, RGB splats), rays traced)."""
         n = int(round(self.scene.settings.caustic_photons * pixels.size * spp))
         plan = self.caustics
-        room = n * plan.splats_per_photon
+        side = int(plan.tables.proj[P_SUPPORT]) + 2
+        # room for the usual splats (measured on the demo: 2.8 per photon); more resumes the kernel
+        room = max(2 * side * n, 4 * side * side * (int(plan.tables.max_casters) + 1))
         pix = np.empty(room, np.int64)
         rgb = np.empty((room, 3))
         q = self.accel.queries
         if not q.direct.committed:
             q.commit()
         embree = (q._intersect_fn, q._occluded_fn, q.direct.handle, q.offset1, sc.rayhit)
-        counts = np.zeros(2, np.int64)
-        trace_photons(self.tables(), plan.tables, embree, int(pixels[0]) if pixels.size else 0,
-                      int(sample0), n, pix, rgb, counts)
-        k = int(counts[0])
-        self.accel.rays_traced += int(counts[1])
-        return (n, pix[:k].copy(), rgb[:k].copy()), int(counts[1])
+        counts = np.zeros(3, np.int64)
+        pixel0 = int(pixels[0]) if pixels.size else 0
+        parts, rays, j = [], 0, 0
+        while j < n:                     # more than once only where splats overflow the buffers
+            trace_photons(self.tables(), plan.tables, embree, pixel0, int(sample0), j, n, pix, rgb, counts)
+            k = int(counts[0])
+            parts.append((pix[:k].copy(), rgb[:k].copy()))
+            rays += int(counts[1])
+            j = int(counts[2])
+        self.accel.rays_traced += rays
+        if len(parts) == 1:
+            return (n, *parts[0]), rays
+        return (n, np.concatenate([a for a, _ in parts]), np.concatenate([b for _, b in parts])), rays
 
     def _trace_segment(self, sc, cur, segment: int, active: int, lane_time) -> int:
         """The closest hits of this segment's rays, traced here into the loop's hit arrays (for

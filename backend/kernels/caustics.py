@@ -1,31 +1,37 @@
-"""Caustics by light tracing: paths light → smooth glass or mirror (one or more delta vertices)
-→ a surface the camera sees, traced from the light and splatted onto the film.
+"""Caustics by light tracing: paths light → smooth glass, mirrors or sharp glossy surfaces (the
+*casters*) → a surface the camera sees, traced from the light and splatted onto the film.
 
 Why: a path tracer finds such a path only when a BSDF-sampled ray from the seen surface happens
 to pass through the glass into the light's small solid angle (a sun's disk, a lamp seen through
-a lens), so the sun's caustic under a glass ball is a scatter of rare, bright samples (the demo:
-most of its variance). From the light the same paths are easy: aim at the glass, refract through
-it, and connect the first other surface to the camera.
+a lens), or when a light sample at a polished metal lands in its narrow lobe, so the sun's
+caustic under a glass ball is a scatter of rare, bright samples (fireflies). From the light the
+same paths are easy: aim at the caster, pass through it, and connect the next surface to the
+camera.
 
 The two estimators share the work by a partition, so nothing is counted twice and nothing is
 lost. A path belongs to the light tracer exactly when
-  * its camera ray hits a *plain* material (kernels/integrator.py ``caustic_plain``: no mix, no
-    layered stack, no normal map or bump) whose continuation there is not a delta lobe,
-  * every vertex after it up to the light is a delta vertex of a plain material (smooth
-    dielectric or conductor, ``materials.is_delta_only``), at least one of them, and at most
-    max_bounces of them,
+  * its camera ray hits a *plain* material (``Settings.caustic_plain``: no mix, no layered stack
+    that keeps the random walk, no normal map or bump) whose continuation there is not a delta
+    lobe,
+  * every vertex after it up to the light is a caster of a plain material
+    (``Settings.caustic_caster``: smooth dielectrics and conductors, glossy kinds with α ≤
+    backend/caustics.py CAUSTIC_ALPHA), at least one and at most max_bounces of them, none
+    with a shading normal the path tracer bends for its view direction,
   * and the light is *covered* (``CausticTables.lights``: an area light or a sun with an angle;
     the path tracer cannot find a delta light through glass at all, so those stay uncounted,
     as before and as in Cycles).
-The path tracer drops the emission of exactly those paths (``CAUSTIC_CHAIN``); this kernel traces
-photons from the covered lights towards a sphere around every triangle whose material can be a
-delta one (the casters), so every such path has a positive density here.
+The path tracer drops exactly those paths (kernels/integrator.py: the ray leaving the camera hit
+carries ``CAUSTIC_FROM``, a caster vertex reached by such a ray takes no light sample of a
+covered light and no mirror probe, and its continuation carries ``CAUSTIC_CHAIN``, whose covered
+lights carry nothing). This kernel traces photons from the covered lights towards a sphere
+around every caster triangle, so every such path has a positive density here; at each surface a
+photon reaches after a caster it splats (if the camera sees it), and a caster passes it on.
 
 Estimator (one photon; N photons per render, ``FilmAccumulator``): the photon leaves light ``li``
 (chosen with probability P_li) with flux Φ = L_e cos θ_e / (P_li · pdf(position, direction)),
-passes the delta vertices with the adjoint weights (importance-mode BSDF weight times
-|ω_in·n_s||ω_out·n_g| / (|ω_in·n_g||ω_out·n_s|), Veach 1997 §5.3: shading normals), and at the
-first other surface x adds to pixel q
+passes the casters with the adjoint weights (importance-mode BSDF sample weight times
+|ω_in·n_s||ω_out·n_g| / (|ω_in·n_g||ω_out·n_s|), Veach 1997 §5.3: shading normals), and at a
+surface x adds to pixel q
 
     Φ · f(ω_cam, ω_in) |ω_in·n_s| / |ω_in·n_g| · |ω_cam·n_g| / r² · J · h_q(film position)
 
@@ -50,7 +56,7 @@ import numpy as np
 from . import materials as km
 from .bsdf import IMPORTANCE, RADIANCE
 from .integrator import _interp3, _offset, _valid_reflection_normal
-from .jit import kernel
+from .jit import inlined, kernel
 from .lights import area as _area
 from .lights import sun as _sun
 from .lights.common import get3, sample_cone, sin2_to_one_minus_cos
@@ -71,9 +77,9 @@ from .warp import disk_concentric
 #:                            photons start (beyond every triangle)
 #:   proj       (PROJ_SIZE,)  the camera as a projection (columns P_* below)
 #:   fcdf       (m + 1,)      the pixel filter's cumulative table (backend/film.py PixelFilter)
-#:   max_delta  int           delta vertices a photon may pass (max_bounces)
+#:   max_casters int          caster vertices a photon may pass (max_bounces)
 #:   seed       uint64        the photons' random-number seed
-CausticTables = namedtuple("CausticTables", ["lights", "cdf", "sphere", "proj", "fcdf", "max_delta", "seed"])
+CausticTables = namedtuple("CausticTables", ["lights", "cdf", "sphere", "proj", "fcdf", "max_casters", "seed"])
 
 P_O, P_TL, P_N, P_DS, P_DT, P_INV = 0, 3, 6, 9, 12, 15     # 3, 3, 3, 3, 3, 9 columns
 P_NEAR, P_FAR, P_W, P_H, P_SUPPORT = 24, 25, 26, 27, 28
@@ -181,22 +187,23 @@ def _emit(LT, CT, key):
 
 
 @kernel(nogil=True)
-def trace_photons(tables, CT, embree, pixel0, sample0, n, pix, rgb, counts):
-    """Photons 0 … n−1 of the work item keyed (pixel0, sample0); their splats go to pix (flat
-    pixel index) and rgb, whose room must be n × (⌊support⌋ + 2)² rows. ``counts`` (int64[2])
-    out: [splats, rays traced]."""
+def trace_photons(tables, CT, embree, pixel0, sample0, j0, n, pix, rgb, counts):
+    """Photons j0 … n−1 of the work item keyed (pixel0, sample0), while the splat buffers (pix:
+    flat pixel index, rgb) have room for one more photon's worst case, (⌊support⌋ + 2)² splats
+    at each of max_casters + 1 surfaces. ``counts`` (int64[3]) out: [splats, rays traced, the
+    next photon to trace (n when done)]."""
     G, MT, TX, LT, S, PS, ST = tables
     fn_hit, fn_occ, scene, offset1, rayhit = embree
     f32, w32, addr = _aligned_block(rayhit)
-    proj, fcdf = CT.proj, CT.fcdf
-    W = int(proj[P_W])
-    support = proj[P_SUPPORT]
-    half = 0.5 * support
     R = G.rows
     count = 0
     rays = 0
-    for j in range(n if CT.lights.shape[0] > 0 else 0):
-        key = path_key(CT.seed, pixel0, np.uint64(sample0) * np.uint64(1 << 32) + np.uint64(j))
+    side = int(CT.proj[P_SUPPORT]) + 2
+    worst = side * side * (CT.max_casters + 1)
+    j = j0 if CT.lights.shape[0] > 0 else n
+    while j < n and count + worst <= pix.shape[0]:
+        j += 1
+        key = path_key(CT.seed, pixel0, np.uint64(sample0) * np.uint64(1 << 32) + np.uint64(j - 1))
         o, d, beta = _emit(LT, CT, key)
         if not (beta[0] > 0.0 or beta[1] > 0.0 or beta[2] > 0.0):
             continue
@@ -229,96 +236,111 @@ def trace_photons(tables, CT, embree, pixel0, sample0, n, pix, rgb, counts):
             kind = MT.kind[m]
             prm = km.bind(MT, TX, m, u, v)
             w_in = (-d[0], -d[1], -d[2])        # towards where the photon came from
-            if km.is_delta_only(kind, prm):
-                if nd >= CT.max_delta:
+            delta = km.is_delta_only(kind, prm)
+            if not delta:
+                # a surface the caustic lights (if a caster came first): seen by the camera?
+                if nd > 0 and not G.holdout[pr]:
+                    count, seen = _connect(MT, G, CT, fn_occ, scene, f32, w32, addr, p, ng, ns, tan, m, kind, prm,
+                                           w_in, beta, pix, rgb, count)
+                    rays += seen
+                if not S.caustic_caster[m]:
                     break
-                # The path tracer's view direction here is the photon's outgoing one, known only
-                # after sampling. A two-sided material (a mirror) reflects to the side the photon
-                # came from, so its flip is taken from w_in and checked after sampling; where the
-                # path tracer would bend the normal for w_out (``_valid_reflection_normal``, at
-                # grazing reflections) the path stays the path tracer's (its CAUSTIC_CHAIN needs
-                # an unbent normal), so the photon ends.
-                if MT.two_sided[m] and _dot(w_in, ng) < 0.0:
-                    ng = (-ng[0], -ng[1], -ng[2])
-                    ns = (-ns[0], -ns[1], -ns[2])
-                if MT.two_sided[m] and _dot(w_in, ns) <= 0.0:
-                    ns = ng
-                fs, ft = _frame(ns, tan)
-                wl = _local(fs, ft, ns, w_in)
-                # the path tracer continues along w_in from here: its leak guard
-                if not (_dot(w_in, ng) * wl[2] > 0.0):
-                    break
-                k3 = D_VERTEX + 3 * nd
-                wo, weight, _pdf, sdelta = km.sample(MT.tables, kind, MT.dist[m], MT.masking[m], prm, IMPORTANCE,
-                                                     wl, uniform(key, k3), uniform(key, k3 + 1), uniform(key, k3 + 2))
-                if not sdelta or not (wo[2] != 0.0):
-                    break
-                w_out = _world(fs, ft, ns, wo)
-                if MT.two_sided[m] and not (_dot(w_out, ng) > 0.0):
-                    break
-                if G.has_normals:
-                    nv = _valid_reflection_normal(w_out, ns, ng)
-                    if nv[0] != ns[0] or nv[1] != ns[1] or nv[2] != ns[2]:
-                        break
-                adj = abs(wl[2]) * abs(_dot(w_out, ng)) / (abs(_dot(w_in, ng)) * abs(wo[2]))
-                beta = (beta[0] * weight[0] * adj, beta[1] * weight[1] * adj, beta[2] * weight[2] * adj)
-                if not (beta[0] > 0.0 or beta[1] > 0.0 or beta[2] > 0.0):
-                    break
-                nd += 1
-                o = _offset(p, ng, w_out)
-                d = w_out
-                continue
-            # the first surface that is not a delta one: a caustic if glass or a mirror came first
-            if nd == 0 or G.holdout[pr]:
+            if nd >= CT.max_casters:
                 break
-            s, tt, J, r, reach = project(proj, p)
-            if not J > 0.0:
-                break
-            w_cam = ((proj[P_O] - p[0]) / r, (proj[P_O + 1] - p[1]) / r, (proj[P_O + 2] - p[2]) / r)
-            # the shading frame exactly as the path tracer builds it at its camera hit
-            if MT.two_sided[m]:
-                if _dot(w_cam, ng) < 0.0:
-                    ng = (-ng[0], -ng[1], -ng[2])
-                    ns = (-ns[0], -ns[1], -ns[2])
-                if _dot(w_cam, ns) <= 0.0:
-                    ns = ng
-            if G.has_normals:
-                ns = _valid_reflection_normal(w_cam, ns, ng)
+            # Pass the photon on (a delta vertex, or a sharp glossy caster). The path tracer's
+            # view direction here is the photon's outgoing one, known only after sampling. A
+            # two-sided material (a metal) reflects to the side the photon came from, so its flip
+            # is taken from w_in and checked after sampling; where the path tracer would bend
+            # the normal for w_out (``_valid_reflection_normal``, at grazing reflections) the
+            # path stays the path tracer's (its CAUSTIC_CHAIN needs an unbent normal): the
+            # photon ends.
+            if MT.two_sided[m] and _dot(w_in, ng) < 0.0:
+                ng = (-ng[0], -ng[1], -ng[2])
+                ns = (-ns[0], -ns[1], -ns[2])
+            if MT.two_sided[m] and _dot(w_in, ns) <= 0.0:
+                ns = ng
             fs, ft = _frame(ns, tan)
-            wi_l = _local(fs, ft, ns, w_cam)
-            wo_l = _local(fs, ft, ns, w_in)
-            cin = _dot(w_in, ng)
-            if not (cin * wo_l[2] > 0.0):       # the path tracer's leak guard on its continuation
+            wl = _local(fs, ft, ns, w_in)
+            # the path tracer continues along w_in from here: its leak guard
+            if not (_dot(w_in, ng) * wl[2] > 0.0):
                 break
-            fv, _pdf = km.eval_pdf(MT.tables, kind, MT.dist[m], MT.masking[m], prm, RADIANCE, wi_l, wo_l)
-            g = abs(_dot(w_cam, ng)) / (abs(cin) * r * r) * J
-            c = (beta[0] * fv[0] * g, beta[1] * fv[1] * g, beta[2] * fv[2] * g)
-            if not (c[0] > 0.0 or c[1] > 0.0 or c[2] > 0.0):
+            k3 = D_VERTEX + 3 * nd
+            wo, weight, _pdf, sdelta = km.sample(MT.tables, kind, MT.dist[m], MT.masking[m], prm, IMPORTANCE,
+                                                 wl, uniform(key, k3), uniform(key, k3 + 1), uniform(key, k3 + 2))
+            if (delta and not sdelta) or not (wo[2] != 0.0):
                 break
-            if not (math.isfinite(c[0]) and math.isfinite(c[1]) and math.isfinite(c[2])):
+            w_out = _world(fs, ft, ns, wo)
+            if MT.two_sided[m] and not (_dot(w_out, ng) > 0.0):
                 break
-            rays += 1
-            if occluded_one(fn_occ, scene, f32, w32, addr, _offset(p, ng, w_cam), w_cam, reach):
+            if G.has_normals:
+                nv = _valid_reflection_normal(w_out, ns, ng)
+                if nv[0] != ns[0] or nv[1] != ns[1] or nv[2] != ns[2]:
+                    break
+            adj = abs(wl[2]) * abs(_dot(w_out, ng)) / (abs(_dot(w_in, ng)) * abs(wo[2]))
+            beta = (beta[0] * weight[0] * adj, beta[1] * weight[1] * adj, beta[2] * weight[2] * adj)
+            if not (beta[0] > 0.0 or beta[1] > 0.0 or beta[2] > 0.0):
                 break
-            fx = s * W
-            fy = tt * proj[P_H]
-            x0 = max(int(math.ceil(fx - 0.5 - half)), int(proj[P_CROP]))
-            x1 = min(int(math.floor(fx - 0.5 + half)), int(proj[P_CROP + 2]) - 1)
-            y0 = max(int(math.ceil(fy - 0.5 - half)), int(proj[P_CROP + 1]))
-            y1 = min(int(math.floor(fy - 0.5 + half)), int(proj[P_CROP + 3]) - 1)
-            for py in range(y0, y1 + 1):
-                hy = _filter_density(fcdf, support, fy - (py + 0.5))
-                if hy == 0.0:
-                    continue
-                for px in range(x0, x1 + 1):
-                    h = hy * _filter_density(fcdf, support, fx - (px + 0.5))
-                    if h == 0.0:
-                        continue
-                    pix[count] = py * W + px
-                    rgb[count, 0] = c[0] * h
-                    rgb[count, 1] = c[1] * h
-                    rgb[count, 2] = c[2] * h
-                    count += 1
-            break
+            nd += 1
+            o = _offset(p, ng, w_out)
+            d = w_out
     counts[0] = count
     counts[1] = rays
+    counts[2] = j
+
+
+@inlined
+def _connect(MT, G, CT, fn_occ, scene, f32, w32, addr, p, ng, ns, tan, m, kind, prm, w_in, beta, pix, rgb, count):
+    """The photon's splats at surface point p lit from w_in, if the camera sees p: (new splat
+    count, rays traced)."""
+    proj, fcdf = CT.proj, CT.fcdf
+    s, tt, J, r, reach = project(proj, p)
+    if not J > 0.0:
+        return count, 0
+    w_cam = ((proj[P_O] - p[0]) / r, (proj[P_O + 1] - p[1]) / r, (proj[P_O + 2] - p[2]) / r)
+    # the shading frame exactly as the path tracer builds it at its camera hit
+    if MT.two_sided[m]:
+        if _dot(w_cam, ng) < 0.0:
+            ng = (-ng[0], -ng[1], -ng[2])
+            ns = (-ns[0], -ns[1], -ns[2])
+        if _dot(w_cam, ns) <= 0.0:
+            ns = ng
+    if G.has_normals:
+        ns = _valid_reflection_normal(w_cam, ns, ng)
+    fs, ft = _frame(ns, tan)
+    wi_l = _local(fs, ft, ns, w_cam)
+    wo_l = _local(fs, ft, ns, w_in)
+    cin = _dot(w_in, ng)
+    if not (cin * wo_l[2] > 0.0):       # the path tracer's leak guard on its continuation
+        return count, 0
+    fv, _pdf = km.eval_pdf(MT.tables, kind, MT.dist[m], MT.masking[m], prm, RADIANCE, wi_l, wo_l)
+    g = abs(_dot(w_cam, ng)) / (abs(cin) * r * r) * J
+    c = (beta[0] * fv[0] * g, beta[1] * fv[1] * g, beta[2] * fv[2] * g)
+    if not (c[0] > 0.0 or c[1] > 0.0 or c[2] > 0.0):
+        return count, 0
+    if not (math.isfinite(c[0]) and math.isfinite(c[1]) and math.isfinite(c[2])):
+        return count, 0
+    if occluded_one(fn_occ, scene, f32, w32, addr, _offset(p, ng, w_cam), w_cam, reach):
+        return count, 1
+    support = proj[P_SUPPORT]
+    half = 0.5 * support
+    W = int(proj[P_W])
+    fx = s * W
+    fy = tt * proj[P_H]
+    x0 = max(int(math.ceil(fx - 0.5 - half)), int(proj[P_CROP]))
+    x1 = min(int(math.floor(fx - 0.5 + half)), int(proj[P_CROP + 2]) - 1)
+    y0 = max(int(math.ceil(fy - 0.5 - half)), int(proj[P_CROP + 1]))
+    y1 = min(int(math.floor(fy - 0.5 + half)), int(proj[P_CROP + 3]) - 1)
+    for py in range(y0, y1 + 1):
+        hy = _filter_density(fcdf, support, fy - (py + 0.5))
+        if hy == 0.0:
+            continue
+        for px in range(x0, x1 + 1):
+            h = hy * _filter_density(fcdf, support, fx - (px + 0.5))
+            if h == 0.0:
+                continue
+            pix[count] = py * W + px
+            rgb[count, 0] = c[0] * h
+            rgb[count, 1] = c[1] * h
+            rgb[count, 2] = c[2] * h
+            count += 1
+    return count, 1

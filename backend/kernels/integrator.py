@@ -69,7 +69,7 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
                                    "glossy_light_samples", "track", "gated", "links", "shadow_linked", "tri_recv",
                                    "light_vis", "light_recv", "light_shadow", "emit_vis",
                                    "emit_recv", "mat_refl", "defer_pdf", "probed", "caustic_light",
-                                   "caustic_plain"])
+                                   "caustic_plain", "caustic_caster"])
 # Ray visibility and light/shadow linking (scene/links.py; integrator.py builds the tables):
 #   track         the lanes' ray types matter (the next ray's type is written: ``_lobe_class``)
 #   gated         next-event estimation and emission found by BSDF sampling are filtered per
@@ -91,8 +91,9 @@ Settings = namedtuple("Settings", ["seed", "max_segments", "rr_depth", "clamp", 
 # light sampling competes for (``_light_hit``), not for every continuation: its walks cost about a
 # third of a layered vertex, and most continuations never need it (integrator.py decides).
 # caustic_light: per light, whether light tracing takes its caustics (kernels/caustics.py);
-# caustic_plain: per material, whether the photons understand it. Both empty where the scene's
-# caustics are path traced only (backend/caustics.py says when).
+# caustic_plain: per material, whether the photons understand it; caustic_caster: whether the
+# photons pass through it (smooth glass and mirrors, sharp glossy kinds). All three empty where
+# the scene's caustics are path traced only (backend/caustics.py says when).
 # Ray-type bits (scene/links.py).
 RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT = 1, 2, 4, 8
 # Not a ray type: the ray continues a camera path that has met only mirrors and smooth glass, so
@@ -868,10 +869,15 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
         bent = False
         if G.has_normals or mapped:
             nv = _valid_reflection_normal(wi, ns, ng)
-            # a bent normal depends on the view direction: a delta vertex bent here cannot be
-            # retraced from the light, so its path stays the path tracer's (kernels/caustics.py)
+            # a bent normal depends on the view direction: a vertex bent here cannot be retraced
+            # from the light, so its path stays the path tracer's (kernels/caustics.py)
             bent = nv[0] != ns[0] or nv[1] != ns[1] or nv[2] != ns[2]
             ns = nv
+        # A caster vertex of a caustic path the photons take (kernels/caustics.py): its light
+        # samples of the covered lights, its mirror probe and the covered lights its
+        # continuation finds are theirs.
+        in_chain = (caustics and (rt & (CAUSTIC_FROM | CAUSTIC_CHAIN)) != 0 and S.caustic_caster[m_surface]
+                    and not bent)
         fs, ft = _frame(ns, tan)
         wi_l = _local(fs, ft, ns, wi)
         # 4a. light sample (shared with layered lanes) from the sampler's 2-D slots of this bounce.
@@ -916,6 +922,8 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                     S, LT, TX, li, p, ul0, ul1, fs, ft, ns, ng)
                 if live and S.gated:
                     live = _allowed(S, li, etri, rs, _lobe_class(S, kind, m, wi_l[2] * wo_n[2] > 0.0))
+                if live and in_chain and S.caustic_light[li]:
+                    live = False
         if kind == km.LAYERED:
             # 4b + 5 for a layered stack: one per-lane call (shared walks).
             counts[2] += 1
@@ -939,6 +947,11 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                      S.light_shadow[li], shadows, counts)
             if not last and (weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0):
                 nrt = _lobe_class(S, kind, m, wi_l[2] * wo[2] > 0.0) if S.track else 0
+                if caustics and S.caustic_plain[m_surface]:
+                    if camera:
+                        nrt |= CAUSTIC_FROM if not sdelta else 0
+                    elif in_chain:
+                        nrt |= CAUSTIC_CHAIN
                 k0 = counts[0]
                 _continue(S, segment, sl, key[i], bt, p, ng,
                           Continuation(_world(fs, ft, ns, wo), wo[2], weight, spdf,
@@ -980,6 +993,8 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                                                                        fs, ft, ns, ng)
                 if live_k and S.gated:
                     live_k = _allowed(S, lk, etri, rs, _lobe_class(S, kind, m, wi_l[2] * wok[2] > 0.0))
+                if live_k and in_chain and S.caustic_light[lk]:
+                    live_k = False
                 if live_k:
                     f, bpdf = km.eval_pdf(MT.tables, kind, dist_code, mask_code, prm, 0, wi_l, wok)
                     _nee(S, segment, sl, bt, p, ng, LightSample(wk, dk, vk, pk, dlk), float(reps), f, bpdf,
@@ -997,6 +1012,8 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                             S, LT, TX, li, p, ul0, ul1, fs, ft, ns, ng)
                         if live and S.gated:
                             live = _allowed(S, li, etri, rs, _lobe_class(S, kind, m, wi_l[2] * wo_n[2] > 0.0))
+                if live and in_chain and S.caustic_light[li]:
+                    live = False
                 if live:
                     f, bpdf = km.eval_pdf(MT.tables, kind, dist_code, mask_code, prm, 0, wi_l, wo_n)
                     _nee(S, segment, sl, bt, p, ng, LightSample(wi_w, dist, value, lpdf, is_delta), sel_p * reps,
@@ -1010,9 +1027,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
         # meets, every sample
         probed = False
         top_share = 0.0
-        # (not at a delta vertex of a caustic path the photons take: they count its mirror too)
-        in_chain = (caustics and (rt & (CAUSTIC_FROM | CAUSTIC_CHAIN)) != 0 and S.caustic_plain[m_surface]
-                    and delta_only and not bent)
+        # (not at a caster vertex of a caustic path the photons take: they count its mirror too)
         if S.probed.shape[0] > 0 and not last and not in_chain:
             refl = km.chosen_reflectance(MT.tables, kind, prm, wi_l)
             if refl > 0.0:
@@ -1048,7 +1063,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                     if camera:
                         if not delta_only and not sdelta:
                             nrt |= CAUSTIC_FROM
-                    elif in_chain and sdelta:
+                    elif in_chain:
                         nrt |= CAUSTIC_CHAIN
                 cont = Continuation(_world(fs, ft, ns, wo), wo[2], weight, spdf, via)
                 _continue(S, segment, sl, key[i], bt, p, ng, cont, nrt, rs, nxt, counts)
