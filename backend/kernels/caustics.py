@@ -11,8 +11,8 @@ camera.
 The two estimators share the work by a partition, so nothing is counted twice and nothing is
 lost. A path belongs to the light tracer exactly when
   * its camera ray hits a *plain* material (``Settings.caustic_plain``: no mix, no layered stack
-    that keeps the random walk, no normal map or bump) whose continuation there is not a delta
-    lobe,
+    that keeps the random walk, no normal map or bump) that is not a caster, and leaves it by a
+    lobe that is not a delta one (a coated kind's smooth top),
   * every vertex after it up to the light is a caster of a plain material
     (``Settings.caustic_caster``: smooth dielectrics and conductors, glossy kinds with α ≤
     backend/caustics.py CAUSTIC_ALPHA), at least one and at most max_bounces of them, none
@@ -24,8 +24,11 @@ The path tracer drops exactly those paths (kernels/integrator.py: the ray leavin
 carries ``CAUSTIC_FROM``, a caster vertex reached by such a ray takes no light sample of a
 covered light and no mirror probe, and its continuation carries ``CAUSTIC_CHAIN``, whose covered
 lights carry nothing). This kernel traces photons from the covered lights towards a sphere
-around every caster triangle, so every such path has a positive density here; at each surface a
-photon reaches after a caster it splats (if the camera sees it), and a caster passes it on.
+around every caster triangle, so every such path has a positive density here; a caster passes
+a photon on, and the first other surface it reaches after one splats it (if the camera sees
+it). Casters are not receivers: seen by the camera, a near-mirror shows a caustic by its own
+reflection, which the path tracer samples well and a splat, weighted by the narrow lobe's
+value, would turn into fireflies.
 
 Estimator (one photon; N photons per render, ``FilmAccumulator``): the photon leaves light ``li``
 (chosen with probability P_li) with flux Φ = L_e cos θ_e / (P_li · pdf(position, direction)),
@@ -237,14 +240,13 @@ def trace_photons(tables, CT, embree, pixel0, sample0, j0, n, pix, rgb, counts):
             prm = km.bind(MT, TX, m, u, v)
             w_in = (-d[0], -d[1], -d[2])        # towards where the photon came from
             delta = km.is_delta_only(kind, prm)
-            if not delta:
+            if not S.caustic_caster[m]:
                 # a surface the caustic lights (if a caster came first): seen by the camera?
                 if nd > 0 and not G.holdout[pr]:
                     count, seen = _connect(MT, G, CT, fn_occ, scene, f32, w32, addr, p, ng, ns, tan, m, kind, prm,
                                            w_in, beta, pix, rgb, count)
                     rays += seen
-                if not S.caustic_caster[m]:
-                    break
+                break
             if nd >= CT.max_casters:
                 break
             # Pass the photon on (a delta vertex, or a sharp glossy caster). The path tracer's

@@ -101,9 +101,10 @@ RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT = 1, 2, 4, 8
 # (as Cycles' denoising features follow specular bounces to what they show).
 FEATURES_PENDING = 128
 # Not ray types either: caustics that light tracing takes (kernels/caustics.py). CAUSTIC_FROM: the
-# ray left the camera's hit on a plain material by a non-delta lobe; CAUSTIC_CHAIN: it left a
-# plain delta vertex (smooth glass, a mirror) of such a path. The emission of a covered light
-# (``caustic_light``) that a CAUSTIC_CHAIN ray finds belongs to the photons: it is dropped here.
+# ray left the camera's hit on a plain material that is not a caster; CAUSTIC_CHAIN: it left a
+# caster vertex (smooth glass, a mirror, a sharp glossy surface) of such a path. The emission of
+# a covered light (``caustic_light``) that a CAUSTIC_CHAIN ray finds belongs to the photons: it
+# is dropped here.
 CAUSTIC_FROM = 16
 CAUSTIC_CHAIN = 32
 NO_RECEIVER = 64
@@ -947,11 +948,6 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                      S.light_shadow[li], shadows, counts)
             if not last and (weight[0] > 0.0 or weight[1] > 0.0 or weight[2] > 0.0):
                 nrt = _lobe_class(S, kind, m, wi_l[2] * wo[2] > 0.0) if S.track else 0
-                if caustics and S.caustic_plain[m_surface]:
-                    if camera:
-                        nrt |= CAUSTIC_FROM if not sdelta else 0
-                    elif in_chain:
-                        nrt |= CAUSTIC_CHAIN
                 k0 = counts[0]
                 _continue(S, segment, sl, key[i], bt, p, ng,
                           Continuation(_world(fs, ft, ns, wo), wo[2], weight, spdf,
@@ -1061,7 +1057,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                     nrt |= FEATURES_PENDING
                 if caustics and S.caustic_plain[m_surface]:
                     if camera:
-                        if not delta_only and not sdelta:
+                        if not S.caustic_caster[m_surface] and not sdelta:
                             nrt |= CAUSTIC_FROM
                     elif in_chain:
                         nrt |= CAUSTIC_CHAIN
