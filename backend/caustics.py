@@ -162,28 +162,49 @@ def plan_caustics(scene, tracer) -> CausticPlan:
             covered[li] = True
     if not covered.any():
         return _off("no area light or sun with an angle")
-    v = np.asarray(soup.vertices[casters], np.float64).reshape(-1, 3)
-    lo, hi = v.min(axis=0), v.max(axis=0)
-    center = 0.5 * (lo + hi)
-    radius = float(np.sqrt(((v - center) ** 2).sum(axis=1)).max()) * (1.0 + 1e-6) + 1e-6
+    spheres = caster_spheres(soup, casters)
     allv = np.asarray(soup.vertices, np.float64).reshape(-1, 3)
-    far = float(np.sqrt(((allv - center) ** 2).sum(axis=1)).max()) * 1.01 + radius + 1.0
+    mid = 0.5 * (allv.min(axis=0) + allv.max(axis=0))
+    far = float(np.sqrt(((allv - mid) ** 2).sum(axis=1)).max()) * 2.02 + 1.0
+    area = spheres[:, 3] ** 2
+    scdf = np.concatenate([[0.0], np.cumsum(area) / area.sum()])
+    scdf[-1] = 1.0
     lights = np.flatnonzero(covered).astype(np.int64)
-    weight = np.array([_flux_estimate(lt, int(li), center, radius) for li in lights])
+    weight = np.array([sum(_flux_estimate(lt, int(li), sp[:3], sp[3]) for sp in spheres) for li in lights])
     if not weight.sum() > 0.0:
-        return _off("the covered lights send nothing towards the glass")
+        return _off("the covered lights send nothing towards the casters")
     cdf = np.concatenate([[0.0], np.cumsum(weight) / weight.sum()])
     cdf[-1] = 1.0
     pf = scene.pixel_filter
     proj = _projection(cam, scene.width, scene.height, pf.support, getattr(scene, "crop", None))
-    tables = CausticTables(lights, cdf, np.array([*center, radius, far]), proj,
+    tables = CausticTables(lights, cdf, spheres, scdf, far, proj,
                            np.ascontiguousarray(pf._cdf, np.float64), np.int64(tracer.max_segments - 2),
                            np.uint64((int(s.seed) + PHOTON_SEED_SALT) % (1 << 64)))
     return CausticPlan(tables, covered, plain, caster, "")
 
 
+#: Casters are aimed at per object, each in its own bounding sphere; beyond this many objects,
+#: one sphere around them all (every photon then checks fewer spheres).
+MAX_SPHERES = 16
+
+
+def caster_spheres(soup, casters: np.ndarray) -> np.ndarray:
+    """(k, 4): centre and radius of a sphere around each object's caster triangles (the centre
+    of their bounding box), or one around all of them past MAX_SPHERES objects."""
+    objects = np.unique(np.asarray(soup.object_id)[casters])
+    groups = [casters & (np.asarray(soup.object_id) == o) for o in objects] if objects.size <= MAX_SPHERES \
+        else [casters]
+    out = []
+    for g in groups:
+        v = np.asarray(soup.vertices[g], np.float64).reshape(-1, 3)
+        c = 0.5 * (v.min(axis=0) + v.max(axis=0))
+        r = float(np.sqrt(((v - c) ** 2).sum(axis=1)).max()) * (1.0 + 1e-6) + 1e-6
+        out.append([*c, r])
+    return np.array(out, np.float64)
+
+
 def _flux_estimate(lt, li: int, center: np.ndarray, radius: float) -> float:
-    """Roughly the flux light ``li`` sends at the caster sphere (luminance), for choosing which
+    """Roughly the flux light ``li`` sends at a caster sphere (luminance), for choosing which
     light a photon leaves: only the variance depends on it."""
     P = lt.params
     if int(lt.kind[li]) == _sun.SUN:

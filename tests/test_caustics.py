@@ -57,9 +57,22 @@ def _scene(spp: int, seed: int, photons: float, caster=GLASS, floor=DIFFUSE, siz
                  world={"type": "constant", "color": [0.2, 0.25, 0.3]}, render=settings)
 
 
-def _renders(seeds: int, spp: int, photons: float, **shape) -> np.ndarray:
-    return np.stack([render(_scene(spp, 100 + s, photons, **shape)).film.combined()[..., :3]
+def _renders(seeds: int, spp: int, photons: float, apart: bool = False, **shape) -> np.ndarray:
+    return np.stack([render(_apart(_scene(spp, 100 + s, photons, **shape)) if apart else
+                            _scene(spp, 100 + s, photons, **shape)).film.combined()[..., :3]
                      for s in range(seeds)])
+
+
+def _apart(data: dict) -> dict:
+    """A second ball of the caster, up towards the sun and the lamp: photons aim at each one's
+    sphere, and where one sphere's cross-section (or cone, from the lamp, whose corner lies
+    inside it) overlaps the other's both densities count (kernels/caustics.py
+    ``_line_density``, ``_cone_density``)."""
+    second = copy.deepcopy(data["objects"][0])
+    second["name"] = "ball 2"
+    second["to_world"] = [[0.9, 0, 0, 0.3], [0, 0.9, 0, 0.8], [0, 0, 0.9, 1.6], [0, 0, 0, 1]]
+    data["objects"].insert(1, second)
+    return data
 
 
 def _region_sums(images: np.ndarray, blocks: int) -> np.ndarray:
@@ -92,12 +105,13 @@ CASES = {"glass on diffuse": (GLASS, DIFFUSE, 128), "mirror on diffuse": (MIRROR
          "glass on glossy metal": (GLASS, GLOSSY, 128), "mirror on rough glass": (MIRROR, ROUGH_GLASS, 128)}
 
 
-@pytest.mark.parametrize("case", list(CASES))
+@pytest.mark.parametrize("case", list(CASES) + ["two glass balls"])
 def test_light_traced_caustics_keep_the_image(case):
-    caster, floor, spp = CASES[case]
+    caster, floor, spp = CASES.get(case, (GLASS, DIFFUSE, 128))
+    apart = case == "two glass balls"
     seeds, blocks = 12, 4
-    a = _region_sums(_renders(seeds, spp, 0.0, caster=caster, floor=floor), blocks)
-    b = _region_sums(_renders(seeds, spp, 1.0, caster=caster, floor=floor), blocks)
+    a = _region_sums(_renders(seeds, spp, 0.0, apart, caster=caster, floor=floor), blocks)
+    b = _region_sums(_renders(seeds, spp, 1.0, apart, caster=caster, floor=floor), blocks)
     se = np.sqrt(a.var(axis=0, ddof=1) / seeds + b.var(axis=0, ddof=1) / seeds)
     lit = se > 0
     z = np.abs(a.mean(axis=0) - b.mean(axis=0))[lit] / se[lit]
@@ -185,3 +199,60 @@ def test_a_crop_gets_no_caustic_outside_it():
     inside[14:22, 4:20] = True
     assert film.photons > 0 and np.all(img[~inside] == 0.0)
     assert film.caustic.reshape(img.shape)[inside].sum() > 0.0
+
+
+def test_photon_flux_reaching_each_caster():
+    """Whatever sphere a photon was aimed at, the flux arriving at each caster sphere is the
+    light's: a sun gives L Ω π R² to every sphere (its irradiance over the cross-section), an
+    area light ∫∫ L cos dω dA over the cone each sphere fills (estimated here independently,
+    sphere by sphere). The two spheres of the scene overlap as seen from both lights, so a
+    photon's density must count both (kernels/caustics.py ``_line_density``, ``_cone_density``)."""
+    from backend.kernels.caustics import _emit
+    from backend.kernels.lights import area as A
+    from backend.kernels.lights import sun as SUN
+    from backend.kernels.rng import path_key
+    sc = load_scene_data(_apart(_scene(1, 0, 1.0)), "<test>")
+    tracer = PathTracer(sc, Accelerator(sc.soup))
+    CT, LT = tracer.caustics.tables, tracer.light_table
+    P, spheres = LT.params, CT.spheres
+    assert spheres.shape[0] == 2
+    n, m = 40000, 400000
+    rng = np.random.default_rng(3)
+    for li in CT.lights:
+        only = CT._replace(lights=np.array([li]), cdf=np.array([0.0, 1.0]))
+        arriving = np.zeros((n, 2))
+        for i in range(n):
+            o, d, phi = _emit(LT, only, np.uint64(path_key(7, int(li), i)))
+            e = spheres[:, :3] - np.asarray(o)
+            a = e @ np.asarray(d)
+            arriving[i] = phi[1] * ((a > 0) & ((e * e).sum(axis=1) - a * a <= spheres[:, 3] ** 2))
+        got, se = arriving.mean(axis=0), arriving.std(axis=0) / np.sqrt(n)
+        if LT.kind[li] == SUN.SUN:
+            want = P[li, SUN.S_RADIANCE + 1] * 2 * np.pi * P[li, SUN.S_OMC] * np.pi * spheres[:, 3] ** 2
+            want_se = np.zeros(2)
+        else:
+            # a plain rectangle: the same radiance towards every direction in front
+            L = A.radiance(P, LT.iparams, li, 0.5)[1]
+            c, u, v, nrm = (P[li, A.A_CENTER + 3 * j:A.A_CENTER + 3 * j + 3] for j in range(4))
+            area = 4 * P[li, A.A_HALF_U] * P[li, A.A_HALF_V]
+            y = (c + (2 * rng.random((m, 1)) - 1) * P[li, A.A_HALF_U] * u
+                 + (2 * rng.random((m, 1)) - 1) * P[li, A.A_HALF_V] * v)
+            want, want_se = np.zeros(2), np.zeros(2)
+            for k in range(2):
+                to = spheres[k, :3] - y
+                dist = np.linalg.norm(to, axis=1)
+                axis = to / dist[:, None]
+                inside = dist <= spheres[k, 3]
+                omc = np.where(inside, 2.0, 1 - np.sqrt(np.maximum(1 - (spheres[k, 3] / dist) ** 2, 0)))
+                axis[inside] = [0.0, 0.0, 1.0]
+                cos_t = 1 - rng.random(m) * omc
+                phi_ = 2 * np.pi * rng.random(m)
+                t1 = np.cross(axis, [1.0, 0.0, 0.0])
+                t1 /= np.linalg.norm(t1, axis=1)[:, None]
+                t2 = np.cross(axis, t1)
+                sin_t = np.sqrt(np.maximum(1 - cos_t ** 2, 0))
+                d = (sin_t * np.cos(phi_))[:, None] * t1 + (sin_t * np.sin(phi_))[:, None] * t2 + cos_t[:, None] * axis
+                vals = L * np.maximum(d @ nrm, 0.0) * 2 * np.pi * omc * area
+                want[k], want_se[k] = vals.mean(), vals.std() / np.sqrt(m)
+        z = np.abs(got - want) / np.sqrt(se ** 2 + want_se ** 2)
+        assert np.all(z < 4.0), (int(LT.kind[li]), got, want, z)

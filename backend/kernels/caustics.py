@@ -23,8 +23,8 @@ lost. A path belongs to the light tracer exactly when
 The path tracer drops exactly those paths (kernels/integrator.py: the ray leaving the camera hit
 carries ``CAUSTIC_FROM``, a caster vertex reached by such a ray takes no light sample of a
 covered light and no mirror probe, and its continuation carries ``CAUSTIC_CHAIN``, whose covered
-lights carry nothing). This kernel traces photons from the covered lights towards a sphere
-around every caster triangle, so every such path has a positive density here; a caster passes
+lights carry nothing). This kernel traces photons from the covered lights towards spheres
+around the casters (one per object), so every such path has a positive density here; a caster passes
 a photon on, and the first other surface it reaches after one splats it (if the camera sees
 it). Casters are not receivers: seen by the camera, a near-mirror shows a caustic by its own
 reflection, which the path tracer samples well and a splat, weighted by the narrow lobe's
@@ -76,13 +76,15 @@ from .warp import disk_concentric
 #: What the photon kernel reads besides the scene's tables (backend/caustics.py builds it):
 #:   lights     (k,) int64    the covered lights (rows of the light table)
 #:   cdf        (k + 1,)      their selection distribution (∝ the flux they send at the casters)
-#:   sphere     (5,)          caster sphere centre xyz, radius, and the distance at which a sun's
-#:                            photons start (beyond every triangle)
+#:   spheres    (k, 4)        caster spheres (centre xyz, radius): one per object with casters
+#:   scdf       (k + 1,)      how often each is aimed at (∝ its cross-section)
+#:   far        float         how far beyond a sphere a sun's photons start (beyond every triangle)
 #:   proj       (PROJ_SIZE,)  the camera as a projection (columns P_* below)
 #:   fcdf       (m + 1,)      the pixel filter's cumulative table (backend/film.py PixelFilter)
 #:   max_casters int          caster vertices a photon may pass (max_bounces)
 #:   seed       uint64        the photons' random-number seed
-CausticTables = namedtuple("CausticTables", ["lights", "cdf", "sphere", "proj", "fcdf", "max_casters", "seed"])
+CausticTables = namedtuple("CausticTables", ["lights", "cdf", "spheres", "scdf", "far", "proj", "fcdf", "max_casters",
+                                             "seed"])
 
 P_O, P_TL, P_N, P_DS, P_DT, P_INV = 0, 3, 6, 9, 12, 15     # 3, 3, 3, 3, 3, 9 columns
 P_NEAR, P_FAR, P_W, P_H, P_SUPPORT = 24, 25, 26, 27, 28
@@ -91,7 +93,7 @@ PROJ_SIZE = 33
 
 # Photon dimensions (hashed: one photon is one sample of a 2-D-per-vertex integral, and the
 # photons of a render are many; stratifying them would need a sequence over items).
-D_PICK, D_POS, D_DIR, D_VERTEX = 0, 1, 3, 5        # vertex k: D_VERTEX + 3k … + 2
+D_PICK, D_POS, D_DIR, D_SPHERE, D_VERTEX = 0, 1, 3, 5, 6     # vertex k: D_VERTEX + 3k … + 2
 
 
 @kernel
@@ -137,19 +139,65 @@ def project(proj, x):
 
 
 @kernel
+def _pick(cdf, u):
+    """Index k with cdf[k] ≤ u < cdf[k + 1] (a short linear scan: few entries) and its
+    probability."""
+    k = 0
+    while k < cdf.shape[0] - 2 and not u < cdf[k + 1]:
+        k += 1
+    return k, cdf[k + 1] - cdf[k]
+
+
+@kernel
+def _line_density(CT, y, d):
+    """Density per unit area, across direction d, of the sun photons' lines: each caster sphere
+    k, aimed at with probability P_k, spreads its photons uniformly over its cross-section."""
+    S_, cdf = CT.spheres, CT.scdf
+    dens = 0.0
+    for k in range(S_.shape[0]):
+        e = (S_[k, 0] - y[0], S_[k, 1] - y[1], S_[k, 2] - y[2])
+        a = _dot(e, d)
+        q = (e[0] - a * d[0], e[1] - a * d[1], e[2] - a * d[2])
+        r = S_[k, 3]
+        if _dot(q, q) <= r * r:
+            dens += (cdf[k + 1] - cdf[k]) / (math.pi * r * r)
+    return dens
+
+
+@kernel
+def _cone(CT, k, y):
+    """The cone of directions from y that sphere k fills: (axis, 1 − cos of its half-angle);
+    every direction (1 − cos = 2) from inside it."""
+    c = (CT.spheres[k, 0] - y[0], CT.spheres[k, 1] - y[1], CT.spheres[k, 2] - y[2])
+    dist = math.sqrt(_dot(c, c))
+    R = CT.spheres[k, 3]
+    if dist <= R:
+        return (0.0, 0.0, 1.0), 2.0
+    return (c[0] / dist, c[1] / dist, c[2] / dist), sin2_to_one_minus_cos((R / dist) ** 2)
+
+
+@kernel
+def _cone_density(CT, y, d):
+    """Solid-angle density of an area light's photon directions from y: sphere k, aimed at with
+    probability P_k, is reached uniformly over the cone it fills."""
+    dens = 0.0
+    for k in range(CT.spheres.shape[0]):
+        axis, omc = _cone(CT, k, y)
+        if omc >= 2.0 or 1.0 - _dot(d, axis) <= omc:
+            dens += (CT.scdf[k + 1] - CT.scdf[k]) / (2.0 * math.pi * omc)
+    return dens
+
+
+@kernel
 def _emit(LT, CT, key):
     """A photon from a covered light: (origin, direction, flux RGB already divided by the
     selection probability and the sampling density); flux 0 where it leaves nothing."""
-    lights, cdf, sphere = CT.lights, CT.cdf, CT.sphere
-    u = uniform(key, D_PICK)
-    k = 0
-    while k < lights.shape[0] - 1 and not u < cdf[k + 1]:
-        k += 1
-    pick = cdf[k + 1] - cdf[k]
-    li = lights[k]
+    li_k, pick = _pick(CT.cdf, uniform(key, D_PICK))
+    li = CT.lights[li_k]
+    k, _pk = _pick(CT.scdf, uniform(key, D_SPHERE))
     P, I = LT.params, LT.iparams
-    c = (sphere[0], sphere[1], sphere[2])
-    R = sphere[3]
+    c = (CT.spheres[k, 0], CT.spheres[k, 1], CT.spheres[k, 2])
+    R = CT.spheres[k, 3]
     u1, u2 = uniform(key, D_POS), uniform(key, D_POS + 1)
     u3, u4 = uniform(key, D_DIR), uniform(key, D_DIR + 1)
     zero = (0.0, 0.0, 0.0)
@@ -158,34 +206,33 @@ def _emit(LT, CT, key):
         toward = sample_cone(get3(P, li, _sun.S_DIR), omc, u3, u4)
         s, t = coordinate_system(toward)
         dx, dy = disk_concentric(u1, u2)
-        far = sphere[4]
-        o = (c[0] + far * toward[0] + R * (dx * s[0] + dy * t[0]),
-             c[1] + far * toward[1] + R * (dx * s[1] + dy * t[1]),
-             c[2] + far * toward[2] + R * (dx * s[2] + dy * t[2]))
-        scale = math.pi * R * R * 2.0 * math.pi * omc / pick
+        y = (c[0] + R * (dx * s[0] + dy * t[0]), c[1] + R * (dx * s[1] + dy * t[1]),
+             c[2] + R * (dx * s[2] + dy * t[2]))
+        far = CT.far + R
+        o = (y[0] + far * toward[0], y[1] + far * toward[1], y[2] + far * toward[2])
+        dens = _line_density(CT, y, toward)
+        if not dens > 0.0:                 # y on the rim, lost to rounding
+            return o, toward, zero
+        scale = 2.0 * math.pi * omc / (pick * dens)
         L = get3(P, li, _sun.S_RADIANCE)
         return o, (-toward[0], -toward[1], -toward[2]), (L[0] * scale, L[1] * scale, L[2] * scale)
-    # an area light: a point by area, a direction uniformly in the cone of the caster sphere
+    # an area light: a point by area, a direction uniformly in the cone of a caster sphere
     dx, dy = disk_concentric(u1, u2)
     if I[li, _area.I_ELLIPSE] != 0:
         lu, lv = dx * P[li, _area.A_HALF_U], dy * P[li, _area.A_HALF_V]
     else:
         lu, lv = (2.0 * u1 - 1.0) * P[li, _area.A_HALF_U], (2.0 * u2 - 1.0) * P[li, _area.A_HALF_V]
     y = _area._point(P, li, lu, lv)
-    dc = (c[0] - y[0], c[1] - y[1], c[2] - y[2])
-    dist = math.sqrt(_dot(dc, dc))
-    if dist <= R:
-        omc = 2.0
-        axis = (0.0, 0.0, 1.0)
-    else:
-        omc = sin2_to_one_minus_cos((R / dist) ** 2)
-        axis = (dc[0] / dist, dc[1] / dist, dc[2] / dist)
+    axis, omc = _cone(CT, k, y)
     d = sample_cone(axis, omc, u3, u4)
     cos_out = _dot(d, get3(P, li, _area.A_N))
     if not cos_out > 0.0 or I[li, _area.I_EMITS] == 0:
         return y, d, zero
+    dens = _cone_density(CT, y, d)
+    if not dens > 0.0:
+        return y, d, zero
     L = _area.radiance(P, I, li, cos_out)
-    scale = cos_out * P[li, _area.A_AREA] * 2.0 * math.pi * omc / pick
+    scale = cos_out * P[li, _area.A_AREA] / (pick * dens)
     return y, d, (L[0] * scale, L[1] * scale, L[2] * scale)
 
 
