@@ -93,7 +93,7 @@ def sharp_glossy(mt, plain: np.ndarray) -> np.ndarray:
     return out
 
 
-def _projection(camera, width: int, height: int, support: float, crop=None) -> np.ndarray:
+def _projection(camera, width: int, height: int, support: float, crop=None) -> np.ndarray | None:
     """The camera as kernels/caustics.py ``project`` reads it (columns P_*), and the pixels that
     are rendered (a crop: the splats stay inside it, as the samples do)."""
     M = np.asarray(camera.to_world, np.float64)
@@ -104,7 +104,11 @@ def _projection(camera, width: int, height: int, support: float, crop=None) -> n
     b = A @ (frame[2] - frame[3])                       # t: top → bottom
     n = np.cross(a, b)
     g = np.array([[a @ a, a @ b], [a @ b, b @ b]])
-    gi = np.linalg.inv(g)
+    det = g[0, 0] * g[1, 1] - g[0, 1] * g[1, 0]
+    if not (np.isfinite(det) and det > 1e-12 * g[0, 0] * g[1, 1]) or not np.isfinite(np.linalg.det(A)) \
+            or abs(np.linalg.det(A)) < 1e-300:
+        return None                     # a degenerate frame or transform: no projection
+    gi = np.array([[g[1, 1], -g[0, 1]], [-g[1, 0], g[0, 0]]]) / det
     ds = gi[0, 0] * a + gi[0, 1] * b
     dt = gi[1, 0] * a + gi[1, 1] * b
     p = np.zeros(PROJ_SIZE)
@@ -177,6 +181,8 @@ def plan_caustics(scene, tracer) -> CausticPlan:
     cdf[-1] = 1.0
     pf = scene.pixel_filter
     proj = _projection(cam, scene.width, scene.height, pf.support, getattr(scene, "crop", None))
+    if proj is None or not np.all(np.isfinite(proj[:P_NEAR])):
+        return _off("the camera's frame cannot be inverted")
     tables = CausticTables(lights, cdf, spheres, scdf, far, proj,
                            np.ascontiguousarray(pf._cdf, np.float64), np.int64(tracer.max_segments - 2),
                            np.uint64((int(s.seed) + PHOTON_SEED_SALT) % (1 << 64)))

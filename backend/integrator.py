@@ -387,7 +387,8 @@ class PathTracer:
         """The item's share of the caustic photons (kernels/caustics.py): caustic_photons per
         camera sample, keyed by the item's first pixel and first sample (so the same for any
         worker count). Returns ((photons, flat pixel indices, RGB splats), rays traced)."""
-        n = int(round(self.scene.settings.caustic_photons * pixels.size * spp))
+        # at least one per item (rounded up): the path tracer leaves these paths to the photons
+        n = int(np.ceil(self.scene.settings.caustic_photons * pixels.size * spp))
         plan = self.caustics
         side = int(plan.tables.proj[P_SUPPORT]) + 2
         # room for the usual splats (measured on the demo: 2.8 per photon); more resumes the kernel

@@ -85,7 +85,7 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("glossy_light_samples", int, 2, "Light samples per light at a rough metal's surface (less "
             "noise on glossy reflections of lights, a shadow ray each)",
             lo=1, hi=MAX_GLOSSY_LIGHT_SAMPLES, label="Glossy Light Samples", kernel="glossy_light_samples"),
-    Setting("caustic_photons", float, 0.1, "Caustics through smooth glass and mirrors traced from the "
+    Setting("caustic_photons", float, 0.125, "Caustics through smooth glass and mirrors traced from the "
             "lights (sun with an angle, area lights): photons per camera sample; 0 = path traced only "
             "(noisier caustics, the same image on average)",
             lo=0.0, hi=64.0, label="Caustic Photons", ui={"soft_max": 8.0, "precision": 2}),
