@@ -376,3 +376,16 @@ def test_renders_agree_with_the_walk(name):
 def render_scene(data):
     from render_util import render
     return render(data)
+
+
+def test_a_top_rougher_than_nothing_is_the_kernels_smallest_roughness():
+    """A top roughness of 1e-320 (a fuzzed scene; 0 < α below the kernels' ALPHA_MIN) gives the
+    top reflection the kernels use for it, that of ALPHA_MIN, instead of dividing by zero."""
+    from backend.kernels.layered.iface import IF_P
+    from backend.kernels.microfacet_codes import ALPHA_MIN
+    B = np.zeros(IF_P + 1)
+    B[IF_P] = 1.5
+    mu = np.array([0.1, 0.5, 1.0])
+    tiny = tb._top_reflection(B, 0, "dielectric", 1e-320, 0, 0, mu)
+    assert np.array_equal(tiny, tb._top_reflection(B, 0, "dielectric", ALPHA_MIN, 0, 0, mu))
+    assert np.all(np.isfinite(tiny)) and np.all(tiny > 0.03)

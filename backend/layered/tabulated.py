@@ -442,9 +442,11 @@ def _top_reflection(B, o, kind: str, alpha: float, dist: int, masking: int, mu: 
     from .coated_diffuse import STRATA
     from ..kernels.fresnel import dielectric as fresnel
     from ..kernels.layered.iface import IF_P
+    from ..kernels.microfacet_codes import ALPHA_MIN
     eta = float(B[o + IF_P])
     if alpha <= 0.0:
         return np.array([fresnel(float(m), eta)[0] for m in mu])
+    alpha = max(alpha, ALPHA_MIN)         # as the kernels clamp it (1e-320 divided by zero here)
     rs = np.empty(mu.size)
     for k, m in enumerate(mu):
         rs[k] = _interface_integrals(eta, (1.0, 1.0, 1.0), alpha, False, dist, masking,
