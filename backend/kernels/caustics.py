@@ -58,13 +58,13 @@ import numpy as np
 
 from . import materials as km
 from .bsdf import IMPORTANCE, RADIANCE
-from .integrator import _interp3, _offset, _valid_reflection_normal
+from .integrator import _offset, _valid_reflection_normal, facing_viewer, static_surface, surface_uv
 from .jit import inlined, kernel
 from .lights import area as _area
 from .lights import sun as _sun
 from .lights.common import get3, sample_cone, sin2_to_one_minus_cos
 from .rng import path_key, uniform
-from .soup import ROW_MAT, ROW_N, ROW_NG, ROW_TAN, ROW_UV, ROW_V
+from .soup import ROW_MAT
 from .trace import _aligned_block, intersect_one, occluded_one
 from .vec import coordinate_system
 from .vec import dot as _dot
@@ -263,23 +263,8 @@ def trace_photons(tables, CT, embree, pixel0, sample0, j0, n, pix, rgb, counts):
             rays += 1
             if pr < 0:
                 break
-            p = _interp3(R, pr, ROW_V, b1, b2)
-            ng = (np.float64(R[pr, ROW_NG]), np.float64(R[pr, ROW_NG + 1]), np.float64(R[pr, ROW_NG + 2]))
-            if G.has_normals:
-                ns = _interp3(R, pr, ROW_N, b1, b2)
-                ln = math.sqrt(_dot(ns, ns))
-                ns = (ns[0] / ln, ns[1] / ln, ns[2] / ln) if ln > 0.0 else ng
-            else:
-                ns = ng
-            tan = (np.float64(R[pr, ROW_TAN]), np.float64(R[pr, ROW_TAN + 1]), np.float64(R[pr, ROW_TAN + 2]))
-            if G.has_uvs:
-                uu0 = np.float64(R[pr, ROW_UV])
-                vv0 = np.float64(R[pr, ROW_UV + 1])
-                u = uu0 + b1 * (np.float64(R[pr, ROW_UV + 2]) - uu0) + b2 * (np.float64(R[pr, ROW_UV + 4]) - uu0)
-                v = vv0 + b1 * (np.float64(R[pr, ROW_UV + 3]) - vv0) + b2 * (np.float64(R[pr, ROW_UV + 5]) - vv0)
-            else:
-                u = 0.0
-                v = 0.0
+            p, ng, ns, tan = static_surface(G, R, pr, b1, b2)
+            u, v = surface_uv(G, R, pr, b1, b2)
             m = G.irows[pr, ROW_MAT]
             if not S.caustic_plain[m]:
                 break
@@ -303,11 +288,8 @@ def trace_photons(tables, CT, embree, pixel0, sample0, j0, n, pix, rgb, counts):
             # the normal for w_out (``_valid_reflection_normal``, at grazing reflections) the
             # path stays the path tracer's (its CAUSTIC_CHAIN needs an unbent normal): the
             # photon ends.
-            if MT.two_sided[m] and _dot(w_in, ng) < 0.0:
-                ng = (-ng[0], -ng[1], -ng[2])
-                ns = (-ns[0], -ns[1], -ns[2])
-            if MT.two_sided[m] and _dot(w_in, ns) <= 0.0:
-                ns = ng
+            if MT.two_sided[m]:
+                ng, ns = facing_viewer(w_in, ng, ns)
             fs, ft = _frame(ns, tan)
             wl = _local(fs, ft, ns, w_in)
             # the path tracer continues along w_in from here: its leak guard
@@ -348,11 +330,7 @@ def _connect(MT, G, CT, fn_occ, scene, f32, w32, addr, p, ng, ns, tan, m, kind, 
     w_cam = ((proj[P_O] - p[0]) / r, (proj[P_O + 1] - p[1]) / r, (proj[P_O + 2] - p[2]) / r)
     # the shading frame exactly as the path tracer builds it at its camera hit
     if MT.two_sided[m]:
-        if _dot(w_cam, ng) < 0.0:
-            ng = (-ng[0], -ng[1], -ng[2])
-            ns = (-ns[0], -ns[1], -ns[2])
-        if _dot(w_cam, ns) <= 0.0:
-            ns = ng
+        ng, ns = facing_viewer(w_cam, ng, ns)
     if G.has_normals:
         ns = _valid_reflection_normal(w_cam, ns, ng)
     fs, ft = _frame(ns, tan)

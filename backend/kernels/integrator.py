@@ -388,6 +388,45 @@ def _moving_surface(G, R, pr, tm, b1, b2):
 
 
 @inlined
+def facing_viewer(wi, ng, ns):
+    """A two-sided (reflection-only) material is seen from both sides: its normals turned
+    towards the viewer wi; where the shading normal still faces away, the geometric one."""
+    if _dot(wi, ng) < 0.0:
+        ng = (-ng[0], -ng[1], -ng[2])
+        ns = (-ns[0], -ns[1], -ns[2])
+    if _dot(wi, ns) <= 0.0:
+        ns = ng
+    return ng, ns
+
+
+@inlined
+def static_surface(G, R, pr, b1, b2):
+    """(point, geometric normal, unit shading normal, UV tangent) of a hit on a triangle that
+    does not move, from its barycentrics (the normal interpolated where the mesh has normals)."""
+    p = _interp3(R, pr, ROW_V, b1, b2)
+    ng = (np.float64(R[pr, ROW_NG]), np.float64(R[pr, ROW_NG + 1]), np.float64(R[pr, ROW_NG + 2]))
+    if G.has_normals:
+        ns = _interp3(R, pr, ROW_N, b1, b2)
+        ln = math.sqrt(_dot(ns, ns))
+        ns = (ns[0] / ln, ns[1] / ln, ns[2] / ln) if ln > 0.0 else ng
+    else:
+        ns = ng
+    tan = (np.float64(R[pr, ROW_TAN]), np.float64(R[pr, ROW_TAN + 1]), np.float64(R[pr, ROW_TAN + 2]))
+    return p, ng, ns, tan
+
+
+@inlined
+def surface_uv(G, R, pr, b1, b2):
+    """The hit's texture coordinates (0, 0 without UVs)."""
+    if not G.has_uvs:
+        return 0.0, 0.0
+    u0 = np.float64(R[pr, ROW_UV])
+    v0 = np.float64(R[pr, ROW_UV + 1])
+    return (u0 + b1 * (np.float64(R[pr, ROW_UV + 2]) - u0) + b2 * (np.float64(R[pr, ROW_UV + 4]) - u0),
+            v0 + b1 * (np.float64(R[pr, ROW_UV + 3]) - v0) + b2 * (np.float64(R[pr, ROW_UV + 5]) - v0))
+
+
+@inlined
 def _uv_derivatives(R, pr):
     """(dP/du, dP/dv, ok) of triangle pr from its corners and UVs (kernels/bump.py)."""
     x0, y0, z0 = np.float64(R[pr, ROW_V]), np.float64(R[pr, ROW_V + 1]), np.float64(R[pr, ROW_V + 2])
@@ -799,23 +838,8 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
         if pr >= G.moving_start:
             p, ng, ns, tan = _moving_surface(G, R, pr, np.float64(lane_time[sl]), b1, b2)
         else:
-            p = _interp3(R, pr, ROW_V, b1, b2)
-            ng = (np.float64(R[pr, ROW_NG]), np.float64(R[pr, ROW_NG + 1]), np.float64(R[pr, ROW_NG + 2]))
-            if G.has_normals:
-                ns = _interp3(R, pr, ROW_N, b1, b2)
-                ln = math.sqrt(_dot(ns, ns))
-                ns = (ns[0] / ln, ns[1] / ln, ns[2] / ln) if ln > 0.0 else ng
-            else:
-                ns = ng
-            tan = (np.float64(R[pr, ROW_TAN]), np.float64(R[pr, ROW_TAN + 1]), np.float64(R[pr, ROW_TAN + 2]))
-        if G.has_uvs:
-            u0 = np.float64(R[pr, ROW_UV])
-            v0 = np.float64(R[pr, ROW_UV + 1])
-            u = u0 + b1 * (np.float64(R[pr, ROW_UV + 2]) - u0) + b2 * (np.float64(R[pr, ROW_UV + 4]) - u0)
-            v = v0 + b1 * (np.float64(R[pr, ROW_UV + 3]) - v0) + b2 * (np.float64(R[pr, ROW_UV + 5]) - v0)
-        else:
-            u = 0.0
-            v = 0.0
+            p, ng, ns, tan = static_surface(G, R, pr, b1, b2)
+        u, v = surface_uv(G, R, pr, b1, b2)
         m = G.irows[pr, ROW_MAT]
         m_surface = m                 # the object's material (passes); m: the one that shades
         if km.is_mix(MT.kind[m]):
@@ -860,13 +884,7 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
             normal[sl, 0], normal[sl, 1], normal[sl, 2] = facing * ns[0], facing * ns[1], facing * ns[2]
         kind = MT.kind[m]
         if MT.two_sided[m]:
-            # Reflection-only materials are seen from both sides: turn the normals towards the
-            # viewer; where the shading normal still faces away, fall back to the geometric one.
-            if _dot(wi, ng) < 0.0:
-                ng = (-ng[0], -ng[1], -ng[2])
-                ns = (-ns[0], -ns[1], -ns[2])
-            if _dot(wi, ns) <= 0.0:
-                ns = ng
+            ng, ns = facing_viewer(wi, ng, ns)
         bent = False
         if G.has_normals or mapped:
             nv = _valid_reflection_normal(wi, ns, ng)
