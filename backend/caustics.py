@@ -2,8 +2,9 @@
 (backend/kernels/caustics.py explains the method and the partition with the path tracer).
 
 ``plan_caustics`` returns a ``CausticPlan``: the kernel's ``CausticTables`` and the path tracer's
-two flags (which lights are covered, which materials are plain), or, where the scene cannot use
-light tracing, empty ones and the reason (the path tracer then renders every caustic, as before).
+three per-light and per-material flags (which lights are covered, which materials are plain,
+which are casters), or, where the scene cannot use light tracing, empty ones and the reason (the
+path tracer then renders every caustic, as before).
 """
 from __future__ import annotations
 

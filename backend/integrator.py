@@ -389,6 +389,8 @@ class PathTracer:
         worker count). Returns ((photons, flat pixel indices, RGB splats), rays traced)."""
         # at least one per item (rounded up): the path tracer leaves these paths to the photons
         n = int(np.ceil(self.scene.settings.caustic_photons * pixels.size * spp))
+        if n == 0:
+            return (0, np.zeros(0, np.int64), np.zeros((0, 3))), 0
         plan = self.caustics
         side = int(plan.tables.proj[P_SUPPORT]) + 2
         # room for the usual splats (measured on the demo: 2.8 per photon); more resumes the kernel
