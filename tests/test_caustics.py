@@ -256,3 +256,20 @@ def test_photon_flux_reaching_each_caster():
                 want[k], want_se[k] = vals.mean(), vals.std() / np.sqrt(m)
         z = np.abs(got - want) / np.sqrt(se ** 2 + want_se ** 2)
         assert np.all(z < 4.0), (int(LT.kind[li]), got, want, z)
+
+
+def test_area_light_photons_start_off_the_emitter():
+    """A lamp often lies on a ceiling or panel: its photons start a surface offset off it, on its
+    emitting side, so they do not hit that surface at distance 0."""
+    from backend.kernels.caustics import _emit
+    from backend.kernels.lights import area as A
+    from backend.kernels.rng import path_key
+    sc = load_scene_data(_scene(1, 0, 1.0), "<test>")
+    tracer = PathTracer(sc, Accelerator(sc.soup))
+    CT, LT = tracer.caustics.tables, tracer.light_table
+    li = int(CT.lights[1])
+    assert LT.kind[li] == A.AREA
+    only = CT._replace(lights=np.array([li]), cdf=np.array([0.0, 1.0]))
+    c, n = LT.params[li, A.A_CENTER:A.A_CENTER + 3], LT.params[li, A.A_N:A.A_N + 3]
+    heights = [(np.asarray(_emit(LT, only, np.uint64(path_key(5, 0, i)))[0]) - c) @ n for i in range(200)]
+    assert min(heights) > 1e-7 and max(heights) < 1e-4

@@ -222,10 +222,12 @@ def _emit(LT, CT, key):
         lu, lv = dx * P[li, _area.A_HALF_U], dy * P[li, _area.A_HALF_V]
     else:
         lu, lv = (2.0 * u1 - 1.0) * P[li, _area.A_HALF_U], (2.0 * u2 - 1.0) * P[li, _area.A_HALF_V]
-    y = _area._point(P, li, lu, lv)
+    # off the emitter along its normal, past a ceiling or panel it lies on (a surface's offset)
+    n = get3(P, li, _area.A_N)
+    y = _offset(_area._point(P, li, lu, lv), n, n)
     axis, omc = _cone(CT, k, y)
     d = sample_cone(axis, omc, u3, u4)
-    cos_out = _dot(d, get3(P, li, _area.A_N))
+    cos_out = _dot(d, n)
     if not cos_out > 0.0 or I[li, _area.I_EMITS] == 0:
         return y, d, zero
     dens = _cone_density(CT, y, d)
