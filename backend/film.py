@@ -106,13 +106,13 @@ class FilmAccumulator:
         alpha; ``result["spp"]`` samples per pixel, lanes of a pixel adjacent). Returns the number
         of non-finite samples dropped. Sample by sample, so the image does not depend on how the
         work was cut (kernels/film.py)."""
-        from .kernels.film import accumulate
+        from .kernels.film import accumulate, add_splats
         L, albedo, normal, alpha = result["lanes"]
         caustics = result.get("caustics")
         if caustics is not None:
             photons, pix, rgb = caustics
             self.photons += int(photons)
-            np.add.at(self.caustic, pix, rgb)
+            add_splats(self.caustic, np.ascontiguousarray(pix, np.int64), np.ascontiguousarray(rgb, np.float64))
         aux = result.get("passes")
         if aux is None or self.passes is None:
             aux = NO_LANES

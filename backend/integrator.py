@@ -394,7 +394,7 @@ class PathTracer:
         plan = self.caustics
         side = int(plan.tables.proj[P_SUPPORT]) + 2
         # room for the usual splats (measured on the demo: 2.8 per photon); more resumes the kernel
-        room = max(2 * side * n, 4 * side * side * (int(plan.tables.max_casters) + 1))
+        room = max(2 * side * n, 4 * side * side)
         pix = np.empty(room, np.int64)
         rgb = np.empty((room, 3))
         q = self.accel.queries

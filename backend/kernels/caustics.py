@@ -228,7 +228,7 @@ def _emit(LT, CT, key):
     axis, omc = _cone(CT, k, y)
     d = sample_cone(axis, omc, u3, u4)
     cos_out = _dot(d, n)
-    if not cos_out > 0.0 or I[li, _area.I_EMITS] == 0:
+    if not cos_out > 0.0:
         return y, d, zero
     dens = _cone_density(CT, y, d)
     if not dens > 0.0:
@@ -241,8 +241,8 @@ def _emit(LT, CT, key):
 @kernel(nogil=True)
 def trace_photons(tables, CT, embree, pixel0, sample0, j0, n, pix, rgb, counts):
     """Photons j0 … n−1 of the work item keyed (pixel0, sample0), while the splat buffers (pix:
-    flat pixel index, rgb) have room for one more photon's worst case, (⌊support⌋ + 2)² splats
-    at each of max_casters + 1 surfaces. ``counts`` (int64[3]) out: [splats, rays traced, the
+    flat pixel index, rgb) have room for one more photon's worst case: it splats at one surface,
+    into at most (⌊support⌋ + 2)² pixels. ``counts`` (int64[3]) out: [splats, rays traced, the
     next photon to trace (n when done)]."""
     G, MT, TX, LT, S, PS, ST = tables
     fn_hit, fn_occ, scene, offset1, rayhit = embree
@@ -251,8 +251,8 @@ def trace_photons(tables, CT, embree, pixel0, sample0, j0, n, pix, rgb, counts):
     count = 0
     rays = 0
     side = int(CT.proj[P_SUPPORT]) + 2
-    worst = side * side * (CT.max_casters + 1)
-    j = j0 if CT.lights.shape[0] > 0 else n
+    worst = side * side
+    j = j0
     while j < n and count + worst <= pix.shape[0]:
         j += 1
         key = path_key(CT.seed, pixel0, np.uint64(sample0) * np.uint64(1 << 32) + np.uint64(j - 1))

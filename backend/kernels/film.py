@@ -51,3 +51,15 @@ def accumulate(f_sum, f_sq, f_alb, f_nrm, f_alpha, f_count, f_first, f_pass, pix
             f_alpha[pix] += alpha[i]
             f_count[pix] += 1
     return bad
+
+
+@kernel(nogil=True)
+def add_splats(f_caustic, pix, rgb):
+    """A work item's caustic splats (kernels/caustics.py) added in the order the item wrote
+    them. On the master's thread, so compiled: np.add.at took 0.12 s for the demo's 3 M splats
+    of one render, serial time a 16-core render cannot spread."""
+    for k in range(pix.shape[0]):
+        q = pix[k]
+        f_caustic[q, 0] += rgb[k, 0]
+        f_caustic[q, 1] += rgb[k, 1]
+        f_caustic[q, 2] += rgb[k, 2]
