@@ -91,18 +91,21 @@ def _region_sums(images: np.ndarray, blocks: int) -> np.ndarray:
 # Sharp glossy casters (α ≤ backend/caustics.py CAUSTIC_ALPHA): a polished metal and a clear
 # coat over a diffuse body (the closed form), which the photons pass on by sampling them.
 POLISHED = {"type": "conductor", "metal": "Au", "roughness": 0.02}
+GLOSSY_GOLD = {"type": "conductor", "metal": "Au", "roughness": 0.08}     # a metal: CAUSTIC_ALPHA_METAL
 COATED = {"type": "layered", "interfaces": [{"type": "dielectric", "ior": 1.5, "roughness": 0.01},
                                             {"type": "diffuse", "color": [0.1, 0.3, 0.6]}],
           "media": [{"thickness": 1.0, "sigma_t": 0.0}]}
-# Samples per pixel: the glossy casters' caustics are fainter. What these cases cannot show: a
-# caster vertex that kept its light samples of the covered lights (kernels/integrator.py
-# ``in_chain``) — at α ≤ 0.02 multiple importance sampling gives them almost no weight against
-# the lobe's own samples (measured with them left in, polished metal α 0.02, 512 spp, 12 seeds:
-# whole image z −1.7 under this 30° sun, −2.4 under a 10° one; with α 0.05, −7.3).
+# Samples per pixel: the glossy casters' caustics are fainter. A caster vertex that kept its
+# light samples of the covered lights (kernels/integrator.py ``in_chain``) counts those paths
+# twice: at α ≤ 0.02 multiple importance sampling gives such samples almost no weight against
+# the lobe's own (polished metal, 512 spp, 12 seeds: whole image z −1.7 under this 30° sun), but
+# the glossy gold (α 0.08, a caster as a metal) shows it: region z up to 6.8 against a bound of
+# about 4.5 with them left in (measured 2026-12-08).
 CASES = {"glass on diffuse": (GLASS, DIFFUSE, 128), "mirror on diffuse": (MIRROR, DIFFUSE, 128),
          "mirroring glass on diffuse": (MIRRORING_GLASS, DIFFUSE, 128),
          "polished metal on diffuse": (POLISHED, DIFFUSE, 512), "coat on glossy metal": (COATED, GLOSSY, 512),
-         "glass on glossy metal": (GLASS, GLOSSY, 128), "mirror on rough glass": (MIRROR, ROUGH_GLASS, 128)}
+         "glass on glossy metal": (GLASS, GLOSSY, 128), "mirror on rough glass": (MIRROR, ROUGH_GLASS, 128),
+         "glossy gold on diffuse": (GLOSSY_GOLD, DIFFUSE, 256)}
 
 
 @pytest.mark.parametrize("case", list(CASES) + ["two glass balls"])
@@ -187,6 +190,18 @@ def test_a_scene_it_serves_says_so():
     plan = plan_caustics(sc, PathTracer(sc, Accelerator(sc.soup)))
     # the sun and the area light; the world (the last light) stays with the path tracer
     assert plan.active and plan.reason == "" and plan.light.tolist() == [True, True, False]
+
+
+@pytest.mark.parametrize("caster, expect", [
+    ({"type": "conductor", "metal": "Au", "roughness": 0.1}, True),        # a metal up to α 0.1
+    ({"type": "conductor", "metal": "Au", "roughness": 0.12}, False),
+    ({"type": "dielectric", "ior": 1.5, "roughness": 0.02}, True),          # others up to α 0.02
+    ({"type": "dielectric", "ior": 1.5, "roughness": 0.05}, False),
+])
+def test_which_glossy_surfaces_are_casters(caster, expect):
+    sc = load_scene_data(_scene(1, 0, 1.0, caster=caster), "<test>")
+    plan = plan_caustics(sc, PathTracer(sc, Accelerator(sc.soup)))
+    assert plan.active == expect, plan.reason
 
 
 def test_a_crop_gets_no_caustic_outside_it():

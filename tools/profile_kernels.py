@@ -2,7 +2,7 @@
 """Where the compiled kernels spend their time: a sampling profile of one benchmark scene, by
 kernel function (and by source line with ``--lines``).
 
-    .venv/bin/python tools/profile_kernels.py [--scene cornell|peer-cornell|peer-everyday|peer-presets|sphere-microflake] [--spp 16] [--lines]
+    .venv/bin/python tools/profile_kernels.py [--scene cornell|peer-cornell|peer-everyday|peer-presets|sphere-microflake|demo] [--spp 16] [--lines]
 
 Needs Linux ``perf`` (``perf record`` with the cpu-clock event works in a VM without hardware
 counters). Numba's machine code lives in anonymous memory, so perf alone sees addresses only.
@@ -58,6 +58,22 @@ def _scene(name: str, spp: int) -> dict:
     elif name == "peer-presets":
         from benchmarks.peers.scenes import presets
         data = presets(80)
+    elif name == "demo":
+        # The README's demo (demo/demo.json); its texture paths are made absolute here.
+        import json
+        data = json.loads((ROOT / "demo" / "demo.json").read_text())
+
+        def absolute(node):
+            if isinstance(node, dict):
+                for k, v in node.items():
+                    if k == "texture" and isinstance(v, str):
+                        node[k] = str(ROOT / "demo" / v)
+                    else:
+                        absolute(v)
+            elif isinstance(node, list):
+                for v in node:
+                    absolute(v)
+        absolute(data)
     elif name == "sphere-microflake":
         # benchmarks/layered_throughput.py --render: the one-sphere worst case of issue 16.
         from benchmarks.layered_throughput import STACKS, _sphere_scene
@@ -189,7 +205,7 @@ def report(perf_data: Path, map_file: Path, lines: bool, top: int) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scene", choices=("cornell", "peer-cornell", "peer-everyday", "peer-presets", "sphere-microflake"), default="cornell")
+    ap.add_argument("--scene", choices=("cornell", "peer-cornell", "peer-everyday", "peer-presets", "sphere-microflake", "demo"), default="cornell")
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--lines", action="store_true", help="per source line (debug-info build)")

@@ -15,8 +15,9 @@ lost. A path belongs to the light tracer exactly when
     lobe that is not a delta one (a coated kind's smooth top),
   * every vertex after it up to the light is a caster of a plain material
     (``Settings.caustic_caster``: smooth dielectrics and conductors, glossy kinds with α ≤
-    backend/caustics.py CAUSTIC_ALPHA), at least one and at most max_bounces of them, none
-    with a shading normal the path tracer bends for its view direction,
+    backend/caustics.py CAUSTIC_ALPHA, metals CAUSTIC_ALPHA_METAL), at least one and at most
+    max_bounces of them, none with a shading normal the path tracer bends for its view
+    direction,
   * and the light is *covered* (``CausticTables.lights``: an area light or a sun with an angle;
     the path tracer cannot find a delta light through glass at all, so those stay uncounted,
     as before and as in Cycles).
