@@ -16,6 +16,7 @@ from .kernels import materials as km
 from .kernels.caustics import (P_CROP, P_DS, P_DT, P_FAR, P_H, P_INV, P_N, P_NEAR, P_O, P_SUPPORT, P_TL, P_W,
                                PROJ_SIZE, CausticTables)
 from .kernels.lights import area as _area
+from .kernels.lights import point as _point
 from .kernels.lights import sun as _sun
 
 #: Added to the scene seed for the photons' keys (a stream of their own).
@@ -173,8 +174,12 @@ def plan_caustics(scene, tracer) -> CausticPlan:
             covered[li] = True
         elif k == _area.AREA and lt.iparams[li, _area.I_EMITS] != 0:
             covered[li] = True
+        elif (k == _point.POINT and lt.iparams[li, _point.I_SHAPE] != _point.SHAPE_DELTA
+              and lt.params[li, _point.P_RADIUS] > 0.0
+              and float(LUMINANCE @ lt.params[li, _point.P_RADIANCE:_point.P_RADIANCE + 3]) > 0.0):
+            covered[li] = True
     if not covered.any():
-        return _off("no area light or sun with an angle")
+        return _off("no area light, point or spot light with a radius, or sun with an angle")
     spheres = caster_spheres(soup, casters)
     allv = np.asarray(soup.vertices, np.float64).reshape(-1, 3)
     mid = 0.5 * (allv.min(axis=0) + allv.max(axis=0))
@@ -224,6 +229,20 @@ def _flux_estimate(lt, li: int, center: np.ndarray, radius: float) -> float:
     P = lt.params
     if int(lt.kind[li]) == _sun.SUN:
         return float(LUMINANCE @ P[li, _sun.S_IRRADIANCE:_sun.S_IRRADIANCE + 3]) * np.pi * radius ** 2
+    if int(lt.kind[li]) == _point.POINT:
+        # radiance × the light's cross-section × the cone the caster fills (grown by the light's
+        # radius, as the photons aim), times the spot or IES factor towards the caster's centre
+        # (at least 0.1: a spot whose cone only grazes the caster still sends photons there)
+        r = float(P[li, _point.P_RADIUS])
+        d = center - P[li, _point.P_POS:_point.P_POS + 3]
+        dist = float(np.linalg.norm(d))
+        R = radius + r
+        solid = 2.0 * np.pi if dist <= R else 2.0 * np.pi * (1.0 - np.sqrt(max(1.0 - (R / dist) ** 2, 0.0)))
+        f = 1.0
+        if dist > 0.0:
+            f = float(_point.directional_factor(P, lt.iparams, li, lt.aux, tuple(float(x) for x in d / dist)))
+        lum = float(LUMINANCE @ P[li, _point.P_RADIANCE:_point.P_RADIANCE + 3])
+        return lum * np.pi * r * r * solid * max(f, 0.1)
     c = P[li, _area.A_CENTER:_area.A_CENTER + 3]
     n = P[li, _area.A_N:_area.A_N + 3]
     d = center - c

@@ -62,6 +62,7 @@ from .bsdf import IMPORTANCE, RADIANCE
 from .integrator import _offset, _valid_reflection_normal, facing_viewer, static_surface, surface_uv
 from .jit import inlined, kernel
 from .lights import area as _area
+from .lights import point as _point
 from .lights import sun as _sun
 from .lights.common import get3, sample_cone, sin2_to_one_minus_cos
 from .rng import path_key, uniform
@@ -166,24 +167,25 @@ def _line_density(CT, y, d):
 
 
 @kernel
-def _cone(CT, k, y):
-    """The cone of directions from y that sphere k fills: (axis, 1 − cos of its half-angle);
-    every direction (1 − cos = 2) from inside it."""
+def _cone(CT, k, y, widen):
+    """The cone of directions from y that sphere k, its radius grown by ``widen``, fills:
+    (axis, 1 − cos of its half-angle); every direction (1 − cos = 2) from inside it."""
     c = (CT.spheres[k, 0] - y[0], CT.spheres[k, 1] - y[1], CT.spheres[k, 2] - y[2])
     dist = math.sqrt(_dot(c, c))
-    R = CT.spheres[k, 3]
+    R = CT.spheres[k, 3] + widen
     if dist <= R:
         return (0.0, 0.0, 1.0), 2.0
     return (c[0] / dist, c[1] / dist, c[2] / dist), sin2_to_one_minus_cos((R / dist) ** 2)
 
 
 @kernel
-def _cone_density(CT, y, d):
-    """Solid-angle density of an area light's photon directions from y: sphere k, aimed at with
-    probability P_k, is reached uniformly over the cone it fills."""
+def _cone_density(CT, y, d, widen):
+    """Solid-angle density of photon directions from y (an area light's point, a point light's
+    centre): sphere k, aimed at with probability P_k, is reached uniformly over the cone it
+    fills with its radius grown by ``widen``."""
     dens = 0.0
     for k in range(CT.spheres.shape[0]):
-        axis, omc = _cone(CT, k, y)
+        axis, omc = _cone(CT, k, y, widen)
         if omc >= 2.0 or 1.0 - _dot(d, axis) <= omc:
             dens += (CT.scdf[k + 1] - CT.scdf[k]) / (2.0 * math.pi * omc)
     return dens
@@ -192,7 +194,8 @@ def _cone_density(CT, y, d):
 @kernel
 def _emit(LT, CT, key):
     """A photon from a covered light: (origin, direction, flux RGB already divided by the
-    selection probability and the sampling density); flux 0 where it leaves nothing."""
+    selection probability and the sampling density, and the light whose disk the first surface
+    must see, −1 if none); flux 0 where it leaves nothing."""
     li_k, pick = _pick(CT.cdf, uniform(key, D_PICK))
     li = CT.lights[li_k]
     k, _pk = _pick(CT.scdf, uniform(key, D_SPHERE))
@@ -213,10 +216,35 @@ def _emit(LT, CT, key):
         o = (y[0] + far * toward[0], y[1] + far * toward[1], y[2] + far * toward[2])
         dens = _line_density(CT, y, toward)
         if not dens > 0.0:                 # y on the rim, lost to rounding
-            return o, toward, zero
+            return o, toward, zero, -1
         scale = 2.0 * math.pi * omc / (pick * dens)
         L = get3(P, li, _sun.S_RADIANCE)
-        return o, (-toward[0], -toward[1], -toward[2]), (L[0] * scale, L[1] * scale, L[2] * scale)
+        return o, (-toward[0], -toward[1], -toward[2]), (L[0] * scale, L[1] * scale, L[2] * scale), -1
+    if LT.kind[li] == _point.POINT:
+        # A point light of radius r > 0: a line (direction d, offset b across it from the
+        # centre, |b| ≤ r). Every line that meets the sphere, or the disk a soft-falloff light
+        # turns towards each point it lights, passes within r of the centre, and one that also
+        # meets caster sphere k has its direction in the cone of that sphere grown by r. Density
+        # per steradian and unit area across d: dens(d) / (π r²).
+        pos = get3(P, li, _point.P_POS)
+        r = P[li, _point.P_RADIUS]
+        axis, omc = _cone(CT, k, pos, r)
+        d = sample_cone(axis, omc, u3, u4)
+        s, t = coordinate_system(d)
+        dx, dy = disk_concentric(u1, u2)
+        y = (pos[0] + r * (dx * s[0] + dy * t[0]), pos[1] + r * (dx * s[1] + dy * t[1]),
+             pos[2] + r * (dx * s[2] + dy * t[2]))
+        disk = I[li, _point.I_SHAPE] != _point.SHAPE_SPHERE
+        if not disk:
+            # leave from the sphere's surface, on the side the line goes
+            h = r * math.sqrt(max(1.0 - (dx * dx + dy * dy), 0.0))
+            y = (y[0] + h * d[0], y[1] + h * d[1], y[2] + h * d[2])
+        dens = _cone_density(CT, pos, d, r)
+        if not dens > 0.0:
+            return y, d, zero, -1
+        scale = _point.directional_factor(P, I, li, LT.aux, d) * math.pi * r * r / (pick * dens)
+        L = get3(P, li, _point.P_RADIANCE)
+        return y, d, (L[0] * scale, L[1] * scale, L[2] * scale), li if disk else -1
     # an area light: a point by area, a direction uniformly in the cone of a caster sphere
     dx, dy = disk_concentric(u1, u2)
     if I[li, _area.I_ELLIPSE] != 0:
@@ -226,17 +254,17 @@ def _emit(LT, CT, key):
     # off the emitter along its normal, past a ceiling or panel it lies on (a surface's offset)
     n = get3(P, li, _area.A_N)
     y = _offset(_area._point(P, li, lu, lv), n, n)
-    axis, omc = _cone(CT, k, y)
+    axis, omc = _cone(CT, k, y, 0.0)
     d = sample_cone(axis, omc, u3, u4)
     cos_out = _dot(d, n)
     if not cos_out > 0.0:
-        return y, d, zero
-    dens = _cone_density(CT, y, d)
+        return y, d, zero, -1
+    dens = _cone_density(CT, y, d, 0.0)
     if not dens > 0.0:
-        return y, d, zero
+        return y, d, zero, -1
     L = _area.radiance(P, I, li, cos_out)
     scale = cos_out * P[li, _area.A_AREA] / (pick * dens)
-    return y, d, (L[0] * scale, L[1] * scale, L[2] * scale)
+    return y, d, (L[0] * scale, L[1] * scale, L[2] * scale), -1
 
 
 @kernel(nogil=True)
@@ -257,7 +285,7 @@ def trace_photons(tables, CT, embree, pixel0, sample0, j0, n, pix, rgb, counts):
     while j < n and count + worst <= pix.shape[0]:
         j += 1
         key = path_key(CT.seed, pixel0, np.uint64(sample0) * np.uint64(1 << 32) + np.uint64(j - 1))
-        o, d, beta = _emit(LT, CT, key)
+        o, d, beta, disk_light = _emit(LT, CT, key)
         if not (beta[0] > 0.0 or beta[1] > 0.0 or beta[2] > 0.0):
             continue
         nd = 0
@@ -267,6 +295,11 @@ def trace_photons(tables, CT, embree, pixel0, sample0, j0, n, pix, rgb, counts):
             if pr < 0:
                 break
             p, ng, ns, tan = static_surface(G, R, pr, b1, b2)
+            if nd == 0 and disk_light >= 0:
+                # a soft-falloff light lights p only along lines through the disk it turns
+                # towards p (kernels/lights/point.py), as the path tracer sees it from p
+                if not _point.intersect(LT.params, LT.iparams, disk_light, p, (-d[0], -d[1], -d[2]), np.inf) < np.inf:
+                    break
             u, v = surface_uv(G, R, pr, b1, b2)
             m = G.irows[pr, ROW_MAT]
             if not S.caustic_plain[m]:
