@@ -1,13 +1,13 @@
 """Caustics traced from the lights against path tracing them (backend/kernels/caustics.py).
 
-A glass ball (``--ball gold``: a rough gold one) on a diffuse floor under a 5° sun and a small area light (the caustics fall in
-view), rendered with ``caustic_photons`` 0 (path traced only) and the values given, interleaved
+A glass ball (``--ball gold``: a rough gold one) on a diffuse floor under a 5° sun and a small
+area light (``--lamp point``: a small point light instead; the caustics fall in view), rendered with ``caustic_photons`` 0 (path traced only) and the values given, interleaved
 over ``--rounds`` passes: per variant, the image's summed per-pixel variance over ``--seeds``
 renders, the CPU per render (this process, one worker) and their product (lower is better at
 equal time). ``--demo`` adds the demo scene's noise figures (benchmarks/everyday.py's: image-wide
 and median pixel) with and without photons, 4 seeds at 32 spp, two workers.
 
-    .venv/bin/python -m benchmarks.caustics [--size 128] [--spp 16] [--seeds 6] [--photons 0.125,0.5] [--ball glass|gold] [--demo]
+    .venv/bin/python -m benchmarks.caustics [--size 128] [--spp 16] [--seeds 6] [--photons 0.125,0.5] [--ball glass|gold] [--lamp sun+area|point] [--demo]
 """
 from __future__ import annotations
 
@@ -27,10 +27,17 @@ BALLS = {"glass": {"type": "dielectric", "ior": 1.5, "roughness": 0.0},
          "gold": {"type": "conductor", "metal": "Au", "roughness": 0.09}}
 
 
-def glass_ball_scene(size: int, spp: int, seed: int, photons: float, ball: str = "glass") -> dict:
+#: ``--lamp point``: instead of the sun and the area light, Blender's default point light (a
+#: soft-falloff disk of radius 0.1 m) where the area light was.
+POINT_LAMP = {"type": "point", "power": 100.0, "radius": 0.1, "soft_falloff": True,
+              "to_world": [[1, 0, 0, 0.0], [0, 1, 0, 1.2], [0, 0, 1, 2.0], [0, 0, 0, 1]]}
+
+
+def glass_ball_scene(size: int, spp: int, seed: int, photons: float, ball: str = "glass",
+                     lamp: str = "sun+area") -> dict:
     """The scene of docs/benchmarks.md's caustics figures (fifth session, 2026-12-07)."""
     floor = {"positions": [[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]], "indices": [[0, 1, 2], [0, 2, 3]]}
-    return {"format": "lamina-scene", "version": 1, "film": {"width": size, "height": size},
+    data = {"format": "lamina-scene", "version": 1, "film": {"width": size, "height": size},
             "camera": {"type": "perspective",
                        "to_world": [[1, 0, 0, 0], [0, 0.6, -0.8, -3.2], [0, 0.8, 0.6, 3.0], [0, 0, 0, 1]],
                        "frame": [[0.45, 0.45, -1], [0.45, -0.45, -1], [-0.45, -0.45, -1], [-0.45, 0.45, -1]]},
@@ -45,6 +52,9 @@ def glass_ball_scene(size: int, spp: int, seed: int, photons: float, ball: str =
                         "to_world": [[1, 0, 0, 0.0], [0, 1, 0, 1.2], [0, 0, 1, 2.0], [0, 0, 0, 1]]}],
             "world": {"type": "constant", "color": [0.2, 0.25, 0.3]},
             "render": {"spp": spp, "max_bounces": 6, "seed": seed, "caustic_photons": photons}}
+    if lamp == "point":
+        data["lights"] = [POINT_LAMP]
+    return data
 
 
 def _glass_ball(args) -> None:
@@ -56,13 +66,13 @@ def _glass_ball(args) -> None:
             imgs, cpu = [], 0.0
             for s in range(args.seeds):
                 t0 = time.process_time()
-                r = render(glass_ball_scene(args.size, args.spp, 300 + s, ph, args.ball), args.spp, seed=300 + s,
-                           workers=1)
+                r = render(glass_ball_scene(args.size, args.spp, 300 + s, ph, args.ball, args.lamp), args.spp,
+                           seed=300 + s, workers=1)
                 cpu += time.process_time() - t0
                 imgs.append(r.image[..., :3])
             var = float(np.stack(imgs).var(axis=0, ddof=1).sum())
             out.setdefault(ph, []).append((var, cpu / args.seeds))
-    print(f"{args.ball} ball on a floor, {args.size}², {args.spp} spp, {args.seeds} seeds, load {os.getloadavg()[0]:.2f}")
+    print(f"{args.ball} ball on a floor ({args.lamp}), {args.size}², {args.spp} spp, {args.seeds} seeds, load {os.getloadavg()[0]:.2f}")
     for ph, runs in out.items():
         cells = "  ".join(f"variance {v:9.1f}  CPU {c:6.3f} s  product {v * c:9.1f}" for v, c in runs)
         print(f"  caustic_photons {ph:5.3f}: {cells}")
@@ -95,6 +105,7 @@ def main(argv=None) -> int:
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--photons", default="0.125,0.5", help="comma-separated caustic_photons besides 0")
     ap.add_argument("--ball", choices=sorted(BALLS), default="glass")
+    ap.add_argument("--lamp", choices=("sun+area", "point"), default="sun+area")
     ap.add_argument("--demo", action="store_true")
     args = ap.parse_args(argv)
     _glass_ball(args)
