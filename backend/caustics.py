@@ -174,12 +174,13 @@ def plan_caustics(scene, tracer) -> CausticPlan:
             covered[li] = True
         elif k == _area.AREA and lt.iparams[li, _area.I_EMITS] != 0:
             covered[li] = True
-        elif (k == _point.POINT and lt.iparams[li, _point.I_SHAPE] != _point.SHAPE_DELTA
-              and lt.params[li, _point.P_RADIUS] > 0.0
-              and float(LUMINANCE @ lt.params[li, _point.P_RADIANCE:_point.P_RADIANCE + 3]) > 0.0):
-            covered[li] = True
+        elif k == _point.POINT:
+            delta = lt.iparams[li, _point.I_SHAPE] == _point.SHAPE_DELTA
+            col = _point.P_INTENSITY if delta else _point.P_RADIANCE
+            covered[li] = ((delta or lt.params[li, _point.P_RADIUS] > 0.0)
+                           and float(LUMINANCE @ lt.params[li, col:col + 3]) > 0.0)
     if not covered.any():
-        return _off("no area light, point or spot light with a radius, or sun with an angle")
+        return _off("no area, point or spot light, or sun with an angle")
     spheres = caster_spheres(soup, casters)
     allv = np.asarray(soup.vertices, np.float64).reshape(-1, 3)
     mid = 0.5 * (allv.min(axis=0) + allv.max(axis=0))
@@ -241,6 +242,8 @@ def _flux_estimate(lt, li: int, center: np.ndarray, radius: float) -> float:
         f = 1.0
         if dist > 0.0:
             f = float(_point.directional_factor(P, lt.iparams, li, lt.aux, tuple(float(x) for x in d / dist)))
+        if lt.iparams[li, _point.I_SHAPE] == _point.SHAPE_DELTA:
+            return float(LUMINANCE @ P[li, _point.P_INTENSITY:_point.P_INTENSITY + 3]) * solid * max(f, 0.1)
         lum = float(LUMINANCE @ P[li, _point.P_RADIANCE:_point.P_RADIANCE + 3])
         return lum * np.pi * r * r * solid * max(f, 0.1)
     c = P[li, _area.A_CENTER:_area.A_CENTER + 3]

@@ -105,7 +105,8 @@ def base_cases(scratch: Path) -> list[Case]:
     lights = {"format": "lamina-scene", "version": 1, "film": {"width": 24, "height": 16},
               "camera": _camera(), "render": {"spp": 2, "max_bounces": 3, "seed": 1},
               "materials": {"floor": {"type": "diffuse", "color": {"texture": "tex.png"}},
-                            "metal": {"type": "conductor", "metal": "Au", "roughness": 0.2},
+                            # α 0.05: a caster (backend/caustics.py), so every light type sends photons
+                            "metal": {"type": "conductor", "metal": "Au", "roughness": 0.05},
                             "glass": {"type": "dielectric", "ior": 1.5, "roughness": 0.05},
                             "glow": {"type": "emission", "color": [1, 0.8, 0.6], "strength": 2}},
               "meshes": {"floor": floor, "ball": {"shape": "sphere", "radius": 0.5, "segments": 12},

@@ -18,9 +18,10 @@ lost. A path belongs to the light tracer exactly when
     backend/caustics.py CAUSTIC_ALPHA, metals CAUSTIC_ALPHA_METAL), at least one and at most
     max_bounces of them, none with a shading normal the path tracer bends for its view
     direction,
-  * and the light is *covered* (``CausticTables.lights``: an area light or a sun with an angle;
-    the path tracer cannot find a delta light through glass at all, so those stay uncounted,
-    as before and as in Cycles).
+  * and the light is *covered* (``CausticTables.lights``: an area light, a point or spot light,
+    a sun with an angle). A point light of radius 0 is a delta light: the path tracer finds it
+    off a glossy caster by light samples (which it then drops), never through smooth glass, so
+    there the photons add light that path tracing alone leaves out (as Cycles does).
 The path tracer drops exactly those paths (kernels/integrator.py: the ray leaving the camera hit
 carries ``CAUSTIC_FROM``, a caster vertex reached by such a ray takes no light sample of a
 covered light and no mirror probe, and its continuation carries ``CAUSTIC_CHAIN``, whose covered
@@ -221,7 +222,7 @@ def _emit(LT, CT, key):
         L = get3(P, li, _sun.S_RADIANCE)
         return o, (-toward[0], -toward[1], -toward[2]), (L[0] * scale, L[1] * scale, L[2] * scale), -1
     if LT.kind[li] == _point.POINT:
-        # A point light of radius r > 0: a line (direction d, offset b across it from the
+        # A point light of radius r > 0 is a line (direction d, offset b across it from the
         # centre, |b| ≤ r). Every line that meets the sphere, or the disk a soft-falloff light
         # turns towards each point it lights, passes within r of the centre, and one that also
         # meets caster sphere k has its direction in the cone of that sphere grown by r. Density
@@ -230,6 +231,14 @@ def _emit(LT, CT, key):
         r = P[li, _point.P_RADIUS]
         axis, omc = _cone(CT, k, pos, r)
         d = sample_cone(axis, omc, u3, u4)
+        if I[li, _point.I_SHAPE] == _point.SHAPE_DELTA:
+            # radius 0: intensity I(d) from the centre, directions only (density per steradian)
+            dens = _cone_density(CT, pos, d, 0.0)
+            if not dens > 0.0:
+                return pos, d, zero, -1
+            scale = _point.directional_factor(P, I, li, LT.aux, d) / (pick * dens)
+            Ie = get3(P, li, _point.P_INTENSITY)
+            return pos, d, (Ie[0] * scale, Ie[1] * scale, Ie[2] * scale), -1
         s, t = coordinate_system(d)
         dx, dy = disk_concentric(u1, u2)
         y = (pos[0] + r * (dx * s[0] + dy * t[0]), pos[1] + r * (dx * s[1] + dy * t[1]),
