@@ -16,6 +16,9 @@ from . import stats
 from .errors import LaminaError
 
 WORKER = {}
+#: Said in the message of a failure inside the renderer (an exception no check of the input
+#: foresaw); benchmarks/fuzz.py counts a case that ends with it as a failure.
+INTERNAL_ERROR = "this is a bug in Lamina"
 
 
 def scene_from_source(source):
@@ -109,7 +112,7 @@ def failure_text(exc: BaseException) -> str:
             where = f" at {Path(frames[-1].filename).name}:{frames[-1].lineno}"
     message = str(exc).strip().splitlines()[0][:200] if str(exc).strip() else ""
     return (f"a render worker failed ({type(exc).__name__}{': ' + message if message else ''}{where}); "
-            f"this is a bug in Lamina, please report it with the scene")
+            f"{INTERNAL_ERROR}, please report it with the scene")
 
 
 def wait_for(future, should_stop, every=None):

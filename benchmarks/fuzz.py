@@ -26,7 +26,6 @@ import contextlib
 import copy
 import io
 import json
-import math
 import random
 import shutil
 import signal
@@ -398,6 +397,9 @@ def run_case(case: Case, folder: Path) -> Outcome:
         elif code == 2:
             if len(errors) != 1:
                 problem = f"exit 2 with {len(errors)} error lines"
+            elif _internal_error() in errors[0]:
+                # a clear message, but for an exception inside the renderer: a bug all the same
+                problem = f"an internal error: {errors[0][:160]}"
             elif others:
                 problem = f"unexpected stderr line: {others[0][:120]}"
         else:
@@ -405,6 +407,11 @@ def run_case(case: Case, folder: Path) -> Outcome:
     if problem is None and seconds > SLOW_CASE:
         problem = f"took {seconds:.1f} s (> {SLOW_CASE:g} s: a hang?)"
     return Outcome(case.name, code, seconds, problem, errors[0][:200] if errors else "")
+
+
+def _internal_error() -> str:
+    from backend.work_items import INTERNAL_ERROR
+    return INTERNAL_ERROR
 
 
 def all_cases(seed: int, mutations: int, ies: bool = True, meshes: bool = True,

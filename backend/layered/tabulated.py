@@ -586,6 +586,11 @@ def _block(B, FT, kinds, settings) -> np.ndarray:
     o = if_offset(0)
     top = kinds[0]
     alpha = settings["top_alpha"] if top == "dielectric" else 0.0
+    if alpha > 0.0:
+        # the kernels evaluate the top's lobe from this; below ALPHA_MIN (1e-320 in a fuzzed
+        # scene) its distribution divided by zero there. _top_reflection clamps alike.
+        from ..kernels.microfacet_codes import ALPHA_MIN
+        alpha = max(alpha, ALPHA_MIN)
     eta = float(B[o + IF_P]) if top == "dielectric" else 1.0
     tint = np.array(B[o + IF_P + 1:o + IF_P + 4]) if top == "dielectric" else np.ones(3)
     dist, masking = int(B[o + IF_DIST]), int(B[o + IF_MASK])
