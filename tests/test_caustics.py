@@ -287,6 +287,22 @@ def test_a_crop_gets_no_caustic_outside_it():
     assert film.caustic.reshape(img.shape)[inside].sum() > 0.0
 
 
+def test_a_photon_never_picks_an_entry_of_probability_zero():
+    """``_pick`` (a binary search) against its definition: the first k with u < cdf[k + 1]."""
+    from backend.kernels.caustics import _pick
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 3, 7, 300):
+        w = rng.random(n) * (rng.random(n) < 0.6)
+        w[rng.integers(n)] = 1.0
+        cdf = np.concatenate([[0.0], np.cumsum(w) / w.sum()])
+        cdf[-1] = 1.0
+        us = np.concatenate([rng.random(200), cdf[:-1], [np.nextafter(1.0, 0.0)]])
+        for u in us[us < 1.0]:                      # u is in [0, 1)
+            k, p = _pick(cdf, u)
+            want = int(np.flatnonzero(u < cdf[1:])[0])
+            assert k == want and p == cdf[k + 1] - cdf[k] and p > 0.0
+
+
 def test_photon_flux_reaching_each_caster():
     """Whatever sphere a photon was aimed at, the flux arriving at each caster sphere is the
     light's: a sun gives L Ω π R² to every sphere (its irradiance over the cross-section), an

@@ -143,12 +143,18 @@ def project(proj, x):
 
 @kernel
 def _pick(cdf, u):
-    """Index k with cdf[k] ≤ u < cdf[k + 1] (a short linear scan: few entries) and its
-    probability."""
-    k = 0
-    while k < cdf.shape[0] - 2 and not u < cdf[k + 1]:
-        k += 1
-    return k, cdf[k + 1] - cdf[k]
+    """The first index k with u < cdf[k + 1] (so cdf[k] ≤ u: never an entry of probability 0;
+    the last one if none), and its probability. A binary search: a scene may cover hundreds of
+    lamps."""
+    lo = 0
+    hi = cdf.shape[0] - 2
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if u < cdf[mid + 1]:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo, cdf[lo + 1] - cdf[lo]
 
 
 @kernel
