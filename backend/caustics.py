@@ -170,8 +170,8 @@ def plan_caustics(scene, tracer) -> CausticPlan:
     covered = np.zeros(len(tracer.lights), np.bool_)
     for li in range(len(tracer.lights)):
         k = int(lt.kind[li])
-        if k == _sun.SUN and not lt.is_delta[li]:
-            covered[li] = True
+        if k == _sun.SUN:
+            covered[li] = float(LUMINANCE @ lt.params[li, _sun.S_IRRADIANCE:_sun.S_IRRADIANCE + 3]) > 0.0
         elif k == _area.AREA and lt.iparams[li, _area.I_EMITS] != 0:
             covered[li] = True
         elif k == _point.POINT:
@@ -180,7 +180,7 @@ def plan_caustics(scene, tracer) -> CausticPlan:
             covered[li] = ((delta or lt.params[li, _point.P_RADIUS] > 0.0)
                            and float(LUMINANCE @ lt.params[li, col:col + 3]) > 0.0)
     if not covered.any():
-        return _off("no area, point or spot light, or sun with an angle")
+        return _off("no area, point or spot light or sun")
     spheres = caster_spheres(soup, casters)
     allv = np.asarray(soup.vertices, np.float64).reshape(-1, 3)
     mid = 0.5 * (allv.min(axis=0) + allv.max(axis=0))

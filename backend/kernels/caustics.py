@@ -19,9 +19,9 @@ lost. A path belongs to the light tracer exactly when
     max_bounces of them, none with a shading normal the path tracer bends for its view
     direction,
   * and the light is *covered* (``CausticTables.lights``: an area light, a point or spot light,
-    a sun with an angle). A point light of radius 0 is a delta light: the path tracer finds it
-    off a glossy caster by light samples (which it then drops), never through smooth glass, so
-    there the photons add light that path tracing alone leaves out (as Cycles does).
+    a sun). A point light of radius 0 or a sun of angle 0 is a delta light: the path tracer finds
+    it off a glossy caster by light samples (which it then drops), never through smooth glass,
+    so there the photons add light that path tracing alone leaves out (as Cycles does).
 The path tracer drops exactly those paths (kernels/integrator.py: the ray leaving the camera hit
 carries ``CAUSTIC_FROM``, a caster vertex reached by such a ray takes no light sample of a
 covered light and no mirror probe, and its continuation carries ``CAUSTIC_CHAIN``, whose covered
@@ -213,8 +213,11 @@ def _emit(LT, CT, key):
     u3, u4 = uniform(key, D_DIR), uniform(key, D_DIR + 1)
     zero = (0.0, 0.0, 0.0)
     if LT.kind[li] == _sun.SUN:
+        # a direction in the sun's disk (one direction for a sun of angle 0), a line across it
+        # through caster sphere k
+        delta = I[li, _sun.I_DELTA] != 0
         omc = P[li, _sun.S_OMC]
-        toward = sample_cone(get3(P, li, _sun.S_DIR), omc, u3, u4)
+        toward = get3(P, li, _sun.S_DIR) if delta else sample_cone(get3(P, li, _sun.S_DIR), omc, u3, u4)
         s, t = coordinate_system(toward)
         dx, dy = disk_concentric(u1, u2)
         y = (c[0] + R * (dx * s[0] + dy * t[0]), c[1] + R * (dx * s[1] + dy * t[1]),
@@ -224,8 +227,12 @@ def _emit(LT, CT, key):
         dens = _line_density(CT, y, toward)
         if not dens > 0.0:                 # y on the rim, lost to rounding
             return o, toward, zero, -1
-        scale = 2.0 * math.pi * omc / (pick * dens)
-        L = get3(P, li, _sun.S_RADIANCE)
+        if delta:                          # irradiance E per unit area across the beam
+            scale = 1.0 / (pick * dens)
+            L = get3(P, li, _sun.S_IRRADIANCE)
+        else:
+            scale = 2.0 * math.pi * omc / (pick * dens)
+            L = get3(P, li, _sun.S_RADIANCE)
         return o, (-toward[0], -toward[1], -toward[2]), (L[0] * scale, L[1] * scale, L[2] * scale), -1
     if LT.kind[li] == _point.POINT:
         # A point light of radius r > 0 is a line (direction d, offset b across it from the
