@@ -16,6 +16,7 @@ from .kernels import materials as km
 from .kernels.caustics import (P_CROP, P_DS, P_DT, P_FAR, P_H, P_INV, P_N, P_NEAR, P_O, P_SUPPORT, P_TL, P_W,
                                PROJ_SIZE, CausticTables)
 from .kernels.lights import area as _area
+from .kernels.lights import mesh as _mesh
 from .kernels.lights import point as _point
 from .kernels.lights import sun as _sun
 
@@ -174,13 +175,15 @@ def plan_caustics(scene, tracer) -> CausticPlan:
             covered[li] = float(LUMINANCE @ lt.params[li, _sun.S_IRRADIANCE:_sun.S_IRRADIANCE + 3]) > 0.0
         elif k == _area.AREA and lt.iparams[li, _area.I_EMITS] != 0:
             covered[li] = True
+        elif k == _mesh.MESH:
+            covered[li] = lt.iparams[li, _mesh.I_DIST_OFF] >= 0
         elif k == _point.POINT:
             delta = lt.iparams[li, _point.I_SHAPE] == _point.SHAPE_DELTA
             col = _point.P_INTENSITY if delta else _point.P_RADIANCE
             covered[li] = ((delta or lt.params[li, _point.P_RADIUS] > 0.0)
                            and float(LUMINANCE @ lt.params[li, col:col + 3]) > 0.0)
     if not covered.any():
-        return _off("no area, point or spot light or sun")
+        return _off("no light the photons can leave (area, point, spot, sun, emissive surface)")
     spheres = caster_spheres(soup, casters)
     allv = np.asarray(soup.vertices, np.float64).reshape(-1, 3)
     mid = 0.5 * (allv.min(axis=0) + allv.max(axis=0))
@@ -246,6 +249,22 @@ def _flux_estimate(lt, li: int, center: np.ndarray, radius: float) -> float:
             return float(LUMINANCE @ P[li, _point.P_INTENSITY:_point.P_INTENSITY + 3]) * solid * max(f, 0.1)
         lum = float(LUMINANCE @ P[li, _point.P_RADIANCE:_point.P_RADIANCE + 3])
         return lum * np.pi * r * r * solid * max(f, 0.1)
+    if int(lt.kind[li]) == _mesh.MESH:
+        # every triangle's radiance × area × the cone the caster fills from its centroid × the
+        # cosine there (at least 0.05, as for an area light)
+        I, A = lt.iparams, lt.aux
+        count = int(I[li, _mesh.I_COUNT])
+        off = int(I[li, _mesh.I_TRI_OFF])
+        T = A[off:off + count * _mesh.TRI_STRIDE].reshape(count, _mesh.TRI_STRIDE)
+        cen = T[:, _mesh.T_V0:_mesh.T_V0 + 3] + (T[:, _mesh.T_E1:_mesh.T_E1 + 3] + T[:, _mesh.T_E2:_mesh.T_E2 + 3]) / 3
+        d = center - cen
+        dist = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+        solid = np.where(dist <= radius, 2.0 * np.pi,
+                         2.0 * np.pi * (1.0 - np.sqrt(np.maximum(1.0 - (radius / dist) ** 2, 0.0))))
+        cos = (d * T[:, _mesh.T_N:_mesh.T_N + 3]).sum(axis=1) / dist
+        cos = np.where(T[:, _mesh.T_TWO_SIDED] != 0.0, np.abs(cos), cos)
+        lum = T[:, _mesh.T_RAD:_mesh.T_RAD + 3] @ LUMINANCE
+        return float((lum * T[:, _mesh.T_AREA] * solid * np.maximum(cos, 0.05)).sum())
     c = P[li, _area.A_CENTER:_area.A_CENTER + 3]
     n = P[li, _area.A_N:_area.A_N + 3]
     d = center - c

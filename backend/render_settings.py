@@ -86,7 +86,7 @@ SETTINGS: tuple[Setting, ...] = (
             "noise on glossy reflections of lights, a shadow ray each)",
             lo=1, hi=MAX_GLOSSY_LIGHT_SAMPLES, label="Glossy Light Samples", kernel="glossy_light_samples"),
     Setting("caustic_photons", float, 0.125, "Caustics through smooth glass, mirrors and polished metals "
-            "traced from the lights (area, point and spot lights, suns): "
+            "traced from the lights (area, point and spot lights, suns, emissive surfaces): "
             "photons per camera sample; 0 = path traced only (noisier caustics, the same image on average)",
             lo=0.0, hi=64.0, label="Caustic Photons", ui={"soft_max": 8.0, "precision": 2}),
     # Blender shows it as a checkbox (Fail on Missing Textures, addon/props/scene.py).

@@ -19,7 +19,7 @@ lost. A path belongs to the light tracer exactly when
     max_bounces of them, none with a shading normal the path tracer bends for its view
     direction,
   * and the light is *covered* (``CausticTables.lights``: an area light, a point or spot light,
-    a sun). A point light of radius 0 or a sun of angle 0 is a delta light: the path tracer finds
+    a sun, the emissive triangles). A point light of radius 0 or a sun of angle 0 is a delta light: the path tracer finds
     it off a glossy caster by light samples (which it then drops), never through smooth glass,
     so there the photons add light that path tracing alone leaves out (as Cycles does).
 The path tracer drops exactly those paths (kernels/integrator.py: the ray leaving the camera hit
@@ -62,7 +62,9 @@ from . import materials as km
 from .bsdf import IMPORTANCE, RADIANCE
 from .integrator import _offset, _valid_reflection_normal, facing_viewer, static_surface, surface_uv
 from .jit import inlined, kernel
+from . import discrete as _discrete
 from .lights import area as _area
+from .lights import mesh as _mesh
 from .lights import point as _point
 from .lights import sun as _sun
 from .lights.common import get3, sample_cone, sin2_to_one_minus_cos
@@ -74,7 +76,7 @@ from .vec import dot as _dot
 from .vec import shading_frame as _frame
 from .vec import to_local as _local
 from .vec import to_world as _world
-from .warp import disk_concentric
+from .warp import disk_concentric, triangle_barycentric
 
 #: What the photon kernel reads besides the scene's tables (backend/caustics.py builds it):
 #:   lights     (k,) int64    the covered lights (rows of the light table)
@@ -199,7 +201,7 @@ def _cone_density(CT, y, d, widen):
 
 
 @kernel
-def _emit(LT, CT, key):
+def _emit(LT, TX, CT, key):
     """A photon from a covered light: (origin, direction, flux RGB already divided by the
     selection probability and the sampling density, and the light whose disk the first surface
     must see, −1 if none); flux 0 where it leaves nothing."""
@@ -267,6 +269,31 @@ def _emit(LT, CT, key):
         scale = _point.directional_factor(P, I, li, LT.aux, d) * math.pi * r * r / (pick * dens)
         L = get3(P, li, _point.P_RADIANCE)
         return y, d, (L[0] * scale, L[1] * scale, L[2] * scale), li if disk else -1
+    if LT.kind[li] == _mesh.MESH:
+        # emissive triangles: one by the light's own distribution (∝ area × radiance), a point
+        # on it, a direction in the cone of caster sphere k; the exact emission there
+        A, IA = LT.aux, LT.iaux
+        tri, prob, u_rem = _discrete.sample_1d(A, I[li, _mesh.I_DIST_OFF], I[li, _mesh.I_COUNT], u1)
+        b0, b1 = triangle_barycentric(u_rem, u2)
+        b2 = 1.0 - b0 - b1
+        r = I[li, _mesh.I_TRI_OFF] + tri * _mesh.TRI_STRIDE
+        x = (A[r] + b1 * A[r + _mesh.T_E1] + b2 * A[r + _mesh.T_E2],
+             A[r + 1] + b1 * A[r + _mesh.T_E1 + 1] + b2 * A[r + _mesh.T_E2 + 1],
+             A[r + 2] + b1 * A[r + _mesh.T_E1 + 2] + b2 * A[r + _mesh.T_E2 + 2])
+        n = (A[r + _mesh.T_N], A[r + _mesh.T_N + 1], A[r + _mesh.T_N + 2])
+        axis, omc = _cone(CT, k, x, 0.0)
+        d = sample_cone(axis, omc, u3, u4)
+        cos_n = _dot(d, n)
+        cos_out = abs(cos_n) if A[r + _mesh.T_TWO_SIDED] != 0.0 else cos_n
+        o = _offset(x, n, d)               # off the emitter, on the side the photon leaves
+        if not (cos_out > 0.0 and prob > 0.0):
+            return o, d, zero, -1
+        dens = _cone_density(CT, x, d, 0.0)
+        if not dens > 0.0:
+            return o, d, zero, -1
+        le = _mesh.emitted(I, li, A, IA, TX, tri, b0, b1, b2)
+        scale = cos_out * A[r + _mesh.T_AREA] / (pick * prob * dens)
+        return o, d, (le[0] * scale, le[1] * scale, le[2] * scale), -1
     # an area light: a point by area, a direction uniformly in the cone of a caster sphere
     dx, dy = disk_concentric(u1, u2)
     if I[li, _area.I_ELLIPSE] != 0:
@@ -307,7 +334,7 @@ def trace_photons(tables, CT, embree, pixel0, sample0, j0, n, pix, rgb, counts):
     while j < n and count + worst <= pix.shape[0]:
         j += 1
         key = path_key(CT.seed, pixel0, np.uint64(sample0) * np.uint64(1 << 32) + np.uint64(j - 1))
-        o, d, beta, disk_light = _emit(LT, CT, key)
+        o, d, beta, disk_light = _emit(LT, TX, CT, key)
         if not (beta[0] > 0.0 or beta[1] > 0.0 or beta[2] > 0.0):
             continue
         nd = 0

@@ -860,7 +860,9 @@ def shade(tables, segment, lanes, cur, hits, film, nxt, shadows, walk, queued, c
                 and not _linked(S.emit_recv[G.irows[pr, ROW_EMIT]], rv)):
             le = km.emission(MT, TX, m, u, v)
             c = (bt[0] * le[0], bt[1] * le[1], bt[2] * le[2])
-            if S.mesh_light >= 0:
+            if chain and S.mesh_light >= 0 and S.caustic_light[S.mesh_light]:
+                pass                           # a caustic path the photons take
+            elif S.mesh_light >= 0:
                 local = G.irows[pr, ROW_EMIT]
                 pdf_l = ld.mesh_pdf_hit(LT, S.mesh_light, ro, rd, t_surf, local) if local >= 0 else 0.0
                 _light_hit(LT, S, S.mesh_light, pdf_l, came, c, found, i, sl, -1, L, sh_c, queued, counts)
