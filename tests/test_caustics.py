@@ -148,7 +148,7 @@ def test_light_traced_caustics_keep_the_image(case):
 # profile's factor on the photons, z 11; with the aiming cone not grown by the radius, z 15.
 _LAMP = [[1, 0, 0, 0.0], [0, 1, 0, 1.2], [0, 0, 1, 2.0], [0, 0, 0, 1]]
 _IES = "IESNA:LM-63-2002\nTILT=NONE\n1 1000 1 3 1 1 2 0.1 0.1 0\n1 1 100\n0 30 90\n0\n600 1000 100\n"
-POINT_LIGHTS = {
+LAMPS = {
     "soft point light": {"type": "point", "power": 150.0, "radius": 0.8, "soft_falloff": True, "to_world": _LAMP},
     "sphere light": {"type": "point", "power": 150.0, "radius": 0.3, "to_world": _LAMP},
     "spot light with IES": {"type": "spot", "power": 300.0, "radius": 0.2, "soft_falloff": True, "spot_size": 70.0,
@@ -159,7 +159,7 @@ POINT_LIGHTS = {
 # gold it does, by its light samples there.
 DELTA_POINT = {"type": "point", "power": 150.0, "to_world": _LAMP}
 DELTA_SPOT = {"type": "spot", "power": 300.0, "spot_size": 70.0, "spot_blend": 0.5, "ies": {"data": _IES},
-              "to_world": POINT_LIGHTS["spot light with IES"]["to_world"]}
+              "to_world": LAMPS["spot light with IES"]["to_world"]}
 DELTA_SUN = {"type": "sun", "strength": 3.0, "angle": 0.0,
              "to_world": [[1, 0, 0, 0], [0, 0.8, 0.6, 0], [0, -0.6, 0.8, 10], [0, 0, 0, 1]]}
 @pytest.mark.parametrize("emitter", ["bulb", "panel"])
@@ -179,15 +179,23 @@ def test_emissive_surface_caustics_keep_the_image(emitter):
     assert b.var(axis=0, ddof=1)[:-1].sum() < 0.7 * a.var(axis=0, ddof=1)[:-1].sum()
 
 
-POINT_CASES = {**{k: (v, GLASS) for k, v in POINT_LIGHTS.items()},
+# Directional area lights (a profile over the angle to their normal: Blender's spread, and
+# Lamina's cutoff and beam width), tilted towards the ball
+_TILTED = [[1, 0, 0, 0.0], [0, 0.8, 0.6, 1.2], [0, -0.6, 0.8, 2.0], [0, 0, 0, 1]]
+LAMPS["area light with a spread"] = {"type": "area", "shape": "rectangle", "size": 0.8, "size_y": 0.5,
+                                            "power": 60.0, "spread": 40.0, "to_world": _TILTED}
+LAMPS["area light with a beam"] = {"type": "area", "shape": "square", "size": 0.8, "power": 60.0,
+                                          "cutoff_angle": 50.0, "beam_width": 30.0, "to_world": _TILTED}
+LAMP_CASES = {**{k: (v, GLASS) for k, v in LAMPS.items()},
                "delta point light on glossy gold": (DELTA_POINT, GLOSSY_GOLD),
                "delta spot light with IES on glossy gold": (DELTA_SPOT, GLOSSY_GOLD),
                "sun of angle 0 on glossy gold": (DELTA_SUN, GLOSSY_GOLD)}
 
 
-@pytest.mark.parametrize("case", list(POINT_CASES))
-def test_point_light_caustics_keep_the_image(case):
-    light, caster = POINT_CASES[case]
+@pytest.mark.parametrize("case", list(LAMP_CASES))
+def test_lamp_caustics_keep_the_image(case):
+    """Each lamp alone over the ball: path traced against light traced, region by region."""
+    light, caster = LAMP_CASES[case]
     lights = [light]
     seeds, blocks = 12, 4
     spp = 128 if caster is GLASS else 256
