@@ -227,6 +227,14 @@ def caster_spheres(soup, casters: np.ndarray) -> np.ndarray:
     return np.array(out, np.float64)
 
 
+def _cone_solid_angle(radius, dist):
+    """Solid angle of the cone a sphere of ``radius`` fills seen from ``dist`` away (2π, half the
+    sphere of directions, from inside it: what the flux estimates count there)."""
+    dist = np.asarray(dist, np.float64)
+    ratio = np.minimum(radius / np.maximum(dist, 1e-300), 1.0)
+    return np.where(dist <= radius, 2.0 * np.pi, 2.0 * np.pi * (1.0 - np.sqrt(np.maximum(1.0 - ratio ** 2, 0.0))))
+
+
 def _flux_estimate(lt, li: int, center: np.ndarray, radius: float) -> float:
     """Roughly the flux light ``li`` sends at a caster sphere (luminance), for choosing which
     light a photon leaves: only the variance depends on it."""
@@ -241,7 +249,7 @@ def _flux_estimate(lt, li: int, center: np.ndarray, radius: float) -> float:
         d = center - P[li, _point.P_POS:_point.P_POS + 3]
         dist = float(np.linalg.norm(d))
         R = radius + r
-        solid = 2.0 * np.pi if dist <= R else 2.0 * np.pi * (1.0 - np.sqrt(max(1.0 - (R / dist) ** 2, 0.0)))
+        solid = float(_cone_solid_angle(R, dist))
         f = 1.0
         if dist > 0.0:
             f = float(_point.directional_factor(P, lt.iparams, li, lt.aux, tuple(float(x) for x in d / dist)))
@@ -259,8 +267,7 @@ def _flux_estimate(lt, li: int, center: np.ndarray, radius: float) -> float:
         cen = T[:, _mesh.T_V0:_mesh.T_V0 + 3] + (T[:, _mesh.T_E1:_mesh.T_E1 + 3] + T[:, _mesh.T_E2:_mesh.T_E2 + 3]) / 3
         d = center - cen
         dist = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
-        solid = np.where(dist <= radius, 2.0 * np.pi,
-                         2.0 * np.pi * (1.0 - np.sqrt(np.maximum(1.0 - (radius / dist) ** 2, 0.0))))
+        solid = _cone_solid_angle(radius, dist)
         cos = (d * T[:, _mesh.T_N:_mesh.T_N + 3]).sum(axis=1) / dist
         cos = np.where(T[:, _mesh.T_TWO_SIDED] != 0.0, np.abs(cos), cos)
         lum = T[:, _mesh.T_RAD:_mesh.T_RAD + 3] @ LUMINANCE
@@ -269,10 +276,7 @@ def _flux_estimate(lt, li: int, center: np.ndarray, radius: float) -> float:
     n = P[li, _area.A_N:_area.A_N + 3]
     d = center - c
     dist = float(np.linalg.norm(d))
-    if dist <= radius:
-        solid, cos = 2.0 * np.pi, 0.5
-    else:
-        solid = 2.0 * np.pi * (1.0 - np.sqrt(max(1.0 - (radius / dist) ** 2, 0.0)))
-        cos = max(float(d @ n) / dist, 0.05)
+    solid = float(_cone_solid_angle(radius, dist))
+    cos = 0.5 if dist <= radius else max(float(d @ n) / dist, 0.05)
     lum = float(LUMINANCE @ P[li, _area.A_SCALE:_area.A_SCALE + 3])
     return lum * P[li, _area.A_AREA] * solid * cos

@@ -200,101 +200,113 @@ def _cone_density(CT, y, d, widen):
     return dens
 
 
-@kernel
-def _emit(LT, TX, CT, key):
-    """A photon from a covered light: (origin, direction, flux RGB already divided by the
-    selection probability and the sampling density, and the light whose disk the first surface
-    must see, −1 if none); flux 0 where it leaves nothing."""
-    li_k, pick = _pick(CT.cdf, uniform(key, D_PICK))
-    li = CT.lights[li_k]
-    k, _pk = _pick(CT.scdf, uniform(key, D_SPHERE))
+@inlined
+def _emit_sun(LT, CT, li, pick, k, u):
+    """A sun's photon: a direction in its disk (its one direction at angle 0), a line across
+    it through caster sphere k."""
     P, I = LT.params, LT.iparams
+    u1, u2, u3, u4 = u
+    zero = (0.0, 0.0, 0.0)
     c = (CT.spheres[k, 0], CT.spheres[k, 1], CT.spheres[k, 2])
     R = CT.spheres[k, 3]
-    u1, u2 = uniform(key, D_POS), uniform(key, D_POS + 1)
-    u3, u4 = uniform(key, D_DIR), uniform(key, D_DIR + 1)
+    delta = I[li, _sun.I_DELTA] != 0
+    omc = P[li, _sun.S_OMC]
+    toward = get3(P, li, _sun.S_DIR) if delta else sample_cone(get3(P, li, _sun.S_DIR), omc, u3, u4)
+    s, t = coordinate_system(toward)
+    dx, dy = disk_concentric(u1, u2)
+    y = (c[0] + R * (dx * s[0] + dy * t[0]), c[1] + R * (dx * s[1] + dy * t[1]),
+         c[2] + R * (dx * s[2] + dy * t[2]))
+    far = CT.far + R
+    o = (y[0] + far * toward[0], y[1] + far * toward[1], y[2] + far * toward[2])
+    dens = _line_density(CT, y, toward)
+    if not dens > 0.0:                 # y on the rim, lost to rounding
+        return o, toward, zero, -1
+    if delta:                          # irradiance E per unit area across the beam
+        scale = 1.0 / (pick * dens)
+        L = get3(P, li, _sun.S_IRRADIANCE)
+    else:
+        scale = 2.0 * math.pi * omc / (pick * dens)
+        L = get3(P, li, _sun.S_RADIANCE)
+    return o, (-toward[0], -toward[1], -toward[2]), (L[0] * scale, L[1] * scale, L[2] * scale), -1
+
+
+@inlined
+def _emit_point(LT, CT, li, pick, k, u):
+    """A point or spot light's photon (any radius, IES profile and spot cone included)."""
+    P, I = LT.params, LT.iparams
+    u1, u2, u3, u4 = u
     zero = (0.0, 0.0, 0.0)
-    if LT.kind[li] == _sun.SUN:
-        # a direction in the sun's disk (one direction for a sun of angle 0), a line across it
-        # through caster sphere k
-        delta = I[li, _sun.I_DELTA] != 0
-        omc = P[li, _sun.S_OMC]
-        toward = get3(P, li, _sun.S_DIR) if delta else sample_cone(get3(P, li, _sun.S_DIR), omc, u3, u4)
-        s, t = coordinate_system(toward)
-        dx, dy = disk_concentric(u1, u2)
-        y = (c[0] + R * (dx * s[0] + dy * t[0]), c[1] + R * (dx * s[1] + dy * t[1]),
-             c[2] + R * (dx * s[2] + dy * t[2]))
-        far = CT.far + R
-        o = (y[0] + far * toward[0], y[1] + far * toward[1], y[2] + far * toward[2])
-        dens = _line_density(CT, y, toward)
-        if not dens > 0.0:                 # y on the rim, lost to rounding
-            return o, toward, zero, -1
-        if delta:                          # irradiance E per unit area across the beam
-            scale = 1.0 / (pick * dens)
-            L = get3(P, li, _sun.S_IRRADIANCE)
-        else:
-            scale = 2.0 * math.pi * omc / (pick * dens)
-            L = get3(P, li, _sun.S_RADIANCE)
-        return o, (-toward[0], -toward[1], -toward[2]), (L[0] * scale, L[1] * scale, L[2] * scale), -1
-    if LT.kind[li] == _point.POINT:
-        # A point light of radius r > 0 is a line (direction d, offset b across it from the
-        # centre, |b| ≤ r). Every line that meets the sphere, or the disk a soft-falloff light
-        # turns towards each point it lights, passes within r of the centre, and one that also
-        # meets caster sphere k has its direction in the cone of that sphere grown by r. Density
-        # per steradian and unit area across d: dens(d) / (π r²).
-        pos = get3(P, li, _point.P_POS)
-        r = P[li, _point.P_RADIUS]
-        axis, omc = _cone(CT, k, pos, r)
-        d = sample_cone(axis, omc, u3, u4)
-        if I[li, _point.I_SHAPE] == _point.SHAPE_DELTA:
-            # radius 0: intensity I(d) from the centre, directions only (density per steradian)
-            dens = _cone_density(CT, pos, d, 0.0)
-            if not dens > 0.0:
-                return pos, d, zero, -1
-            scale = _point.directional_factor(P, I, li, LT.aux, d) / (pick * dens)
-            Ie = get3(P, li, _point.P_INTENSITY)
-            return pos, d, (Ie[0] * scale, Ie[1] * scale, Ie[2] * scale), -1
-        s, t = coordinate_system(d)
-        dx, dy = disk_concentric(u1, u2)
-        y = (pos[0] + r * (dx * s[0] + dy * t[0]), pos[1] + r * (dx * s[1] + dy * t[1]),
-             pos[2] + r * (dx * s[2] + dy * t[2]))
-        disk = I[li, _point.I_SHAPE] != _point.SHAPE_SPHERE
-        if not disk:
-            # leave from the sphere's surface, on the side the line goes
-            h = r * math.sqrt(max(1.0 - (dx * dx + dy * dy), 0.0))
-            y = (y[0] + h * d[0], y[1] + h * d[1], y[2] + h * d[2])
-        dens = _cone_density(CT, pos, d, r)
+    # A point light of radius r > 0 is a line (direction d, offset b across it from the
+    # centre, |b| ≤ r). Every line that meets the sphere, or the disk a soft-falloff light
+    # turns towards each point it lights, passes within r of the centre, and one that also
+    # meets caster sphere k has its direction in the cone of that sphere grown by r. Density
+    # per steradian and unit area across d: dens(d) / (π r²).
+    pos = get3(P, li, _point.P_POS)
+    r = P[li, _point.P_RADIUS]
+    axis, omc = _cone(CT, k, pos, r)
+    d = sample_cone(axis, omc, u3, u4)
+    if I[li, _point.I_SHAPE] == _point.SHAPE_DELTA:
+        # radius 0: intensity I(d) from the centre, directions only (density per steradian)
+        dens = _cone_density(CT, pos, d, 0.0)
         if not dens > 0.0:
-            return y, d, zero, -1
-        scale = _point.directional_factor(P, I, li, LT.aux, d) * math.pi * r * r / (pick * dens)
-        L = get3(P, li, _point.P_RADIANCE)
-        return y, d, (L[0] * scale, L[1] * scale, L[2] * scale), li if disk else -1
-    if LT.kind[li] == _mesh.MESH:
-        # emissive triangles: one by the light's own distribution (∝ area × radiance), a point
-        # on it, a direction in the cone of caster sphere k; the exact emission there
-        A, IA = LT.aux, LT.iaux
-        tri, prob, u_rem = _discrete.sample_1d(A, I[li, _mesh.I_DIST_OFF], I[li, _mesh.I_COUNT], u1)
-        b0, b1 = triangle_barycentric(u_rem, u2)
-        b2 = 1.0 - b0 - b1
-        r = I[li, _mesh.I_TRI_OFF] + tri * _mesh.TRI_STRIDE
-        x = (A[r] + b1 * A[r + _mesh.T_E1] + b2 * A[r + _mesh.T_E2],
-             A[r + 1] + b1 * A[r + _mesh.T_E1 + 1] + b2 * A[r + _mesh.T_E2 + 1],
-             A[r + 2] + b1 * A[r + _mesh.T_E1 + 2] + b2 * A[r + _mesh.T_E2 + 2])
-        n = (A[r + _mesh.T_N], A[r + _mesh.T_N + 1], A[r + _mesh.T_N + 2])
-        axis, omc = _cone(CT, k, x, 0.0)
-        d = sample_cone(axis, omc, u3, u4)
-        cos_n = _dot(d, n)
-        cos_out = abs(cos_n) if A[r + _mesh.T_TWO_SIDED] != 0.0 else cos_n
-        o = _offset(x, n, d)               # off the emitter, on the side the photon leaves
-        if not (cos_out > 0.0 and prob > 0.0):
-            return o, d, zero, -1
-        dens = _cone_density(CT, x, d, 0.0)
-        if not dens > 0.0:
-            return o, d, zero, -1
-        le = _mesh.emitted(I, li, A, IA, TX, tri, b0, b1, b2)
-        scale = cos_out * A[r + _mesh.T_AREA] / (pick * prob * dens)
-        return o, d, (le[0] * scale, le[1] * scale, le[2] * scale), -1
-    # an area light: a point by area, a direction uniformly in the cone of a caster sphere
+            return pos, d, zero, -1
+        scale = _point.directional_factor(P, I, li, LT.aux, d) / (pick * dens)
+        Ie = get3(P, li, _point.P_INTENSITY)
+        return pos, d, (Ie[0] * scale, Ie[1] * scale, Ie[2] * scale), -1
+    s, t = coordinate_system(d)
+    dx, dy = disk_concentric(u1, u2)
+    y = (pos[0] + r * (dx * s[0] + dy * t[0]), pos[1] + r * (dx * s[1] + dy * t[1]),
+         pos[2] + r * (dx * s[2] + dy * t[2]))
+    disk = I[li, _point.I_SHAPE] != _point.SHAPE_SPHERE
+    if not disk:
+        # leave from the sphere's surface, on the side the line goes
+        h = r * math.sqrt(max(1.0 - (dx * dx + dy * dy), 0.0))
+        y = (y[0] + h * d[0], y[1] + h * d[1], y[2] + h * d[2])
+    dens = _cone_density(CT, pos, d, r)
+    if not dens > 0.0:
+        return y, d, zero, -1
+    scale = _point.directional_factor(P, I, li, LT.aux, d) * math.pi * r * r / (pick * dens)
+    L = get3(P, li, _point.P_RADIANCE)
+    return y, d, (L[0] * scale, L[1] * scale, L[2] * scale), li if disk else -1
+
+
+@inlined
+def _emit_mesh(LT, TX, CT, li, pick, k, u):
+    """A photon of the emissive triangles (the mesh light): a triangle by the light's own
+    distribution (∝ area × radiance), a point on it, a direction in the cone of caster sphere
+    k; the exact emission there."""
+    I = LT.iparams
+    u1, u2, u3, u4 = u
+    zero = (0.0, 0.0, 0.0)
+    A, IA = LT.aux, LT.iaux
+    tri, prob, u_rem = _discrete.sample_1d(A, I[li, _mesh.I_DIST_OFF], I[li, _mesh.I_COUNT], u1)
+    b0, b1 = triangle_barycentric(u_rem, u2)
+    b2 = 1.0 - b0 - b1
+    r = I[li, _mesh.I_TRI_OFF] + tri * _mesh.TRI_STRIDE
+    x = _mesh.point_at(A, r, b1, b2)
+    n = (A[r + _mesh.T_N], A[r + _mesh.T_N + 1], A[r + _mesh.T_N + 2])
+    axis, omc = _cone(CT, k, x, 0.0)
+    d = sample_cone(axis, omc, u3, u4)
+    # the emitter's cosine as its light samples take it, seen back along the photon
+    cos_out = _mesh._cos_light(I, li, A, r, (-d[0], -d[1], -d[2]))
+    o = _offset(x, n, d)               # off the emitter, on the side the photon leaves
+    if not (cos_out > 0.0 and prob > 0.0):
+        return o, d, zero, -1
+    dens = _cone_density(CT, x, d, 0.0)
+    if not dens > 0.0:
+        return o, d, zero, -1
+    le = _mesh.emitted(I, li, A, IA, TX, tri, b0, b1, b2)
+    scale = cos_out * A[r + _mesh.T_AREA] / (pick * prob * dens)
+    return o, d, (le[0] * scale, le[1] * scale, le[2] * scale), -1
+
+
+@inlined
+def _emit_area(LT, CT, li, pick, k, u):
+    """An area light's photon: a point by area, a direction uniformly in the cone of caster
+    sphere k."""
+    P, I = LT.params, LT.iparams
+    u1, u2, u3, u4 = u
+    zero = (0.0, 0.0, 0.0)
     dx, dy = disk_concentric(u1, u2)
     if I[li, _area.I_ELLIPSE] != 0:
         lu, lv = dx * P[li, _area.A_HALF_U], dy * P[li, _area.A_HALF_V]
@@ -314,6 +326,25 @@ def _emit(LT, TX, CT, key):
     L = _area.radiance(P, I, li, cos_out)
     scale = cos_out * P[li, _area.A_AREA] / (pick * dens)
     return y, d, (L[0] * scale, L[1] * scale, L[2] * scale), -1
+
+
+@kernel
+def _emit(LT, TX, CT, key):
+    """A photon from a covered light: (origin, direction, flux RGB already divided by the
+    selection probability and the sampling density, and the light whose disk the first surface
+    must see, −1 if none); flux 0 where it leaves nothing."""
+    li_k, pick = _pick(CT.cdf, uniform(key, D_PICK))
+    li = CT.lights[li_k]
+    k, _pk = _pick(CT.scdf, uniform(key, D_SPHERE))
+    u = (uniform(key, D_POS), uniform(key, D_POS + 1), uniform(key, D_DIR), uniform(key, D_DIR + 1))
+    kind = LT.kind[li]
+    if kind == _sun.SUN:
+        return _emit_sun(LT, CT, li, pick, k, u)
+    if kind == _point.POINT:
+        return _emit_point(LT, CT, li, pick, k, u)
+    if kind == _mesh.MESH:
+        return _emit_mesh(LT, TX, CT, li, pick, k, u)
+    return _emit_area(LT, CT, li, pick, k, u)
 
 
 @kernel(nogil=True)

@@ -93,6 +93,11 @@ def plan(material, flat) -> dict | None:
         top_alpha = _alpha(top)
         if top_alpha is None or (ALPHA_SMOOTH < top_alpha < ALPHA_MIN):
             return None
+        # never rougher than nothing but below the kernels' smallest roughness, which they
+        # evaluate the top's lobe with (1e-320 in a fuzzed scene divided by zero there)
+        from ..kernels.microfacet_codes import ALPHA_MIN as KERNEL_ALPHA_MIN
+        if top_alpha > 0.0:
+            top_alpha = max(top_alpha, KERNEL_ALPHA_MIN)
         if top_alpha > ALPHA_SMOOTH:
             sharp.append(top_alpha)
     for m, kind in zip(ifaces[1:-1], kinds[1:-1]):
@@ -586,11 +591,6 @@ def _block(B, FT, kinds, settings) -> np.ndarray:
     o = if_offset(0)
     top = kinds[0]
     alpha = settings["top_alpha"] if top == "dielectric" else 0.0
-    if alpha > 0.0:
-        # the kernels evaluate the top's lobe from this; below ALPHA_MIN (1e-320 in a fuzzed
-        # scene) its distribution divided by zero there. _top_reflection clamps alike.
-        from ..kernels.microfacet_codes import ALPHA_MIN
-        alpha = max(alpha, ALPHA_MIN)
     eta = float(B[o + IF_P]) if top == "dielectric" else 1.0
     tint = np.array(B[o + IF_P + 1:o + IF_P + 4]) if top == "dielectric" else np.ones(3)
     dist, masking = int(B[o + IF_DIST]), int(B[o + IF_MASK])

@@ -69,6 +69,14 @@ def emitted(I, li, aux, iaux, tx, tri, b0, b1, b2):
     return param_rgb(tx, aux[e:e + 3], iaux[I[li, I_EMIT_TEX_OFF] + slot], u, v)
 
 
+@kernel
+def point_at(aux, r, b1, b2):
+    """The point b0·v0 + b1·v1 + b2·v2 of the triangle at row ``r``, from v0 and the edges."""
+    return (aux[r] + b1 * aux[r + T_E1] + b2 * aux[r + T_E2],
+            aux[r + 1] + b1 * aux[r + T_E1 + 1] + b2 * aux[r + T_E2 + 1],
+            aux[r + 2] + b1 * aux[r + T_E1 + 2] + b2 * aux[r + T_E2 + 2])
+
+
 @inlined
 def sample(I, li, aux, iaux, tx, p, u0, u1):
     wi, t, value, pdf, _ = sample_tri(I, li, aux, iaux, tx, p, u0, u1)
@@ -85,10 +93,7 @@ def sample_tri(I, li, aux, iaux, tx, p, u0, u1):
     b0, b1 = triangle_barycentric(u_rem, u1)
     b2 = 1.0 - b0 - b1
     r = I[li, I_TRI_OFF] + tri * TRI_STRIDE
-    # The point b0·v0 + b1·v1 + b2·v2, from v0 and the edges.
-    x = (aux[r] + b1 * aux[r + T_E1] + b2 * aux[r + T_E2],
-         aux[r + 1] + b1 * aux[r + T_E1 + 1] + b2 * aux[r + T_E2 + 1],
-         aux[r + 2] + b1 * aux[r + T_E1 + 2] + b2 * aux[r + T_E2 + 2])
+    x = point_at(aux, r, b1, b2)
     wi, t = unit_or_zero((x[0] - p[0], x[1] - p[1], x[2] - p[2]))
     cos_l = _cos_light(I, li, aux, r, wi)
     den = aux[r + T_AREA] * cos_l
